@@ -1,0 +1,29 @@
+# The two commands of the README, each doing its own set-up on a fresh machine:
+#   make square   -> runs the main job (the 1 m square experiment)
+#   make test     -> runs the test suite
+# The set-up creates .venv, installs the CPU build of PyTorch first (so that
+# stable-baselines3 does not pull a CUDA build), then the project with its
+# training and development extras. Override TORCH to use another build.
+
+PYTHON ?= python3
+VENV ?= .venv
+TORCH ?= torch==2.13.0
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: setup square test
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet "$(TORCH)"
+	$(BIN)/python -m pip install --quiet -e ".[train,dev]"
+	touch $(STAMP)
+
+square: $(STAMP)
+	$(BIN)/moma-env experiment square --out runs/square
+
+test: $(STAMP)
+	$(BIN)/python -m pytest

@@ -1,0 +1,98 @@
+"""The interface every camera backend implements, and what it is given to look at.
+
+Two backends turn the true scene into :class:`~moma_env.estimator.detection.Detection`
+objects through the same call:
+
+* :class:`~moma_env.camera.geometric.GeometricCamera` projects the board corners,
+  adds pixel noise and runs solvePnP (fast; for training).
+* a rendered backend (later) draws a synthetic image of the floor and the boards
+  and runs ``cv2.aruco.ArucoDetector`` and solvePnP on it (the real pipeline).
+
+The simulator hands a backend the camera pose and a :class:`BoardView` per board
+in the scene; it never tells the backend which boards are visible.
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from moma_env.camera.pinhole import PinholeCamera
+from moma_env.estimator.detection import Detection
+from moma_env.markers import BoardLayout
+
+__all__ = ["BoardView", "CameraBackend", "OcclusionQuery", "as_pose"]
+
+#: ``occluded(p_w_from, p_w_to) -> bool``: True if the line of sight between two
+#: world points (m, shape (3,)) is blocked, e.g. by a pymunk segment query.
+OcclusionQuery = Callable[[np.ndarray, np.ndarray], bool]
+
+
+def as_pose(T: object, name: str) -> np.ndarray:
+    """``T`` as a finite float 4x4 array (no copy if it already is one); ValueError naming ``name`` otherwise."""
+    T = np.asarray(T, dtype=float)
+    if T.shape != (4, 4):
+        raise ValueError(f"{name} must be a 4x4 pose, got shape {T.shape}")
+    if not np.isfinite(T).all():
+        raise ValueError(f"{name} must be finite, got {T.tolist()}")
+    return T
+
+
+@dataclass(frozen=True, slots=True)
+class BoardView:
+    """A board in the scene, as the camera backends see it.
+
+    Attributes:
+        board_id: integer id of the board (copied into its detections).
+        layout: marker layout (ids and corners in the board frame M).
+        T_w_m: 4x4 pose of the board frame M in the world W (m). Stored as a
+            float array without copying; do not mutate it while the view is in use.
+    """
+
+    board_id: int
+    layout: BoardLayout
+    T_w_m: np.ndarray
+
+    def __post_init__(self) -> None:
+        try:
+            object.__setattr__(self, "board_id", operator.index(self.board_id))
+        except TypeError:
+            raise TypeError(f"board_id must be an integer, got {self.board_id!r}") from None
+        if not isinstance(self.layout, BoardLayout):
+            raise TypeError(f"layout must be a BoardLayout, got {type(self.layout).__name__}")
+        object.__setattr__(self, "T_w_m", as_pose(self.T_w_m, "T_w_m"))
+
+
+@runtime_checkable
+class CameraBackend(Protocol):
+    """A camera that turns the true scene into board detections.
+
+    Attributes:
+        camera_id: name copied into every detection.
+        camera: the intrinsic model (image size, K, distortion, limits).
+
+    ``measure`` returns one :class:`Detection` per board it detects, in the order
+    of ``boards``, each with ``T_c_m`` from solvePnP on the detected corners, the
+    corners in pixels, the ids of the markers used, ``time`` and the RMS
+    reprojection error. Boards with no detectable marker are left out. Every
+    random draw comes from ``rng`` (same state, same scene -> same detections).
+    ``occluded`` is an optional line-of-sight query (see :data:`OcclusionQuery`).
+    """
+
+    camera_id: str
+    camera: PinholeCamera
+
+    def measure(
+        self,
+        T_w_c: np.ndarray,
+        boards: Sequence[BoardView],
+        time: float,
+        rng: np.random.Generator,
+        occluded: OcclusionQuery | None = None,
+    ) -> list[Detection]:
+        """Detections of ``boards`` seen from the camera pose ``T_w_c`` (4x4, C in W) at ``time`` (s)."""
+        ...

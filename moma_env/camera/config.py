@@ -1,0 +1,141 @@
+"""Camera configuration: intrinsics, lens distortion, pixel noise and visibility limits.
+
+Defaults model the observer of the paper: an Ar.Drone 2.0 analogue camera, PAL
+720x576 px, with a mild barrel distortion and about half a pixel of corner noise.
+
+Pixel convention (OpenCV): pixel centres sit at integer coordinates ``(u, v)``,
+``u`` to the right, ``v`` down, so the sensor spans ``[-0.5, width - 0.5] x
+[-0.5, height - 0.5]`` and its centre is ``((width - 1) / 2, (height - 1) / 2)``.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+from moma_env.camera.distortion import N_DIST_COEFFS, distorted_radius, fold_radius_sq
+from moma_env.config import (
+    ConfigError,
+    check_choice,
+    check_finite,
+    check_non_negative,
+    check_positive,
+    check_range,
+)
+
+__all__ = ["CameraConfig", "PNP_METHODS"]
+
+#: solvePnP methods a camera may use (names of ``cv2.SOLVEPNP_*`` without the prefix).
+PNP_METHODS = ("IPPE", "ITERATIVE", "SQPNP")
+
+
+def _check_positive_int(field: str, value: object) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ConfigError(field, f"must be an integer, got {value!r}")
+    if value <= 0:
+        raise ConfigError(field, f"must be > 0, got {value!r}")
+    return int(value)
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """Intrinsics, distortion, noise and visibility limits of one camera.
+
+    Attributes:
+        width, height: image size (px).
+        fx, fy: focal lengths (px). ``fy=None`` means square pixels (``fy = fx``).
+        cx, cy: principal point (px); ``None`` means the image centre,
+            ``((width - 1) / 2, (height - 1) / 2)``.
+        dist: OpenCV distortion ``(k1, k2, p1, p2, k3)``; fewer values mean the
+            missing trailing ones are zero. Stored as five floats. The radial
+            mapping must be one-to-one over the whole image (no fold-over).
+        noise_px: standard deviation of the Gaussian noise added to each corner
+            coordinate (px).
+        margin_px: a marker corner must lie this far inside the sensor border (px).
+        min_marker_px: shortest imaged side of a marker for it to be detected (px).
+        max_incidence_deg: largest angle between the board normal z_M and the
+            direction from the marker to the camera (deg), in (0, 90].
+        min_range_m: every corner must be at least this far in front of the camera
+            (depth z_C, m).
+        max_range_m: largest distance from the camera centre to a marker centre (m).
+        pnp_method: ``"IPPE"`` (default; closed form for planar targets),
+            ``"ITERATIVE"`` (IPPE, then Levenberg-Marquardt on the reprojection
+            error: the maximum-likelihood pose, less than half IPPE's rotation error
+            on face-on boards, ~1.7x the time) or ``"SQPNP"``. All are exact
+            without noise.
+    """
+
+    width: int = 720
+    height: int = 576
+    fx: float = 420.0
+    fy: float | None = None
+    cx: float | None = None
+    cy: float | None = None
+    dist: tuple[float, ...] = (-0.05, 0.01, 0.0, 0.0, 0.0)
+    noise_px: float = 0.5
+    margin_px: float = 5.0
+    min_marker_px: float = 12.0
+    max_incidence_deg: float = 70.0
+    min_range_m: float = 0.1
+    max_range_m: float = 8.0
+    pnp_method: str = "IPPE"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "width", _check_positive_int("camera.width", self.width))
+        object.__setattr__(self, "height", _check_positive_int("camera.height", self.height))
+        check_positive("camera.fx", self.fx)
+        if self.fy is None:
+            object.__setattr__(self, "fy", float(self.fx))
+        check_positive("camera.fy", self.fy)
+        if self.cx is None:
+            object.__setattr__(self, "cx", (self.width - 1) / 2.0)
+        if self.cy is None:
+            object.__setattr__(self, "cy", (self.height - 1) / 2.0)
+        check_range("camera.cx", self.cx, -0.5, self.width - 0.5)
+        check_range("camera.cy", self.cy, -0.5, self.height - 0.5)
+        for name in ("fx", "fy", "cx", "cy"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+        object.__setattr__(self, "dist", self._validated_dist())
+        check_non_negative("camera.noise_px", self.noise_px)
+        check_non_negative("camera.margin_px", self.margin_px)
+        if 2.0 * self.margin_px >= min(self.width, self.height):
+            raise ConfigError(
+                "camera.margin_px", f"leaves no image area ({self.margin_px} px on a {self.width}x{self.height} image)"
+            )
+        check_non_negative("camera.min_marker_px", self.min_marker_px)
+        check_finite("camera.max_incidence_deg", self.max_incidence_deg)
+        if not 0.0 < self.max_incidence_deg <= 90.0:
+            raise ConfigError("camera.max_incidence_deg", f"must be in (0, 90], got {self.max_incidence_deg!r}")
+        check_positive("camera.min_range_m", self.min_range_m)
+        check_positive("camera.max_range_m", self.max_range_m)
+        if self.max_range_m <= self.min_range_m:
+            raise ConfigError(
+                "camera.max_range_m", f"must exceed min_range_m={self.min_range_m}, got {self.max_range_m!r}"
+            )
+        check_choice("camera.pnp_method", self.pnp_method, PNP_METHODS)
+
+    def _validated_dist(self) -> tuple[float, float, float, float, float]:
+        try:
+            coeffs = tuple(self.dist)
+        except TypeError:
+            raise ConfigError("camera.dist", f"must be a sequence of numbers, got {self.dist!r}") from None
+        if len(coeffs) > N_DIST_COEFFS:
+            raise ConfigError(
+                "camera.dist", f"at most {N_DIST_COEFFS} coefficients (k1, k2, p1, p2, k3), got {len(coeffs)}"
+            )
+        for c in coeffs:
+            check_finite("camera.dist", c)
+        full = tuple(float(c) for c in coeffs) + (0.0,) * (N_DIST_COEFFS - len(coeffs))
+        # The radial mapping must be one-to-one over the whole image, or points
+        # outside the field of view would fold back into it.
+        s_fold = fold_radius_sq(full)
+        if math.isfinite(s_fold):
+            xs = ((-0.5 - self.cx) / self.fx, (self.width - 0.5 - self.cx) / self.fx)
+            ys = ((-0.5 - self.cy) / self.fy, (self.height - 0.5 - self.cy) / self.fy)
+            corner_radius = max(math.hypot(x, y) for x in xs for y in ys)
+            if corner_radius >= distorted_radius(s_fold, full):
+                raise ConfigError(
+                    "camera.dist", "radial distortion folds over inside the image (not one-to-one); reduce k1/k2/k3"
+                )
+        return full  # type: ignore[return-value]

@@ -1,0 +1,44 @@
+"""The measurement the estimator consumes: one board seen by one camera.
+
+Any camera pipeline produces these: the simulator's geometric and rendered
+backends, or a real camera running ``cv2.aruco`` and ``solvePnP``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Detection"]
+
+
+@dataclass(frozen=True, eq=False)
+class Detection:
+    """A board detected in one image.
+
+    Attributes:
+        camera_id: name of the camera that took the image.
+        board_id: integer id of the board (not of a single marker).
+        T_c_m: 4x4 pose of the board frame M in the camera frame C (OpenCV
+            conventions; metres), i.e. solvePnP's rvec/tvec as a matrix.
+        corners_px: (k, 2) pixel coordinates of the detected marker corners used
+            for the pose, in ArUco corner order, marker by marker; may be empty
+            for a source that only provides poses.
+        marker_ids: ids of the markers whose corners are in ``corners_px``.
+        time: acquisition time of the image (s).
+        reprojection_error_px: RMS reprojection error of the pose (px), or NaN.
+    """
+
+    camera_id: str
+    board_id: int
+    T_c_m: np.ndarray
+    corners_px: np.ndarray
+    marker_ids: tuple[int, ...]
+    time: float
+    reprojection_error_px: float = float("nan")
+
+    @property
+    def n_markers(self) -> int:
+        """Number of markers that contributed to the pose."""
+        return len(self.marker_ids)

@@ -1,0 +1,458 @@
+"""The MOMA estimator: robots localise each other through boards and cameras.
+
+See the package docstring (:mod:`moma_env.estimator`) for the frames, the
+mapping of the paper's G notation, and the update rules.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+
+from moma_env.config import ConfigError
+from moma_env.estimator.config import EstimatorConfig
+from moma_env.estimator.detection import Detection
+from moma_env.estimator.errors import (
+    UnknownBoardError,
+    UnknownCameraError,
+    UnknownRobotError,
+)
+from moma_env.estimator.gate import OutlierGate
+from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
+from moma_env.estimator.window import SwitchWindow
+from moma_env.geometry import invert, mean_pose
+
+__all__ = ["MomaEstimator"]
+
+_MOBILE = Phase.MOBILE
+_SETTLING = Phase.SETTLING
+_REFERENCE = Phase.REFERENCE
+
+#: Tolerances when checking that a given mount or pose is a rigid transform.
+_ORTHONORMAL_TOL = 1e-6
+
+
+def _rigid(field: str, value: object) -> np.ndarray:
+    """A float copy of ``value`` if it is a 4x4 rigid transform, else ConfigError."""
+    try:
+        T = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(field, f"must be a 4x4 array of numbers, got {value!r}") from None
+    if T.shape != (4, 4):
+        raise ConfigError(field, f"must be a 4x4 transform, got shape {T.shape}")
+    if not np.isfinite(T).all():
+        raise ConfigError(field, "must be finite (found NaN or inf)")
+    R = T[:3, :3]
+    if (
+        np.abs(T[3] - (0.0, 0.0, 0.0, 1.0)).max() > _ORTHONORMAL_TOL
+        or np.abs(R.T @ R - np.eye(3)).max() > _ORTHONORMAL_TOL
+        or np.linalg.det(R) < 0.0
+    ):
+        raise ConfigError(field, "must be a rigid transform (orthonormal rotation, last row 0 0 0 1)")
+    return T
+
+
+class _Robot:
+    """Mutable per-robot state of the estimator (private)."""
+
+    __slots__ = (
+        "name",
+        "board_mounts",
+        "board_inverses",
+        "camera_mounts",
+        "camera_inverses",
+        "phase",
+        "pose",
+        "status",
+        "last_fresh_time",
+        "lost_logged",
+        "window",
+        "n_frozen",
+        "static_since",
+        "gate",
+        "board_world",
+        "camera_world",
+    )
+
+    def __init__(
+        self,
+        name: str,
+        board_mounts: dict[int, np.ndarray],
+        camera_mounts: dict[str, np.ndarray],
+        window: int,
+        gate: OutlierGate | None,
+    ):
+        self.name = name
+        self.board_mounts = board_mounts  # board_id -> T_b_m
+        self.board_inverses = {k: invert(T) for k, T in board_mounts.items()}  # T_m_b
+        self.camera_mounts = camera_mounts  # camera_id -> T_b_c
+        self.camera_inverses = {k: invert(T) for k, T in camera_mounts.items()}  # T_c_b
+        self.phase = _MOBILE
+        self.pose: np.ndarray | None = None  # reported T_w_b
+        self.status = Status.LOST
+        self.last_fresh_time: float | None = None
+        self.lost_logged = False
+        self.window = SwitchWindow(window)
+        self.n_frozen = 0
+        self.static_since = 0.0
+        self.gate = gate
+        self.board_world: dict[int, np.ndarray] = {}  # board_id -> T_w_m, REFERENCE only
+        self.camera_world: dict[str, np.ndarray] = {}  # camera_id -> T_w_c, REFERENCE only
+
+
+class MomaEstimator:
+    """Tracks the pose ``T_w_b`` of every robot from board detections (MOMA).
+
+    Usage::
+
+        est = MomaEstimator(EstimatorConfig())
+        est.add_robot("ugv_0", boards={0: T_b_m}, static=True, initial_pose=T_w_b0)
+        est.add_robot("uav", cameras={"down": T_b_c}, static=False)
+        est.update(t, detections)         # once per camera frame (all cameras)
+        est.set_static("ugv_0", False, t) # the owner's declarations
+        est.estimate("ugv_0").T_w_b
+
+    Times (s) must not go backwards across ``add_robot``, ``update`` and
+    ``set_static``. The ``time`` of :meth:`update` is authoritative; the
+    detections' own ``time`` fields are not used.
+    """
+
+    def __init__(self, config: EstimatorConfig | None = None):
+        if config is None:
+            config = EstimatorConfig()
+        if not isinstance(config, EstimatorConfig):
+            raise TypeError(f"config must be an EstimatorConfig, got {type(config).__name__}")
+        self._config = config
+        self._robots: dict[str, _Robot] = {}
+        self._board_owner: dict[int, _Robot] = {}
+        self._camera_owner: dict[str, _Robot] = {}
+        self._reference_cameras: dict[str, np.ndarray] = {}  # T_w_c of cameras on REFERENCE robots
+        self._camera_poses: dict[str, np.ndarray] = {}  # T_w_c located in the last update
+        self._events: list[SwitchEvent] = []
+        self._time: float | None = None
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def config(self) -> EstimatorConfig:
+        """The configuration."""
+        return self._config
+
+    @property
+    def time(self) -> float | None:
+        """Time (s) of the last call that took a time, None before any."""
+        return self._time
+
+    @property
+    def robots(self) -> tuple[str, ...]:
+        """Names of the robots, in the order they were added."""
+        return tuple(self._robots)
+
+    @property
+    def events(self) -> tuple[SwitchEvent, ...]:
+        """Every switch event so far, in order."""
+        return tuple(self._events)
+
+    def estimate(self, name: str) -> RobotEstimate:
+        """Snapshot of robot ``name``'s estimate (the pose is a copy)."""
+        r = self._robot(name)
+        if r.phase is _SETTLING:
+            n_window = len(r.window)
+        elif r.phase is _REFERENCE:
+            n_window = r.n_frozen
+        else:
+            n_window = 0
+        return RobotEstimate(
+            name=r.name,
+            T_w_b=None if r.pose is None else r.pose.copy(),
+            status=r.status,
+            phase=r.phase,
+            last_fresh_time=r.last_fresh_time,
+            n_window=n_window,
+        )
+
+    def estimates(self) -> dict[str, RobotEstimate]:
+        """Snapshots of every robot, by name."""
+        return {name: self.estimate(name) for name in self._robots}
+
+    def camera_pose(self, camera_id: str) -> np.ndarray | None:
+        """``T_w_c`` (4x4 copy) of a camera located in the last update, else None."""
+        if camera_id not in self._camera_owner:
+            raise UnknownCameraError(camera_id, self._camera_owner)
+        T = self._camera_poses.get(camera_id)
+        return None if T is None else T.copy()
+
+    # ------------------------------------------------------------ declarations
+    def add_robot(
+        self,
+        name: str,
+        *,
+        boards: Mapping[int, np.ndarray] | None = None,
+        cameras: Mapping[str, np.ndarray] | None = None,
+        static: bool,
+        initial_pose: np.ndarray | None = None,
+        time: float | None = None,
+    ) -> None:
+        """Declare a robot.
+
+        Args:
+            name: unique robot name.
+            boards: board_id -> ``T_b_m``, the board frame M in the body frame B (m).
+            cameras: camera_id -> ``T_b_c``, the camera frame C in the body frame B (m).
+            static: the owner's declaration. A static robot with an initial pose
+                is a frozen reference from the start (it defines the world frame
+                W); a static robot without one settles once it is measured.
+            initial_pose: ``T_w_b`` at ``time``, or None if unknown.
+            time: time of the declaration (s); None means the estimator's last
+                time (0.0 before any).
+
+        Raises:
+            ConfigError: bad or duplicate name, board id or camera id,
+                or a mount / pose that is not a finite rigid transform.
+            ValueError: ``time`` is not finite or goes backwards.
+        """
+        if not isinstance(name, str) or not name:
+            raise ConfigError("name", f"robot name must be a non-empty string, got {name!r}")
+        if name in self._robots:
+            raise ConfigError("name", f"duplicate robot name {name!r}")
+        if not isinstance(static, bool):
+            raise ConfigError(f"robots[{name!r}].static", f"must be a bool, got {static!r}")
+        if time is None:
+            time = 0.0 if self._time is None else self._time
+        t = self._checked_time(time)
+
+        board_mounts: dict[int, np.ndarray] = {}
+        for board_id, mount in self._mapping(f"robots[{name!r}].boards", boards).items():
+            if isinstance(board_id, bool) or not isinstance(board_id, (int, np.integer)):
+                raise ConfigError(f"robots[{name!r}].boards", f"board ids must be integers, got {board_id!r}")
+            board_id = int(board_id)
+            owner = self._board_owner.get(board_id)
+            if owner is not None:
+                raise ConfigError(
+                    f"robots[{name!r}].boards", f"duplicate board id {board_id} (already on robot {owner.name!r})"
+                )
+            board_mounts[board_id] = _rigid(f"robots[{name!r}].boards[{board_id}]", mount)
+
+        camera_mounts: dict[str, np.ndarray] = {}
+        for camera_id, mount in self._mapping(f"robots[{name!r}].cameras", cameras).items():
+            if not isinstance(camera_id, str) or not camera_id:
+                raise ConfigError(
+                    f"robots[{name!r}].cameras", f"camera ids must be non-empty strings, got {camera_id!r}"
+                )
+            owner = self._camera_owner.get(camera_id)
+            if owner is not None:
+                raise ConfigError(
+                    f"robots[{name!r}].cameras", f"duplicate camera id {camera_id!r} (already on robot {owner.name!r})"
+                )
+            camera_mounts[camera_id] = _rigid(f"robots[{name!r}].cameras[{camera_id!r}]", mount)
+
+        pose = None if initial_pose is None else _rigid(f"robots[{name!r}].initial_pose", initial_pose)
+
+        cfg = self._config
+        gate = OutlierGate(cfg.gate) if cfg.gate is not None and cfg.gate.enabled else None
+        r = _Robot(name, board_mounts, camera_mounts, cfg.window, gate)
+        r.pose = pose
+        if pose is not None:
+            r.last_fresh_time = t
+            r.status = Status.LOCALISED
+            if gate is not None:
+                gate.reset(seed=(pose[0, 3], pose[1, 3], pose[2, 3]), time=t)
+        if static:
+            r.phase = _SETTLING
+            r.static_since = t
+            if pose is not None:
+                self._freeze(r, t, 0, log=False)
+
+        self._time = t
+        self._robots[name] = r
+        for board_id in board_mounts:
+            self._board_owner[board_id] = r
+        for camera_id in camera_mounts:
+            self._camera_owner[camera_id] = r
+
+    def set_static(self, name: str, static: bool, time: float) -> None:
+        """The owner declares robot ``name`` static (True) or mobile (False) at ``time`` (s).
+
+        Static: a MOBILE robot starts SETTLING with an empty window; its last
+        fresh pose stays its reported pose until a window sample arrives.
+        Mobile: first every other SETTLING robot is frozen, from its window
+        samples if it has any, else at its last fresh pose (so a reference
+        always exists); then the robot leaves REFERENCE / SETTLING and is
+        tracked at every update. Repeating the current declaration does nothing.
+        """
+        r = self._robot(name)
+        if not isinstance(static, bool):
+            raise ValueError(f"static must be a bool, got {static!r}")
+        t = self._checked_time(time)
+        self._time = t
+        if static:
+            if r.phase is _MOBILE:
+                r.phase = _SETTLING
+                r.window.clear()
+                r.static_since = t
+                self._events.append(SwitchEvent(t, name, "static", 0))
+            return
+        if r.phase is _MOBILE:
+            return
+        for other in self._robots.values():
+            if other is not r and other.phase is _SETTLING and other.pose is not None:
+                self._freeze(other, t, len(other.window))
+        pose_valid_now = r.phase is _REFERENCE or len(r.window) > 0
+        if r.phase is _REFERENCE:
+            for camera_id in r.camera_world:
+                del self._reference_cameras[camera_id]
+            r.board_world = {}
+            r.camera_world = {}
+            if r.gate is not None:
+                r.gate.reset(seed=(r.pose[0, 3], r.pose[1, 3], r.pose[2, 3]), time=t)  # type: ignore[index]
+        r.phase = _MOBILE
+        r.window.clear()
+        r.n_frozen = 0
+        if pose_valid_now:
+            r.last_fresh_time = t
+            r.status = Status.LOCALISED
+        self._events.append(SwitchEvent(t, name, "mobile", 0))
+
+    # ------------------------------------------------------------------ update
+    def update(self, time: float, detections: Iterable[Detection]) -> None:
+        """Process one camera frame (the detections of every camera) taken at ``time`` (s).
+
+        Raises (before changing any state):
+            UnknownCameraError / UnknownBoardError: an id no robot carries.
+            ValueError: a ``T_c_m`` that is not a finite 4x4 array, or ``time``
+                not finite or going backwards.
+        """
+        t = self._checked_time(time)
+        camera_owner = self._camera_owner
+        board_owner = self._board_owner
+        by_camera: dict[str, list[Detection]] = {}
+        for d in detections:
+            camera_id = d.camera_id
+            if camera_id not in camera_owner:
+                raise UnknownCameraError(camera_id, camera_owner)
+            if d.board_id not in board_owner:
+                raise UnknownBoardError(d.board_id, board_owner)
+            T_c_m = d.T_c_m
+            if not isinstance(T_c_m, np.ndarray) or T_c_m.shape != (4, 4) or not np.isfinite(T_c_m).all():
+                raise ValueError(
+                    f"detection of board {d.board_id} by camera {camera_id!r}: T_c_m must be a finite 4x4 array"
+                )
+            group = by_camera.get(camera_id)
+            if group is None:
+                by_camera[camera_id] = [d]
+            else:
+                group.append(d)
+        self._time = t
+
+        # 1. Cameras: on a reference robot from its frozen pose, else from the
+        #    reference boards they see (never through a non-reference board).
+        camera_poses = dict(self._reference_cameras)
+        for camera_id, group in by_camera.items():
+            if camera_id in camera_poses:
+                continue
+            own = camera_owner[camera_id]
+            located: list[np.ndarray] = []
+            for d in group:
+                ref = board_owner[d.board_id]
+                if ref.phase is _REFERENCE and ref is not own:
+                    located.append(ref.board_world[d.board_id] @ invert(d.T_c_m))  # T_w_m @ T_m_c
+            if located:
+                camera_poses[camera_id] = located[0] if len(located) == 1 else mean_pose(located)
+
+        # 2. Samples of the non-reference robots: boards seen by located cameras,
+        #    and robots carrying a located camera.
+        samples: dict[_Robot, list[np.ndarray]] = {}
+        for camera_id, group in by_camera.items():
+            T_w_c = camera_poses.get(camera_id)
+            if T_w_c is None:
+                continue
+            own = camera_owner[camera_id]
+            for d in group:
+                r = board_owner[d.board_id]
+                if r.phase is not _REFERENCE and r is not own:
+                    sample = T_w_c @ d.T_c_m @ r.board_inverses[d.board_id]  # T_w_c @ T_c_m @ T_m_b
+                    samples.setdefault(r, []).append(sample)
+        for camera_id, T_w_c in camera_poses.items():
+            r = camera_owner[camera_id]
+            if r.phase is not _REFERENCE:
+                samples.setdefault(r, []).append(T_w_c @ r.camera_inverses[camera_id])  # T_w_c @ T_c_b
+
+        measured: set[_Robot] = set()
+        settle_delay = self._config.settle_delay_s
+        for r, poses in samples.items():
+            T = poses[0] if len(poses) == 1 else mean_pose(poses)
+            if r.gate is not None and not r.gate.accept((T[0, 3], T[1, 3], T[2, 3]), t):
+                continue
+            if r.phase is _MOBILE:
+                r.pose = T
+                measured.add(r)
+            elif t - r.static_since >= settle_delay:  # SETTLING
+                r.window.append(T)
+                r.pose = r.window.mean()
+                if r.window.full:
+                    self._freeze(r, t, len(r.window))
+
+        # 3. Status.
+        lost_after = self._config.lost_after_s
+        for r in self._robots.values():
+            if r in measured or r.phase is _REFERENCE or (r.phase is _SETTLING and len(r.window) > 0):
+                self._mark_fresh(r, t)
+            elif r.last_fresh_time is None:
+                r.status = Status.LOST
+            elif t - r.last_fresh_time > lost_after:
+                r.status = Status.LOST
+                if not r.lost_logged:
+                    r.lost_logged = True
+                    self._events.append(SwitchEvent(t, r.name, "lost", 0))
+            else:
+                r.status = Status.HOLDING
+        self._camera_poses = camera_poses
+
+    # ---------------------------------------------------------------- helpers
+    def _robot(self, name: str) -> _Robot:
+        r = self._robots.get(name)
+        if r is None:
+            raise UnknownRobotError(name, self._robots)
+        return r
+
+    @staticmethod
+    def _mapping(field: str, value: Mapping | None) -> Mapping:
+        if value is None:
+            return {}
+        if not isinstance(value, Mapping):
+            raise ConfigError(field, f"must be a mapping, got {type(value).__name__}")
+        return value
+
+    def _checked_time(self, time: float) -> float:
+        """``time`` as a float if finite and not before the last time, else ValueError."""
+        try:
+            t = float(time)
+        except (TypeError, ValueError):
+            raise ValueError(f"time must be a number (s), got {time!r}") from None
+        if not math.isfinite(t):
+            raise ValueError(f"time must be finite, got {time!r}")
+        if self._time is not None and t < self._time:
+            raise ValueError(f"time goes backwards: {t} s after {self._time} s")
+        return t
+
+    def _mark_fresh(self, r: _Robot, t: float) -> None:
+        r.last_fresh_time = t
+        r.status = Status.LOCALISED
+        if r.lost_logged:
+            r.lost_logged = False
+            self._events.append(SwitchEvent(t, r.name, "relocalised", 0))
+
+    def _freeze(self, r: _Robot, t: float, n_samples: int, *, log: bool = True) -> None:
+        """Make a robot with a pose a reference at its current pose (window mean or last fresh pose)."""
+        pose = r.pose
+        assert pose is not None
+        r.phase = _REFERENCE
+        r.n_frozen = n_samples
+        r.window.clear()
+        r.board_world = {board_id: pose @ T_b_m for board_id, T_b_m in r.board_mounts.items()}
+        r.camera_world = {camera_id: pose @ T_b_c for camera_id, T_b_c in r.camera_mounts.items()}
+        self._reference_cameras.update(r.camera_world)
+        self._mark_fresh(r, t)
+        if log:
+            self._events.append(SwitchEvent(t, r.name, "frozen", n_samples))

@@ -1,0 +1,250 @@
+"""Rigid-body transforms in SE(2) and SE(3), and pose averaging.
+
+Conventions (pinned by ``tests/test_geometry.py``):
+
+* ``T_a_b`` is the 4x4 homogeneous pose of frame ``b`` expressed in frame ``a``,
+  so a point maps as ``p_a = T_a_b @ p_b`` and poses chain as
+  ``T_a_c = T_a_b @ T_b_c``.
+* Planar poses are ``(x, y, yaw)`` in metres and radians; ``yaw`` is the rotation
+  about +z, counter-clockwise seen from above. ``se2_to_se3(x, y, yaw, z)`` lifts a
+  planar pose to a 3D pose at height ``z``.
+* Rotations ``rot_x/rot_y/rot_z`` are active, right-handed rotations about the
+  named axis.
+* World W: x, y on the floor, z up. Robot body B: x forward, y left, z up.
+  Board M (OpenCV ArUco object frame): origin at the board centre, x to the right
+  and y up on the printed face, z out of the printed face. Camera C (OpenCV):
+  x right, y down, z along the optical axis.
+
+All functions are pure and allocate new arrays; none keeps state.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+_LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+
+__all__ = [
+    "wrap_angle",
+    "rot_x",
+    "rot_y",
+    "rot_z",
+    "make_transform",
+    "invert",
+    "translation",
+    "rotation",
+    "se2_to_se3",
+    "se3_to_se2",
+    "yaw_of",
+    "rotation_angle",
+    "rotvec_to_matrix",
+    "matrix_to_rotvec",
+    "matrix_to_quaternion",
+    "project_to_rotation",
+    "mean_rotation",
+    "mean_pose",
+    "R_BODY_CAM_DOWN",
+    "R_BODY_CAM_FORWARD",
+    "R_BODY_BOARD_UP",
+    "R_BODY_BOARD_BACK",
+]
+
+
+def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
+    """Wrap an angle (rad) to the interval [-pi, pi)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def rot_x(angle: float) -> np.ndarray:
+    """3x3 rotation by ``angle`` (rad) about +x."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_y(angle: float) -> np.ndarray:
+    """3x3 rotation by ``angle`` (rad) about +y."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_z(angle: float) -> np.ndarray:
+    """3x3 rotation by ``angle`` (rad) about +z."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def make_transform(R: np.ndarray | None = None, t: Sequence[float] | np.ndarray | None = None) -> np.ndarray:
+    """4x4 homogeneous transform from a 3x3 rotation and a translation (m)."""
+    T = np.eye(4)
+    if R is not None:
+        T[:3, :3] = R
+    if t is not None:
+        T[:3, 3] = t
+    return T
+
+
+def invert(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid transform: ``invert(T_a_b) == T_b_a`` (a new array)."""
+    Rt = T[:3, :3].T
+    Ti = np.empty((4, 4))
+    Ti[:3, :3] = Rt
+    Ti[:3, 3] = -(Rt @ T[:3, 3])
+    Ti[3] = _LAST_ROW
+    return Ti
+
+
+def translation(T: np.ndarray) -> np.ndarray:
+    """Translation part (m) of a 4x4 transform, as a copy."""
+    return T[:3, 3].copy()
+
+
+def rotation(T: np.ndarray) -> np.ndarray:
+    """Rotation part of a 4x4 transform, as a copy."""
+    return T[:3, :3].copy()
+
+
+def se2_to_se3(x: float, y: float, yaw: float, z: float = 0.0) -> np.ndarray:
+    """Lift a planar pose (m, m, rad) to a 4x4 pose at height ``z`` (m)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array(
+        [[c, -s, 0.0, x], [s, c, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]]
+    )
+
+
+def yaw_of(R_or_T: np.ndarray) -> float:
+    """Heading (rad) of the frame's x axis projected on the xy plane."""
+    R = R_or_T[:3, :3]
+    return math.atan2(R[1, 0], R[0, 0])
+
+
+def se3_to_se2(T: np.ndarray) -> tuple[float, float, float]:
+    """Project a 4x4 pose to the plane: ``(x, y, yaw)`` with yaw of the x axis."""
+    return float(T[0, 3]), float(T[1, 3]), yaw_of(T)
+
+
+def rotation_angle(R: np.ndarray) -> float:
+    """Angle (rad, in [0, pi]) of a rotation matrix."""
+    c = (np.trace(R[:3, :3]) - 1.0) / 2.0
+    return math.acos(min(1.0, max(-1.0, c)))
+
+
+def rotvec_to_matrix(rvec: Sequence[float] | np.ndarray) -> np.ndarray:
+    """Rodrigues: axis-angle vector (rad) to a 3x3 rotation matrix."""
+    r = np.asarray(rvec, dtype=float).reshape(3)
+    theta = float(np.linalg.norm(r))
+    if theta < 1e-12:
+        K = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+        return np.eye(3) + K
+    k = r / theta
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(theta) * K + (1.0 - math.cos(theta)) * (K @ K)
+
+
+def matrix_to_rotvec(R: np.ndarray) -> np.ndarray:
+    """Inverse Rodrigues: 3x3 rotation matrix to an axis-angle vector (rad)."""
+    q = matrix_to_quaternion(R)  # (x, y, z, w), w >= 0
+    v = q[:3]
+    s = float(np.linalg.norm(v))
+    if s < 1e-12:
+        return 2.0 * v
+    angle = 2.0 * math.atan2(s, q[3])
+    return v / s * angle
+
+
+def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``(qx, qy, qz, qw)`` of a rotation matrix, with ``qw >= 0``.
+
+    This is the order of the TUM trajectory format.
+    """
+    m = R[:3, :3]
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0.0:
+        s = math.sqrt(tr + 1.0) * 2.0
+        q = np.array([(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s])
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2.0
+        q = np.array([0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s])
+    elif m[1, 1] > m[2, 2]:
+        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2.0
+        q = np.array([(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s])
+    else:
+        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2.0
+        q = np.array([(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s])
+    q /= np.linalg.norm(q)
+    if q[3] < 0.0:
+        q = -q
+    return q
+
+
+def project_to_rotation(M: np.ndarray) -> np.ndarray:
+    """The rotation closest to the 3x3 matrix ``M`` in Frobenius norm (a new array).
+
+    A positive multiple of ``M`` gives the same rotation, so the sum of a set of
+    rotation matrices projects to their chordal mean.
+    """
+    U, _, Vt = np.linalg.svd(M)
+    R = U @ Vt
+    (a, b, c), (d, e, f), (g, h, i) = R.tolist()
+    if a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0.0:
+        U[:, 2] = -U[:, 2]
+        R = U @ Vt
+    return R
+
+
+def _checked_stack(poses: Sequence[np.ndarray] | np.ndarray, what: str) -> Sequence[np.ndarray] | np.ndarray:
+    if len(poses) == 0:
+        raise ValueError(f"{what} needs a non-empty sequence of poses")
+    shape = np.shape(poses[0])
+    if shape not in ((3, 3), (4, 4)):
+        raise ValueError(f"{what} needs 3x3 rotations or 4x4 poses, got shape {shape}")
+    return poses
+
+
+def mean_rotation(rotations: Sequence[np.ndarray] | np.ndarray) -> np.ndarray:
+    """Chordal L2 mean on SO(3) of a set of rotation matrices (3x3, or 4x4 poses).
+
+    The arithmetic mean of the matrices projected back onto SO(3) with an SVD
+    (the rotation closest in Frobenius norm). For rotations spread by less than
+    a few degrees, as in a switch window, it agrees with the geodesic (Karcher)
+    mean to second order and, unlike an incremental slerp, does not depend on the
+    order of the samples.
+    """
+    _checked_stack(rotations, "mean_rotation")
+    total = np.array(rotations[0], dtype=float)[:3, :3]
+    for R in rotations[1:]:
+        total = total + R[:3, :3]
+    return project_to_rotation(total)
+
+
+def mean_pose(poses: Sequence[np.ndarray] | np.ndarray) -> np.ndarray:
+    """Average of 4x4 poses: arithmetic mean translation, chordal mean rotation.
+
+    Cheap on a handful of poses (it runs in the estimator's per-frame path).
+    """
+    _checked_stack(poses, "mean_pose")
+    if np.shape(poses[0]) != (4, 4):
+        raise ValueError(f"mean_pose needs 4x4 poses, got shape {np.shape(poses[0])}")
+    total = np.array(poses[0], dtype=float)
+    for T in poses[1:]:
+        total += T
+    out = np.empty((4, 4))
+    out[:3, :3] = project_to_rotation(total[:3, :3])
+    out[:3, 3] = total[:3, 3] / len(poses)
+    out[3] = _LAST_ROW
+    return out
+
+
+# Fixed mount rotations (columns are the mounted frame's axes in the body frame).
+#: Downward camera: optical axis -z_B, image x = -y_B (right when facing
+#: forward), image y = -x_B (so the top of the image looks forward).
+R_BODY_CAM_DOWN = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+#: Forward camera: optical axis +x_B, image x = -y_B, image y = -z_B.
+R_BODY_CAM_FORWARD = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+#: Board lying face-up on top of a robot: x_M = x_B, y_M = y_B, z_M = z_B.
+R_BODY_BOARD_UP = np.eye(3)
+#: Vertical board on a robot's back, printed face looking backward:
+#: z_M = -x_B, y_M = z_B (up), x_M = -y_B.
+R_BODY_BOARD_BACK = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])

@@ -1,0 +1,519 @@
+"""Validated configuration of the physics world: arena, UGVs, UAV.
+
+Every configuration is a frozen dataclass that checks itself in ``__post_init__``
+and raises :class:`moma_env.config.ConfigError` naming the offending field
+("ugv.radius", "arena.obstacles[2]", "ugvs[1].initial_pose", ...).
+:func:`world_config_from_mapping` builds a whole :class:`WorldConfig` from plain
+mappings (JSON, YAML) and reports errors with their full path ("ugvs[1].radius").
+
+Units: metres, seconds, radians (``max_tilt_deg`` in degrees), kilograms.
+Poses ``(x, y, yaw)`` are planar poses of the body frame B in the world frame W.
+Mount transforms (``board_mount`` = T_b_m, camera ``T_b_c``) are 4x4 rigid
+transforms in the body frame, stored as read-only arrays; configurations compare
+and hash by value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from moma_env.config import (
+    ConfigError,
+    check_choice,
+    check_finite,
+    check_non_negative,
+    check_positive,
+    check_range,
+    from_mapping,
+)
+from moma_env.markers import BoardLayout
+from moma_env.world.arena import WALL_NAME, disk_inside_rectangle, disk_overlaps_box
+from moma_env.world.mounts import board_on_top, camera_down, rigid_transform
+
+__all__ = [
+    "BoxObstacle",
+    "ArenaConfig",
+    "CameraMount",
+    "UGVConfig",
+    "UAVConfig",
+    "UAV_KINDS",
+    "WorldConfig",
+    "world_config_from_mapping",
+    "unknown_name",
+]
+
+#: Kinds of observer the UAV state models.
+UAV_KINDS = ("quadcopter", "handheld")
+
+#: Defaults that :meth:`UAVConfig.handheld` applies for a hand-held camera:
+#: slower, smoother velocity response and much less tilt than a quadcopter.
+_HANDHELD_DEFAULTS: Mapping[str, Any] = MappingProxyType(
+    {
+        "kind": "handheld",
+        "response_time": 0.8,
+        "max_accel": 0.5,
+        "tilt_gain": 0.2,
+        "tilt_time_constant": 0.5,
+    }
+)
+
+
+def unknown_name(kind: str, name: object, known: Sequence[str]) -> KeyError:
+    """A KeyError for a name lookup that failed, listing the known names."""
+    return KeyError(f"unknown {kind} {name!r}; known {kind}s are {list(known)}")
+
+
+def _check_name(field_name: str, value: object) -> None:
+    if not isinstance(value, str) or not value:
+        raise ConfigError(field_name, f"must be a non-empty string, got {value!r}")
+
+
+def _planar_pose(field_name: str, value: object) -> tuple[float, float, float]:
+    try:
+        items = tuple(value)  # type: ignore[arg-type]
+    except TypeError:
+        raise ConfigError(field_name, f"must be (x, y, yaw), got {value!r}") from None
+    if len(items) != 3:
+        raise ConfigError(field_name, f"must be (x, y, yaw), got {len(items)} values")
+    for name, item in zip(("x", "y", "yaw"), items):
+        check_finite(f"{field_name}.{name}", item)
+    return (float(items[0]), float(items[1]), float(items[2]))
+
+
+def _matrix_key(T: np.ndarray) -> tuple[float, ...]:
+    return tuple(float(v) for v in T.ravel())
+
+
+@dataclass(frozen=True)
+class BoxObstacle:
+    """A static rectangular obstacle.
+
+    Attributes:
+        x, y: centre in the world frame (m).
+        width: extent along the box's own x axis (m).
+        height: extent along the box's own y axis (m).
+        yaw: rotation of the box about +z (rad).
+    """
+
+    x: float
+    y: float
+    width: float
+    height: float
+    yaw: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_finite("obstacle.x", self.x)
+        check_finite("obstacle.y", self.y)
+        check_positive("obstacle.width", self.width)
+        check_positive("obstacle.height", self.height)
+        check_finite("obstacle.yaw", self.yaw)
+
+
+@dataclass(frozen=True)
+class ArenaConfig:
+    """A walled rectangular floor with box obstacles.
+
+    Attributes:
+        width, height: interior size along world x and y (m).
+        origin: world xy (m) of the interior's lower-left corner.
+        wall_thickness: thickness of the walls, which lie outside the interior (m).
+        obstacles: static box obstacles.
+    """
+
+    width: float = 6.0
+    height: float = 6.0
+    origin: tuple[float, float] = (-1.5, -1.5)
+    wall_thickness: float = 0.1
+    obstacles: tuple[BoxObstacle, ...] = ()
+
+    def __post_init__(self) -> None:
+        check_positive("arena.width", self.width)
+        check_positive("arena.height", self.height)
+        try:
+            origin = tuple(self.origin)
+        except TypeError:
+            raise ConfigError("arena.origin", f"must be (x, y), got {self.origin!r}") from None
+        if len(origin) != 2:
+            raise ConfigError("arena.origin", f"must be (x, y), got {len(origin)} values")
+        check_finite("arena.origin.x", origin[0])
+        check_finite("arena.origin.y", origin[1])
+        object.__setattr__(self, "origin", (float(origin[0]), float(origin[1])))
+        check_positive("arena.wall_thickness", self.wall_thickness)
+        obstacles = tuple(self.obstacles)
+        for i, obstacle in enumerate(obstacles):
+            if not isinstance(obstacle, BoxObstacle):
+                raise ConfigError(f"arena.obstacles[{i}]", f"must be a BoxObstacle, got {type(obstacle).__name__}")
+        object.__setattr__(self, "obstacles", obstacles)
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """Interior ``(xmin, ymin, xmax, ymax)`` in the world frame (m)."""
+        x0, y0 = self.origin
+        return (x0, y0, x0 + self.width, y0 + self.height)
+
+
+@dataclass(frozen=True)
+class CameraMount:
+    """A camera rigidly mounted on a body.
+
+    Attributes:
+        name: camera name, unique in the world (the Detection's ``camera_id``).
+        T_b_c: 4x4 pose of the OpenCV camera frame C in the body frame B.
+    """
+
+    name: str
+    T_b_c: np.ndarray = field(compare=False)
+    _T_b_c_key: tuple[float, ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        _check_name("camera.name", self.name)
+        T = rigid_transform("camera.T_b_c", self.T_b_c)
+        object.__setattr__(self, "T_b_c", T)
+        object.__setattr__(self, "_T_b_c_key", _matrix_key(T))
+
+
+@dataclass(frozen=True)
+class UGVConfig:
+    """An omnidirectional ground robot (Festo Robotino-like).
+
+    Attributes:
+        name: unique robot name (not "wall" nor "obstacle[...]", which name static shapes).
+        initial_pose: (x, y, yaw) of B in W at reset (m, m, rad).
+        radius: radius of the robot's circular footprint (m).
+        mass: mass (kg); the moment of inertia is that of a uniform disk.
+        max_speed: limit on the norm of the commanded planar velocity (m/s).
+        max_yaw_rate: limit on the commanded yaw rate (rad/s).
+        max_accel: traction limit: largest acceleration the wheels can give (m/s^2).
+        max_yaw_accel: largest angular acceleration the wheels can give (rad/s^2).
+        board: the ArUco board the robot carries, or None. The default has ids
+            0..3; give every robot its own ids (``markers.board_for_robot(i)``).
+        board_mount: 4x4 T_b_m of the board (default face-up, 0.40 m above the floor).
+        cameras: cameras carried by the robot (e.g. a forward camera for caterpillar).
+        static: whether the robot starts locked in place (a static marker).
+    """
+
+    name: str
+    initial_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    radius: float = 0.225
+    mass: float = 20.0
+    max_speed: float = 0.5
+    max_yaw_rate: float = 1.5
+    max_accel: float = 1.0
+    max_yaw_accel: float = 3.0
+    board: BoardLayout | None = field(default_factory=BoardLayout)
+    board_mount: np.ndarray = field(default_factory=board_on_top, compare=False)
+    cameras: tuple[CameraMount, ...] = ()
+    static: bool = True
+    _board_mount_key: tuple[float, ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        _check_name("ugv.name", self.name)
+        if self.name == WALL_NAME or self.name.startswith("obstacle["):
+            raise ConfigError("ugv.name", f"{self.name!r} is reserved for static shapes")
+        object.__setattr__(self, "initial_pose", _planar_pose("ugv.initial_pose", self.initial_pose))
+        for name in ("radius", "mass", "max_speed", "max_yaw_rate", "max_accel", "max_yaw_accel"):
+            check_positive(f"ugv.{name}", getattr(self, name))
+        if self.board is not None and not isinstance(self.board, BoardLayout):
+            raise ConfigError("ugv.board", f"must be a BoardLayout or None, got {type(self.board).__name__}")
+        T = rigid_transform("ugv.board_mount", self.board_mount)
+        object.__setattr__(self, "board_mount", T)
+        object.__setattr__(self, "_board_mount_key", _matrix_key(T))
+        cameras = tuple(self.cameras)
+        for i, camera in enumerate(cameras):
+            if not isinstance(camera, CameraMount):
+                raise ConfigError(f"ugv.cameras[{i}]", f"must be a CameraMount, got {type(camera).__name__}")
+        object.__setattr__(self, "cameras", cameras)
+        if not isinstance(self.static, bool):
+            raise ConfigError("ugv.static", f"must be a bool, got {self.static!r}")
+
+    @property
+    def board_height(self) -> float:
+        """Height of the board frame's origin above the floor (m)."""
+        return float(self.board_mount[2, 3])
+
+    @property
+    def moment(self) -> float:
+        """Moment of inertia about the vertical axis (kg m^2), uniform disk."""
+        return 0.5 * self.mass * self.radius**2
+
+
+@dataclass(frozen=True)
+class UAVConfig:
+    """The observer: a quadcopter with a downward camera, or a hand-held camera.
+
+    The UAV is not a collider; its 2.5D state is (x, y, altitude z, yaw) plus the
+    roll and pitch it takes while accelerating (see ``moma_env.world.uav``).
+
+    Attributes:
+        name: observer name.
+        kind: "quadcopter" or "handheld" (use :meth:`handheld` for its defaults).
+        initial: (x, y, yaw) at reset (m, m, rad).
+        altitude: altitude z of the body origin at reset (m).
+        min_altitude, max_altitude: altitude limits (m); z is clipped to them.
+        max_speed: limit on the norm of the horizontal velocity command (m/s).
+        max_climb: limit on the climb-rate command (m/s).
+        max_yaw_rate: limit on the yaw-rate command (rad/s).
+        response_time: time constant of the first-order velocity response (s).
+        max_accel: limit on the horizontal and the vertical acceleration (m/s^2).
+        tilt_gain: tilt = tilt_gain * atan(acceleration / g).
+        tilt_time_constant: low-pass time constant of the tilt (s).
+        max_tilt_deg: limit on |roll| and |pitch| (degrees).
+        camera_mount: 4x4 T_b_c of the camera (default: looking down, 5 cm below B).
+        camera_name: camera name, unique in the world.
+    """
+
+    name: str = "uav"
+    kind: str = "quadcopter"
+    initial: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    altitude: float = 1.6
+    min_altitude: float = 0.6
+    max_altitude: float = 4.0
+    max_speed: float = 1.0
+    max_climb: float = 0.5
+    max_yaw_rate: float = 1.0
+    response_time: float = 0.35
+    max_accel: float = 2.0
+    tilt_gain: float = 1.0
+    tilt_time_constant: float = 0.15
+    max_tilt_deg: float = 20.0
+    camera_mount: np.ndarray = field(default_factory=camera_down, compare=False)
+    camera_name: str = "uav/camera"
+    _camera_mount_key: tuple[float, ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        _check_name("uav.name", self.name)
+        check_choice("uav.kind", self.kind, UAV_KINDS)
+        object.__setattr__(self, "initial", _planar_pose("uav.initial", self.initial))
+        check_positive("uav.min_altitude", self.min_altitude)
+        check_positive("uav.max_altitude", self.max_altitude)
+        if self.max_altitude <= self.min_altitude:
+            raise ConfigError("uav.max_altitude", f"must be > min_altitude={self.min_altitude}, got {self.max_altitude}")
+        check_range("uav.altitude", self.altitude, self.min_altitude, self.max_altitude)
+        for name in ("max_speed", "max_climb", "max_yaw_rate", "max_accel"):
+            check_positive(f"uav.{name}", getattr(self, name))
+        check_non_negative("uav.response_time", self.response_time)
+        check_non_negative("uav.tilt_gain", self.tilt_gain)
+        check_non_negative("uav.tilt_time_constant", self.tilt_time_constant)
+        check_finite("uav.max_tilt_deg", self.max_tilt_deg)
+        if not 0.0 < self.max_tilt_deg < 90.0:
+            raise ConfigError("uav.max_tilt_deg", f"must be in (0, 90), got {self.max_tilt_deg}")
+        T = rigid_transform("uav.camera_mount", self.camera_mount)
+        object.__setattr__(self, "camera_mount", T)
+        object.__setattr__(self, "_camera_mount_key", _matrix_key(T))
+        _check_name("uav.camera_name", self.camera_name)
+
+    @classmethod
+    def handheld(cls, **overrides: Any) -> UAVConfig:
+        """A hand-held camera: response_time 0.8 s, max_accel 0.5 m/s^2, tilt_gain 0.2,
+        tilt_time_constant 0.5 s; ``overrides`` replace any field."""
+        return cls(**{**_HANDHELD_DEFAULTS, **overrides})
+
+    @property
+    def max_tilt(self) -> float:
+        """Limit on |roll| and |pitch| (rad)."""
+        return math.radians(self.max_tilt_deg)
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """The whole world: arena, ground robots, optional UAV, and the step rate.
+
+    Attributes:
+        arena: walls and obstacles.
+        ugvs: ground robots, in the order the world reports them.
+        uav: the flying (or hand-held) observer, or None.
+        control_hz: control steps per second (Hz); one ``World.step`` is 1/control_hz s.
+        substeps: physics substeps per control step.
+
+    Checked here: robot and camera names are unique, no two boards share a marker
+    id of the same dictionary, every robot starts inside the arena, clear of the
+    obstacles and of every other robot (touching is allowed).
+    """
+
+    arena: ArenaConfig = field(default_factory=ArenaConfig)
+    ugvs: tuple[UGVConfig, ...] = ()
+    uav: UAVConfig | None = None
+    control_hz: float = 25.0
+    substeps: int = 4
+    _ugv_index: dict[str, int] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.arena, ArenaConfig):
+            raise ConfigError("arena", f"must be an ArenaConfig, got {type(self.arena).__name__}")
+        ugvs = tuple(self.ugvs)
+        object.__setattr__(self, "ugvs", ugvs)
+        for i, ugv in enumerate(ugvs):
+            if not isinstance(ugv, UGVConfig):
+                raise ConfigError(f"ugvs[{i}]", f"must be a UGVConfig, got {type(ugv).__name__}")
+        if self.uav is not None and not isinstance(self.uav, UAVConfig):
+            raise ConfigError("uav", f"must be a UAVConfig or None, got {type(self.uav).__name__}")
+        check_positive("control_hz", self.control_hz)
+        if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1:
+            raise ConfigError("substeps", f"must be an int >= 1, got {self.substeps!r}")
+        self._check_names()
+        self._check_marker_ids()
+        self._check_placement()
+        object.__setattr__(self, "_ugv_index", {ugv.name: i for i, ugv in enumerate(ugvs)})
+
+    def _check_names(self) -> None:
+        owner: dict[str, str] = {}
+        for i, ugv in enumerate(self.ugvs):
+            if ugv.name in owner:
+                raise ConfigError(f"ugvs[{i}].name", f"duplicate name {ugv.name!r} (also {owner[ugv.name]})")
+            owner[ugv.name] = f"ugvs[{i}]"
+        if self.uav is not None and self.uav.name in owner:
+            raise ConfigError("uav.name", f"duplicate name {self.uav.name!r} (also {owner[self.uav.name]})")
+        camera_owner: dict[str, str] = {}
+        for i, ugv in enumerate(self.ugvs):
+            for j, camera in enumerate(ugv.cameras):
+                path = f"ugvs[{i}].cameras[{j}]"
+                if camera.name in camera_owner:
+                    raise ConfigError(
+                        f"{path}.name", f"duplicate camera name {camera.name!r} (also {camera_owner[camera.name]})"
+                    )
+                camera_owner[camera.name] = path
+        if self.uav is not None and self.uav.camera_name in camera_owner:
+            name = self.uav.camera_name
+            raise ConfigError("uav.camera_name", f"duplicate camera name {name!r} (also {camera_owner[name]})")
+
+    def _check_marker_ids(self) -> None:
+        owner: dict[tuple[str, int], int] = {}
+        for i, ugv in enumerate(self.ugvs):
+            if ugv.board is None:
+                continue
+            for marker_id in ugv.board.marker_ids:
+                key = (ugv.board.dictionary, marker_id)
+                if key in owner:
+                    j = owner[key]
+                    raise ConfigError(
+                        f"ugvs[{i}].board.marker_ids",
+                        f"marker id {marker_id} ({ugv.board.dictionary}) is also on ugvs[{j}] "
+                        f"({self.ugvs[j].name!r}); give each robot its own ids, e.g. markers.board_for_robot({i})",
+                    )
+                owner[key] = i
+
+    def _check_placement(self) -> None:
+        bounds = self.arena.bounds
+        for i, ugv in enumerate(self.ugvs):
+            x, y, _ = ugv.initial_pose
+            field_name = f"ugvs[{i}].initial_pose"
+            if not disk_inside_rectangle(x, y, ugv.radius, bounds):
+                raise ConfigError(
+                    field_name, f"robot {ugv.name!r} (radius {ugv.radius}) at ({x}, {y}) is not inside the arena {bounds}"
+                )
+            for k, obstacle in enumerate(self.arena.obstacles):
+                if disk_overlaps_box(x, y, ugv.radius, obstacle):
+                    raise ConfigError(field_name, f"robot {ugv.name!r} at ({x}, {y}) overlaps arena.obstacles[{k}]")
+            for j in range(i):
+                other = self.ugvs[j]
+                gap = math.hypot(x - other.initial_pose[0], y - other.initial_pose[1]) - ugv.radius - other.radius
+                if gap < -1e-9:
+                    raise ConfigError(
+                        field_name, f"robot {ugv.name!r} overlaps ugvs[{j}] ({other.name!r}) by {-gap:.4g} m"
+                    )
+
+    @property
+    def dt(self) -> float:
+        """Duration of one control step (s)."""
+        return 1.0 / self.control_hz
+
+    @property
+    def ugv_names(self) -> tuple[str, ...]:
+        """Names of the ground robots, in order."""
+        return tuple(ugv.name for ugv in self.ugvs)
+
+    def ugv_index(self, name: str) -> int:
+        """Index of the robot called ``name``; KeyError listing known names otherwise."""
+        try:
+            return self._ugv_index[name]
+        except (KeyError, TypeError):
+            raise unknown_name("ugv", name, self.ugv_names) from None
+
+    def ugv(self, name: str) -> UGVConfig:
+        """Configuration of the robot called ``name``; KeyError listing known names otherwise."""
+        return self.ugvs[self.ugv_index(name)]
+
+
+# -- building from plain mappings -------------------------------------------------------
+
+
+def _rebased(error: ConfigError, own_prefix: str, path: str) -> ConfigError:
+    """Re-raise-able copy of ``error`` with its field placed under ``path``."""
+    message = str(error)[len(error.field) + 2 :]
+    name = error.field
+    if name == own_prefix or name.startswith(own_prefix + "."):
+        name = path + name[len(own_prefix) :]
+    else:
+        name = f"{path}.{name}"
+    return ConfigError(name, message)
+
+
+def _build(cls: type, mapping: object, own_prefix: str, path: str) -> Any:
+    if isinstance(mapping, cls):
+        return mapping
+    if not isinstance(mapping, Mapping):
+        raise ConfigError(path, f"expected a mapping, got {type(mapping).__name__}")
+    try:
+        return from_mapping(cls, mapping)
+    except ConfigError as error:
+        raise _rebased(error, own_prefix, path) from None
+
+
+def _build_list(value: object, path: str) -> list[object]:
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Sequence):
+        raise ConfigError(path, f"expected a list, got {type(value).__name__}")
+    return list(value)
+
+
+def world_config_from_mapping(mapping: Mapping[str, Any]) -> WorldConfig:
+    """Build a :class:`WorldConfig` from nested plain mappings and lists.
+
+    ``arena.obstacles`` and ``ugvs`` are lists of mappings, ``ugvs[i].cameras`` a
+    list of ``{name, T_b_c}``, ``ugvs[i].board`` a BoardLayout mapping or None,
+    ``uav`` a mapping or None (``kind: handheld`` starts from the hand-held
+    defaults). Errors name the full path, e.g. ``ugvs[1].radius``.
+    """
+    if not isinstance(mapping, Mapping):
+        raise ConfigError("world", f"expected a mapping, got {type(mapping).__name__}")
+    known = {f.name for f in dataclasses.fields(WorldConfig) if f.init}
+    unknown = sorted(set(mapping) - known)
+    if unknown:
+        raise ConfigError(unknown[0], f"unknown field; known fields are {sorted(known)}")
+    kwargs: dict[str, Any] = dict(mapping)
+    if "arena" in kwargs:
+        arena = kwargs["arena"]
+        if isinstance(arena, Mapping) and "obstacles" in arena:
+            obstacles = [
+                _build(BoxObstacle, item, "obstacle", f"arena.obstacles[{k}]")
+                for k, item in enumerate(_build_list(arena["obstacles"], "arena.obstacles"))
+            ]
+            arena = {**arena, "obstacles": tuple(obstacles)}
+        kwargs["arena"] = _build(ArenaConfig, arena, "arena", "arena")
+    if "ugvs" in kwargs:
+        ugvs = []
+        for i, item in enumerate(_build_list(kwargs["ugvs"], "ugvs")):
+            path = f"ugvs[{i}]"
+            if isinstance(item, Mapping):
+                item = dict(item)
+                if isinstance(item.get("board"), Mapping):
+                    item["board"] = _build(BoardLayout, item["board"], "board", f"{path}.board")
+                if "cameras" in item:
+                    item["cameras"] = tuple(
+                        _build(CameraMount, camera, "camera", f"{path}.cameras[{j}]")
+                        for j, camera in enumerate(_build_list(item["cameras"], f"{path}.cameras"))
+                    )
+            ugvs.append(_build(UGVConfig, item, "ugv", path))
+        kwargs["ugvs"] = tuple(ugvs)
+    uav = kwargs.get("uav")
+    if isinstance(uav, Mapping):
+        if uav.get("kind") == "handheld":
+            uav = {**_HANDHELD_DEFAULTS, **uav}
+        kwargs["uav"] = _build(UAVConfig, uav, "uav", "uav")
+    return WorldConfig(**kwargs)

@@ -1,0 +1,93 @@
+"""Rigid mounts of boards and cameras on a body: 4x4 ``T_b_m`` / ``T_b_c``.
+
+The body frame B follows ``moma_env.geometry``: origin on the floor at the robot's
+centre (for the UAV: at its centre of mass), x forward, y left, z up; metres.
+The mounted frame is a board frame M (face-up or on the robot's back) or an
+OpenCV camera frame C (looking down or forward); see the ``R_BODY_*`` constants.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from moma_env.config import ConfigError, check_finite, check_non_negative
+from moma_env.geometry import (
+    R_BODY_BOARD_BACK,
+    R_BODY_BOARD_UP,
+    R_BODY_CAM_DOWN,
+    R_BODY_CAM_FORWARD,
+    make_transform,
+)
+
+__all__ = ["board_on_top", "board_on_back", "camera_forward", "camera_down", "rigid_transform"]
+
+#: Tolerance on the orthonormality of a mount's rotation block.
+_ROTATION_TOLERANCE = 1e-6
+
+
+def board_on_top(height: float = 0.40) -> np.ndarray:
+    """``T_b_m`` of a board lying face-up, centred on the robot, ``height`` m above the floor."""
+    check_non_negative("board_on_top.height", height)
+    return make_transform(R_BODY_BOARD_UP, (0.0, 0.0, float(height)))
+
+
+def board_on_back(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
+    """``T_b_m`` of a vertical board on the robot's back, its printed face looking backward.
+
+    Args:
+        height: height of the board centre above the floor (m).
+        offset: distance of the board face behind the body origin (m), along -x_B.
+    """
+    check_non_negative("board_on_back.height", height)
+    check_non_negative("board_on_back.offset", offset)
+    return make_transform(R_BODY_BOARD_BACK, (-float(offset), 0.0, float(height)))
+
+
+def camera_forward(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
+    """``T_b_c`` of a forward-looking camera (optical axis +x_B).
+
+    Args:
+        height: height of the optical centre above the floor (m).
+        offset: distance of the optical centre ahead of the body origin (m), along +x_B.
+    """
+    check_non_negative("camera_forward.height", height)
+    check_finite("camera_forward.offset", offset)
+    return make_transform(R_BODY_CAM_FORWARD, (float(offset), 0.0, float(height)))
+
+
+def camera_down(height: float = -0.05, offset: float = 0.0) -> np.ndarray:
+    """``T_b_c`` of a downward-looking camera (optical axis -z_B, image top forward).
+
+    Args:
+        height: z of the optical centre in B (m); the UAV default -0.05 puts it
+            5 cm below the UAV's centre.
+        offset: distance of the optical centre ahead of the body origin (m).
+    """
+    check_finite("camera_down.height", height)
+    check_finite("camera_down.offset", offset)
+    return make_transform(R_BODY_CAM_DOWN, (float(offset), 0.0, float(height)))
+
+
+def rigid_transform(field: str, value: object) -> np.ndarray:
+    """Validate a 4x4 rigid transform and return it as a read-only float array.
+
+    Raises:
+        ConfigError: naming ``field`` if the shape is not 4x4, a value is not
+            finite, the rotation block is not a proper rotation or the last row is
+            not ``(0, 0, 0, 1)``.
+    """
+    try:
+        T = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(field, f"must be a 4x4 transform, got {value!r}") from None
+    if T.shape != (4, 4):
+        raise ConfigError(field, f"must be a 4x4 transform, got shape {T.shape}")
+    if not np.all(np.isfinite(T)):
+        raise ConfigError(field, "must contain only finite numbers")
+    if not np.array_equal(T[3], [0.0, 0.0, 0.0, 1.0]):
+        raise ConfigError(field, f"last row must be (0, 0, 0, 1), got {tuple(T[3])}")
+    R = T[:3, :3]
+    if np.max(np.abs(R.T @ R - np.eye(3))) > _ROTATION_TOLERANCE or np.linalg.det(R) <= 0.0:
+        raise ConfigError(field, "rotation block must be a proper rotation (orthonormal, det +1)")
+    T.setflags(write=False)
+    return T

@@ -1,0 +1,400 @@
+"""The simulated world: ground robots and walls in pymunk, the UAV's 2.5D state.
+
+This is the ground truth. The camera model and the estimator sit on top of it and
+are not imported here. Frames follow ``moma_env.geometry``: world W (z up),
+robot body B (x forward, y left, origin on the floor at the robot's centre),
+board M, camera C (OpenCV). Units: metres, seconds, radians.
+
+One :meth:`World.step` advances ``1/control_hz`` s with ``substeps`` pymunk
+steps. Everything is deterministic: the same configuration and the same
+commands give bit-identical trajectories.
+
+Physics notes: a constant robot command drives an exact arc (see
+``UGVBody.drive``); the commanded velocity takes effect one substep later
+(Chipmunk integrates positions before solving velocities). Contacts are
+discrete: in an impact a robot may sink into what it hits by up to one
+substep's travel, then settles with at most :data:`COLLISION_SLOP` of overlap.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+
+import numpy as np
+import pymunk
+
+from moma_env.geometry import se2_to_se3, wrap_angle
+from moma_env.world.arena import add_static_shapes
+from moma_env.world.config import WorldConfig, unknown_name
+from moma_env.world.uav import UAVDynamics, UAVState
+from moma_env.world.ugv import UGVBody
+
+__all__ = ["World", "COLLISION_SLOP", "UAV_OWNER"]
+
+#: Overlap (m) pymunk tolerates between touching shapes before pushing them apart.
+COLLISION_SLOP = 1e-3
+#: Owner index of the UAV's camera in the camera table (UGV cameras use the robot index).
+UAV_OWNER = -1
+
+_STATIC_CATEGORY = 1
+#: Robots 0..29 get their own shape-filter category bit (1..30); later robots
+#: share bit 31, and segment queries ignoring them take a slower path.
+_DEDICATED_BITS = 30
+_SHARED_BIT = 1 << 31
+_ALL_MASKS = pymunk.ShapeFilter.ALL_MASKS()
+_NO_CONTACTS: frozenset[frozenset[str]] = frozenset()
+
+
+def _record_contact(arbiter: pymunk.Arbiter, space: pymunk.Space, data: tuple[dict, set]) -> None:
+    """pymunk pre-solve callback: note the names of two touching shapes."""
+    names, contacts = data
+    a, b = arbiter.shapes
+    contacts.add(frozenset((names[a], names[b])))
+
+
+def _category(index: int) -> int:
+    return 1 << (1 + index) if index < _DEDICATED_BITS else _SHARED_BIT
+
+
+def _point(name: str, value: Sequence[float]) -> tuple[float, float]:
+    try:
+        x, y = float(value[0]), float(value[1])
+        if len(value) != 2:
+            raise ValueError
+    except (TypeError, ValueError, IndexError):
+        raise ValueError(f"{name} must be a point (x, y), got {value!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return x, y
+
+
+def _command(owner: str, value: object, size: int, layout: str) -> list[float]:
+    """A command as ``size`` finite floats, or ValueError naming its owner."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"command for {owner!r} must be {layout}, got {value!r}") from None
+    if array.shape != (size,):
+        raise ValueError(f"command for {owner!r} must be {layout} with shape ({size},), got shape {array.shape}")
+    values = array.tolist()
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"command for {owner!r} must be finite, got {values}")
+    return values
+
+
+def _mean_body_twist(previous: Sequence[float], current: Sequence[float], dt: float) -> tuple[float, float, float]:
+    """Constant body-frame twist carrying planar pose ``previous`` to ``current`` in ``dt`` s.
+
+    The inverse of the SE(2) exponential: with ``theta`` the heading change and
+    ``d`` the displacement in the starting body frame, ``d = V(theta) @ v*dt`` with
+    ``V = [[sin t/t, -(1-cos t)/t], [(1-cos t)/t, sin t/t]]``. Poses are
+    ``(x, y, unwrapped angle)``.
+    """
+    x0, y0, a0 = previous
+    x1, y1, a1 = current
+    theta = a1 - a0
+    c, s = math.cos(a0), math.sin(a0)
+    dx, dy = x1 - x0, y1 - y0
+    lx, ly = c * dx + s * dy, -s * dx + c * dy
+    if theta == 0.0:
+        return lx / dt, ly / dt, 0.0
+    a = math.sin(theta) / theta
+    b = 2.0 * math.sin(0.5 * theta) ** 2 / theta
+    det = a * a + b * b
+    return (a * lx + b * ly) / (det * dt), (a * ly - b * lx) / (det * dt), theta / dt
+
+
+class World:
+    """Ground robots, walls and obstacles in pymunk, plus the UAV's 2.5D state.
+
+    Attributes:
+        config: the world's configuration.
+        dt: duration of one control step (s).
+    """
+
+    def __init__(self, config: WorldConfig):
+        if not isinstance(config, WorldConfig):
+            raise TypeError(f"World needs a WorldConfig, got {type(config).__name__}")
+        self.config = config
+        self.dt = config.dt
+        self._substep = config.dt / config.substeps
+        self._ugv_names = config.ugv_names
+        self._ugv_index = {name: i for i, name in enumerate(self._ugv_names)}
+        self._boards = tuple(ugv.board_mount if ugv.board is not None else None for ugv in config.ugvs)
+        cameras: dict[str, tuple[int, np.ndarray]] = {}
+        for i, ugv in enumerate(config.ugvs):
+            for camera in ugv.cameras:
+                cameras[camera.name] = (i, camera.T_b_c)
+        if config.uav is not None:
+            cameras[config.uav.camera_name] = (UAV_OWNER, config.uav.camera_mount)
+        self._cameras = cameras
+        self._camera_names = tuple(cameras)
+        self._uav = UAVDynamics(config.uav, self.dt) if config.uav is not None else None
+        self.reset()
+
+    # -- simulation ----------------------------------------------------------------
+
+    def reset(self, rng: np.random.Generator | None = None) -> None:
+        """Rebuild the space with every robot at its initial pose and static flag.
+
+        The world draws no random numbers (its physics is deterministic);
+        ``rng`` is accepted so that callers can pass their generator uniformly.
+        """
+        if rng is not None and not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy Generator or None, got {type(rng).__name__}")
+        space = pymunk.Space()
+        space.gravity = (0.0, 0.0)
+        space.collision_slop = COLLISION_SLOP
+        names = add_static_shapes(space, self.config.arena, pymunk.ShapeFilter(categories=_STATIC_CATEGORY))
+        self._ugvs = tuple(
+            UGVBody(ugv, space, pymunk.ShapeFilter(categories=_category(i)), self._substep)
+            for i, ugv in enumerate(self.config.ugvs)
+        )
+        for ugv in self._ugvs:
+            names[ugv.shape] = ugv.config.name
+        self._contacts: set[frozenset[str]] = set()
+        space.on_collision(None, None, pre_solve=_record_contact, data=(names, self._contacts))
+        self._space = space
+        self._poses = self._read_poses()
+        self._previous_poses = self._poses.copy()
+        self._steps = 0
+        if self._uav is not None:
+            self._uav.reset()
+        self._uav_state: UAVState | None = None
+
+    def step(
+        self,
+        ugv_commands: Mapping[str, Sequence[float] | np.ndarray] | None = None,
+        uav_command: Sequence[float] | np.ndarray | None = None,
+    ) -> None:
+        """Advance one control step of ``dt`` s.
+
+        Args:
+            ugv_commands: robot name -> body-frame velocity (vx forward m/s, vy left
+                m/s, omega rad/s), clipped to the robot's limits. Robots left out
+                get a zero command (they brake); static robots ignore theirs.
+            uav_command: (vx forward m/s, vy left m/s, yaw rate rad/s, climb m/s)
+                in the UAV's yaw frame; None hovers.
+
+        Raises:
+            KeyError: an unknown robot name.
+            TypeError: ``ugv_commands`` is not a mapping.
+            ValueError: a command of the wrong shape or not finite (naming its
+                owner), or a UAV command in a world without a UAV.
+        """
+        ugvs = self._ugvs
+        commands = ugv_commands if ugv_commands is not None else {}
+        if not isinstance(commands, Mapping):
+            raise TypeError(f"ugv_commands must map robot names to commands, got {type(commands).__name__}")
+        matched = 0
+        for name, ugv in zip(self._ugv_names, ugvs):
+            value = commands.get(name)
+            if value is None:
+                ugv.command = (0.0, 0.0, 0.0)
+                continue
+            matched += 1
+            vx, vy, omega = _command(name, value, 3, "(vx, vy, omega)")
+            if not ugv.static:
+                ugv.set_command(vx, vy, omega)
+        if matched != len(commands):
+            for name in commands:
+                if name not in self._ugv_index:
+                    raise unknown_name("ugv", name, self._ugv_names)
+        if uav_command is not None:
+            if self._uav is None:
+                raise ValueError("uav_command given but the world has no UAV (WorldConfig.uav is None)")
+            uav = _command(self._uav.config.name, uav_command, 4, "(vx, vy, yaw_rate, climb)")
+        else:
+            uav = None
+
+        self._contacts.clear()
+        moving = [ugv for ugv in ugvs if not ugv.static]
+        space, h = self._space, self._substep
+        for _ in range(self.config.substeps):
+            for ugv in moving:
+                ugv.drive()
+            space.step(h)
+        self._previous_poses = self._poses
+        self._poses = self._read_poses()
+        if self._uav is not None:
+            if uav is None:
+                self._uav.step(0.0, 0.0, 0.0, 0.0)
+            else:
+                self._uav.step(*uav)
+            self._uav_state = None
+        self._steps += 1
+
+    def _read_poses(self) -> np.ndarray:
+        rows = []
+        for ugv in self._ugvs:
+            x, y = ugv.body.position
+            rows.append((x, y, ugv.body.angle))
+        return np.array(rows, dtype=float).reshape(len(rows), 3)
+
+    @property
+    def time(self) -> float:
+        """Simulated time since the last reset (s)."""
+        return self._steps * self.dt
+
+    @property
+    def step_count(self) -> int:
+        """Control steps since the last reset."""
+        return self._steps
+
+    # -- static lock ---------------------------------------------------------------
+
+    def set_static(self, name: str, static: bool) -> None:
+        """Lock robot ``name`` in place (a static marker) or release it.
+
+        A static robot keeps a bit-identical pose whatever it is commanded and
+        however it is pushed; a released robot starts from rest.
+        """
+        if not isinstance(static, (bool, np.bool_)):
+            raise TypeError(f"static must be a bool, got {static!r}")
+        self._ugvs[self._index(name)].set_static(bool(static))
+
+    def is_static(self, name: str) -> bool:
+        """Whether robot ``name`` is locked in place."""
+        return self._ugvs[self._index(name)].static
+
+    # -- ground robots ---------------------------------------------------------------
+
+    def _index(self, name: str) -> int:
+        try:
+            return self._ugv_index[name]
+        except (KeyError, TypeError):
+            raise unknown_name("ugv", name, self._ugv_names) from None
+
+    @property
+    def ugv_names(self) -> tuple[str, ...]:
+        """Names of the ground robots, in configuration order."""
+        return self._ugv_names
+
+    def ugv_pose(self, name: str) -> tuple[float, float, float]:
+        """Planar pose ``(x, y, yaw)`` of robot ``name`` in W (m, m, rad in [-pi, pi))."""
+        x, y, angle = self._poses[self._index(name)].tolist()
+        return x, y, wrap_angle(angle)
+
+    def ugv_poses(self) -> np.ndarray:
+        """(n, 3) array of ``(x, y, yaw)`` of all robots, yaw in [-pi, pi) (a copy)."""
+        poses = self._poses.copy()
+        poses[:, 2] = wrap_angle(poses[:, 2])
+        return poses
+
+    def ugv_transform(self, name: str) -> np.ndarray:
+        """4x4 ``T_w_b`` of robot ``name`` (body origin on the floor, z = 0)."""
+        x, y, angle = self._poses[self._index(name)].tolist()
+        return se2_to_se3(x, y, angle)
+
+    def ugv_body_velocity(self, name: str) -> tuple[float, float, float]:
+        """Body-frame velocity ``(vx, vy, omega)`` of robot ``name`` over the last step.
+
+        What wheel encoders measure: the constant body-frame twist (m/s, m/s,
+        rad/s) whose SE(2) exponential over ``dt`` carries the robot's pose at the
+        start of the last step to its pose at the end. Zero before the first step
+        and while static.
+        """
+        i = self._index(name)
+        return _mean_body_twist(self._previous_poses[i].tolist(), self._poses[i].tolist(), self.dt)
+
+    def board_transform(self, name: str) -> np.ndarray | None:
+        """4x4 ``T_w_m`` of robot ``name``'s board (``T_w_b @ T_b_m``), or None without a board."""
+        mount = self._boards[self._index(name)]
+        if mount is None:
+            return None
+        return self.ugv_transform(name) @ mount
+
+    def segment_blocked(
+        self, p_from_xy: Sequence[float], p_to_xy: Sequence[float], ignore: Iterable[str] = ()
+    ) -> bool:
+        """Whether the floor segment from ``p_from_xy`` to ``p_to_xy`` (W, m) hits a wall,
+        an obstacle or a robot not named in ``ignore``.
+
+        A planar test (heights are not considered). A segment starting or ending
+        inside a shape hits it.
+        """
+        a = _point("p_from_xy", p_from_xy)
+        b = _point("p_to_xy", p_to_xy)
+        mask = _ALL_MASKS
+        shared = False
+        for name in ignore:
+            i = self._index(name)
+            if i >= _DEDICATED_BITS:
+                shared = True
+            else:
+                mask &= ~_category(i)
+        if not shared:
+            return self._space.segment_query_first(a, b, 0.0, pymunk.ShapeFilter(mask=mask)) is not None
+        ignored = {self._ugvs[self._index(name)].shape for name in ignore}
+        hits = self._space.segment_query(a, b, 0.0, pymunk.ShapeFilter(mask=mask))
+        return any(hit.shape not in ignored for hit in hits)
+
+    @property
+    def collisions_since_last_step(self) -> frozenset[frozenset[str]]:
+        """Pairs of names in contact at any substep of the last step.
+
+        Names are robot names, ``"wall"`` and ``"obstacle[k]"``; a static robot
+        touching only walls makes no pair (neither can move).
+        """
+        return frozenset(self._contacts) if self._contacts else _NO_CONTACTS
+
+    # -- cameras -----------------------------------------------------------------------
+
+    @property
+    def camera_names(self) -> tuple[str, ...]:
+        """Names of every camera: the robots' cameras, then the UAV's."""
+        return self._camera_names
+
+    def camera_transform(self, camera_name: str) -> np.ndarray:
+        """4x4 ``T_w_c`` of camera ``camera_name`` (robot or UAV camera)."""
+        try:
+            owner, T_b_c = self._cameras[camera_name]
+        except (KeyError, TypeError):
+            raise unknown_name("camera", camera_name, self._camera_names) from None
+        if owner == UAV_OWNER:
+            return self._uav.body_transform() @ T_b_c  # type: ignore[union-attr]
+        x, y, angle = self._poses[owner].tolist()
+        return se2_to_se3(x, y, angle) @ T_b_c
+
+    # -- UAV -------------------------------------------------------------------------------
+
+    @property
+    def has_uav(self) -> bool:
+        """Whether the world has a UAV (or hand-held observer)."""
+        return self._uav is not None
+
+    def _require_uav(self) -> UAVDynamics:
+        if self._uav is None:
+            raise LookupError("the world has no UAV (WorldConfig.uav is None)")
+        return self._uav
+
+    @property
+    def uav_state(self) -> UAVState:
+        """Current state of the UAV (LookupError without a UAV)."""
+        uav = self._require_uav()
+        if self._uav_state is None:
+            self._uav_state = uav.state()
+        return self._uav_state
+
+    def uav_transform(self) -> np.ndarray:
+        """4x4 ``T_w_b`` of the UAV body (LookupError without a UAV)."""
+        return self._require_uav().body_transform()
+
+    # -- whole state -------------------------------------------------------------------
+
+    def state_array(self) -> np.ndarray:
+        """Flat float array of the full simulated state, for comparisons and logs.
+
+        Per robot ``x, y, angle (unwrapped), vx, vy (W), omega``; then the UAV's
+        ``UAVState.as_array()`` if there is one.
+        """
+        parts = []
+        for ugv in self._ugvs:
+            x, y = ugv.body.position
+            vx, vy = ugv.body.velocity
+            parts.append((x, y, ugv.body.angle, vx, vy, ugv.body.angular_velocity))
+        state = np.array(parts, dtype=float).ravel()
+        if self._uav is not None:
+            state = np.concatenate([state, self.uav_state.as_array()])
+        return state

@@ -1,0 +1,135 @@
+"""Hand-checked cases that pin every convention of moma_env.geometry."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from moma_env import geometry as g
+
+angles = st.floats(min_value=-math.pi, max_value=math.pi, allow_nan=False)
+coords = st.floats(min_value=-10, max_value=10, allow_nan=False)
+
+
+def random_pose(rng: np.random.Generator) -> np.ndarray:
+    rvec = rng.normal(size=3)
+    return g.make_transform(g.rotvec_to_matrix(rvec), rng.normal(size=3))
+
+
+def test_point_maps_from_b_to_a():
+    # Frame b sits at (1, 2, 0) in a, rotated +90 deg about z: b's x axis is a's +y.
+    T_a_b = g.se2_to_se3(1.0, 2.0, math.pi / 2)
+    p_b = np.array([1.0, 0.0, 0.0, 1.0])
+    np.testing.assert_allclose(T_a_b @ p_b, [1.0, 3.0, 0.0, 1.0], atol=1e-12)
+
+
+def test_chaining_and_inverse():
+    rng = np.random.default_rng(0)
+    T_a_b, T_b_c = random_pose(rng), random_pose(rng)
+    T_a_c = T_a_b @ T_b_c
+    p_c = np.array([0.3, -0.2, 0.7, 1.0])
+    np.testing.assert_allclose(T_a_c @ p_c, T_a_b @ (T_b_c @ p_c), atol=1e-12)
+    np.testing.assert_allclose(g.invert(T_a_b) @ T_a_b, np.eye(4), atol=1e-12)
+    np.testing.assert_allclose(g.invert(T_a_b), np.linalg.inv(T_a_b), atol=1e-12)
+
+
+def test_rotations_are_right_handed():
+    np.testing.assert_allclose(g.rot_z(math.pi / 2) @ [1, 0, 0], [0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(g.rot_x(math.pi / 2) @ [0, 1, 0], [0, 0, 1], atol=1e-12)
+    np.testing.assert_allclose(g.rot_y(math.pi / 2) @ [0, 0, 1], [1, 0, 0], atol=1e-12)
+    # Positive pitch (about +y) tips the x axis down: nose-down for a quadcopter.
+    assert (g.rot_y(0.1) @ [1, 0, 0])[2] < 0
+
+
+@given(coords, coords, angles, coords)
+def test_se2_round_trip(x, y, yaw, z):
+    T = g.se2_to_se3(x, y, yaw, z)
+    x2, y2, yaw2 = g.se3_to_se2(T)
+    assert x2 == pytest.approx(x) and y2 == pytest.approx(y)
+    assert abs(g.wrap_angle(yaw2 - yaw)) < 1e-9
+    assert T[2, 3] == z
+
+
+def test_wrap_angle():
+    assert g.wrap_angle(math.pi + 0.1) == pytest.approx(-math.pi + 0.1)
+    assert g.wrap_angle(-math.pi - 0.1) == pytest.approx(math.pi - 0.1)
+    np.testing.assert_allclose(g.wrap_angle(np.array([0.0, 2 * math.pi, 3 * math.pi])), [0.0, 0.0, -math.pi], atol=1e-12)
+
+
+def test_mount_rotations_are_proper_and_point_the_right_way():
+    for R in (g.R_BODY_CAM_DOWN, g.R_BODY_CAM_FORWARD, g.R_BODY_BOARD_UP, g.R_BODY_BOARD_BACK):
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+        assert np.linalg.det(R) == pytest.approx(1.0)
+    # Column 2 of R_b_c is the optical axis in the body frame.
+    np.testing.assert_allclose(g.R_BODY_CAM_DOWN[:, 2], [0, 0, -1])
+    np.testing.assert_allclose(g.R_BODY_CAM_DOWN[:, 1], [-1, 0, 0])  # image down = backward: top of image looks forward
+    np.testing.assert_allclose(g.R_BODY_CAM_FORWARD[:, 2], [1, 0, 0])
+    np.testing.assert_allclose(g.R_BODY_CAM_FORWARD[:, 1], [0, 0, -1])  # image y points down in the world
+    # Board on the back: printed face (z_M) looks backward, its y axis up.
+    np.testing.assert_allclose(g.R_BODY_BOARD_BACK[:, 2], [-1, 0, 0])
+    np.testing.assert_allclose(g.R_BODY_BOARD_BACK[:, 1], [0, 0, 1])
+
+
+def test_forward_camera_sees_back_board_face_on():
+    # Follower at the origin, leader 0.6 m ahead; the camera looks at the printed face.
+    T_w_cam = g.make_transform(g.R_BODY_CAM_FORWARD, [0.2, 0.0, 0.3])
+    T_w_board = g.make_transform(g.R_BODY_BOARD_BACK, [0.6, 0.0, 0.3])
+    T_c_m = g.invert(T_w_cam) @ T_w_board
+    np.testing.assert_allclose(T_c_m[:3, 3], [0.0, 0.0, 0.4], atol=1e-12)
+    # The board's z (out of the face) points back at the camera: -z_c.
+    np.testing.assert_allclose(T_c_m[:3, 2], [0, 0, -1], atol=1e-12)
+
+
+def test_quaternion_matches_hand_values():
+    q = g.matrix_to_quaternion(g.rot_z(math.pi / 2))
+    np.testing.assert_allclose(q, [0, 0, math.sin(math.pi / 4), math.cos(math.pi / 4)], atol=1e-12)
+    np.testing.assert_allclose(g.matrix_to_quaternion(np.eye(3)), [0, 0, 0, 1])
+    # 180 deg about x: w = 0, any sign convention gives |qx| = 1.
+    np.testing.assert_allclose(np.abs(g.matrix_to_quaternion(g.rot_x(math.pi))), [1, 0, 0, 0], atol=1e-12)
+
+
+@settings(max_examples=50)
+@given(st.lists(st.floats(-3, 3, allow_nan=False), min_size=3, max_size=3))
+def test_rotvec_round_trip(v):
+    R = g.rotvec_to_matrix(v)
+    np.testing.assert_allclose(g.rotvec_to_matrix(g.matrix_to_rotvec(R)), R, atol=1e-9)
+    assert g.rotation_angle(R) == pytest.approx(min(np.linalg.norm(v), 2 * math.pi - np.linalg.norm(v)) if np.linalg.norm(v) > math.pi else np.linalg.norm(v), abs=1e-7)
+
+
+def test_mean_rotation_of_symmetric_spread_is_the_centre():
+    centre = g.rot_z(0.7) @ g.rot_x(0.2)
+    spread = [centre @ g.rotvec_to_matrix(s * np.array(a)) for a in ([0.05, 0, 0], [0, 0.05, 0], [0, 0, 0.05]) for s in (1, -1)]
+    np.testing.assert_allclose(g.mean_rotation(spread), centre, atol=1e-12)
+
+
+def test_mean_pose_averages_translation_and_rotation():
+    rng = np.random.default_rng(3)
+    truth = random_pose(rng)
+    samples = []
+    for _ in range(400):
+        noise = g.make_transform(g.rotvec_to_matrix(rng.normal(scale=0.01, size=3)), rng.normal(scale=0.01, size=3))
+        samples.append(truth @ noise)
+    m = g.mean_pose(samples)
+    assert np.linalg.norm(m[:3, 3] - truth[:3, 3]) < 0.003
+    assert g.rotation_angle(m[:3, :3].T @ truth[:3, :3]) < 0.003
+    single = samples[0]
+    assert np.linalg.norm(single[:3, 3] - truth[:3, 3]) > np.linalg.norm(m[:3, 3] - truth[:3, 3])
+    np.testing.assert_allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-12)
+
+
+def test_mean_of_one_pose_is_that_pose():
+    T = random_pose(np.random.default_rng(1))
+    np.testing.assert_allclose(g.mean_pose([T]), T, atol=1e-12)
+
+
+def test_mean_rejects_empty_input():
+    with pytest.raises(ValueError, match="non-empty"):
+        g.mean_pose([])
+
+
+def test_projection_keeps_a_proper_rotation():
+    M = np.diag([-3.0, -2.0, -1.0])  # det < 0: the smallest singular direction flips
+    np.testing.assert_allclose(g.project_to_rotation(M), np.diag([-1.0, -1.0, 1.0]), atol=1e-12)
+    np.testing.assert_allclose(g.mean_rotation([M]), np.diag([-1.0, -1.0, 1.0]), atol=1e-12)

@@ -1,0 +1,105 @@
+"""The ``moma-env`` command line.
+
+Subcommands:
+    experiment square   the paper's 1 m square: table, figure, TUM files, JSON.
+
+Every subcommand validates its arguments at the boundary and exits with status 2
+and a one-line message on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from moma_env.config import ConfigError
+
+__all__ = ["main", "build_parser"]
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer seed, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"seed must be >= 0, got {value}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``moma-env``."""
+    parser = argparse.ArgumentParser(prog="moma-env", description="MOMA visual mobile marker odometry environment.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    exp = sub.add_parser("experiment", help="run one of the paper's experiments")
+    exp_sub = exp.add_subparsers(dest="experiment", required=True)
+    sq = exp_sub.add_parser("square", help="two UGVs leapfrog around a 1 m square under a UAV observer")
+    sq.add_argument("--runs", type=_positive_int, default=10, help="number of runs (default 10, as in the paper)")
+    sq.add_argument("--seed", type=_seed, default=0, help="seed of the first run; run k uses seed+k (default 0)")
+    sq.add_argument("--out", type=Path, default=Path("runs/square"), help="output folder (default runs/square)")
+    sq.add_argument("--observer", choices=("quadcopter", "handheld"), default="quadcopter", help="the observer carrying the camera")
+    sq.add_argument("--noise-px", type=float, default=None, help="corner noise std in pixels (default: the camera config's)")
+    sq.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
+    sq.set_defaults(handler=_run_square)
+    return parser
+
+
+def _run_square(args: argparse.Namespace) -> int:
+    from training.experiments.square import SquareConfig, run_square, summarise
+    from moma_env.io import to_jsonable
+    from training.experiments.square_report import format_table, results_dict, write_outputs
+
+    config = SquareConfig(observer=args.observer)
+    if args.noise_px is not None:
+        config = dataclasses.replace(config, camera=dataclasses.replace(config.camera, noise_px=args.noise_px))
+    runs = []
+    start = time.perf_counter()
+    for k in range(args.runs):
+        run = run_square(config, args.seed + k)
+        runs.append(run)
+        m = run.metrics["moma"]
+        print(
+            f"run {k + 1}/{args.runs} seed {run.seed}: {'done' if run.completed else 'NOT COMPLETED'} in {run.duration_s:.1f} s sim, "
+            f"MOMA E_f {100 * m.final_error:.2f} cm, wheel E_f {100 * run.metrics['wheel'].final_error:.2f} cm",
+            file=sys.stderr,
+        )
+    summary = summarise(runs)
+    paths = write_outputs(runs, summary, config, args.out)
+    wall = time.perf_counter() - start
+    if args.json:
+        print(json.dumps(to_jsonable(results_dict(runs, summary, config) | {"wall_time_s": wall}), indent=2, sort_keys=True))
+    else:
+        print(format_table(summary, config, sum(r.completed for r in runs), len(runs)))
+        print(f"\nfigure: {paths['figure']}\nsummary: {paths['summary']}\nTUM trajectories: {paths['tum']}/run_XX/\nwall time: {wall:.1f} s")
+    return 0 if all(r.completed for r in runs) else 1
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``moma-env`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.handler(args)
+    except ConfigError as err:
+        print(f"moma-env: invalid configuration: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
