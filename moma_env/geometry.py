@@ -40,6 +40,7 @@ __all__ = [
     "se3_to_se2",
     "yaw_of",
     "rotation_angle",
+    "upright_body_from_mount",
     "rotvec_to_matrix",
     "matrix_to_rotvec",
     "matrix_to_quaternion",
@@ -123,6 +124,31 @@ def yaw_of(R_or_T: np.ndarray) -> float:
 def se3_to_se2(T: np.ndarray) -> tuple[float, float, float]:
     """Project a 4x4 pose to the plane: ``(x, y, yaw)`` with yaw of the x axis."""
     return float(T[0, 3]), float(T[1, 3]), yaw_of(T)
+
+
+def upright_body_from_mount(T_w_x: np.ndarray, T_b_x: np.ndarray, z: float = 0.0) -> np.ndarray:
+    """Pose ``T_w_b`` of an upright body (roll = pitch = 0, height ``z``) from a mounted frame.
+
+    ``T_w_x`` is a measured pose of a frame x (a board or a camera) rigidly mounted
+    at ``T_b_x`` on a ground robot. The body's yaw is taken from the measured
+    orientation, and its position so that the mount point lands exactly on the
+    measured one in x and y. Projecting at the mount rather than at the body
+    keeps a small tilt error of the measurement from swinging the body origin
+    through the mount's lever arm (a board 0.4 m above the floor tilted by 0.1 rad
+    would otherwise move the robot by 4 cm).
+    """
+    R = T_w_x[:3, :3] @ T_b_x[:3, :3].T
+    yaw = math.atan2(R[1, 0], R[0, 0])
+    c, s = math.cos(yaw), math.sin(yaw)
+    tx, ty = T_b_x[0, 3], T_b_x[1, 3]
+    return np.array(
+        [
+            [c, -s, 0.0, T_w_x[0, 3] - (c * tx - s * ty)],
+            [s, c, 0.0, T_w_x[1, 3] - (s * tx + c * ty)],
+            [0.0, 0.0, 1.0, z],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
 
 
 def rotation_angle(R: np.ndarray) -> float:

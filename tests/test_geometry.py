@@ -133,3 +133,21 @@ def test_projection_keeps_a_proper_rotation():
     M = np.diag([-3.0, -2.0, -1.0])  # det < 0: the smallest singular direction flips
     np.testing.assert_allclose(g.project_to_rotation(M), np.diag([-1.0, -1.0, 1.0]), atol=1e-12)
     np.testing.assert_allclose(g.mean_rotation([M]), np.diag([-1.0, -1.0, 1.0]), atol=1e-12)
+
+
+def test_upright_body_from_mount_recovers_an_upright_body():
+    T_b_m = g.make_transform(g.R_BODY_BOARD_BACK, [-0.23, 0.05, 0.3])
+    T_w_b = g.se2_to_se3(1.0, -2.0, 2.5)
+    np.testing.assert_allclose(g.upright_body_from_mount(T_w_b @ T_b_m, T_b_m), T_w_b, atol=1e-12)
+
+
+def test_upright_projection_removes_the_lever_arm_of_a_tilt():
+    # A board 0.4 m above the body, measured with a 0.1 rad tilt about its own centre.
+    T_b_m = g.make_transform(None, [0.0, 0.0, 0.4])
+    T_w_b = g.se2_to_se3(0.5, 0.5, 0.3)
+    T_w_m = T_w_b @ T_b_m @ g.make_transform(g.rot_x(0.1))
+    full = T_w_m @ g.invert(T_b_m)
+    upright = g.upright_body_from_mount(T_w_m, T_b_m)
+    assert np.linalg.norm(full[:2, 3] - T_w_b[:2, 3]) == pytest.approx(0.4 * math.sin(0.1))
+    np.testing.assert_allclose(upright[:2, 3], T_w_b[:2, 3], atol=1e-12)
+    assert g.yaw_of(upright) == pytest.approx(0.3)

@@ -55,6 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     sq.add_argument("--out", type=Path, default=Path("runs/square"), help="output folder (default runs/square)")
     sq.add_argument("--observer", choices=("quadcopter", "handheld"), default="quadcopter", help="the observer carrying the camera")
     sq.add_argument("--noise-px", type=float, default=None, help="corner noise std in pixels (default: the camera config's)")
+    sq.add_argument(
+        "--full-6dof", action="store_true", help="estimate the UGVs' full 3D pose instead of constraining them upright on the floor"
+    )
     sq.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     sq.set_defaults(handler=_run_square)
     return parser
@@ -65,7 +68,7 @@ def _run_square(args: argparse.Namespace) -> int:
     from moma_env.io import to_jsonable
     from training.experiments.square_report import format_table, results_dict, write_outputs
 
-    config = SquareConfig(observer=args.observer)
+    config = SquareConfig(observer=args.observer, planar_ugvs=not args.full_6dof)
     if args.noise_px is not None:
         config = dataclasses.replace(config, camera=dataclasses.replace(config.camera, noise_px=args.noise_px))
     runs = []

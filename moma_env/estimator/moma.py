@@ -22,7 +22,7 @@ from moma_env.estimator.errors import (
 from moma_env.estimator.gate import OutlierGate
 from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
 from moma_env.estimator.window import SwitchWindow
-from moma_env.geometry import invert, mean_pose
+from moma_env.geometry import invert, mean_pose, upright_body_from_mount
 
 __all__ = ["MomaEstimator"]
 
@@ -74,6 +74,7 @@ class _Robot:
         "gate",
         "board_world",
         "camera_world",
+        "plane_z",
     )
 
     def __init__(
@@ -83,8 +84,10 @@ class _Robot:
         camera_mounts: dict[str, np.ndarray],
         window: int,
         gate: OutlierGate | None,
+        plane_z: float | None,
     ):
         self.name = name
+        self.plane_z = plane_z  # body height if the robot moves on the floor (upright), else None
         self.board_mounts = board_mounts  # board_id -> T_b_m
         self.board_inverses = {k: invert(T) for k, T in board_mounts.items()}  # T_m_b
         self.camera_mounts = camera_mounts  # camera_id -> T_b_c
@@ -193,6 +196,7 @@ class MomaEstimator:
         static: bool,
         initial_pose: np.ndarray | None = None,
         time: float | None = None,
+        planar: bool = False,
     ) -> None:
         """Declare a robot.
 
@@ -206,6 +210,10 @@ class MomaEstimator:
             initial_pose: ``T_w_b`` at ``time``, or None if unknown.
             time: time of the declaration (s); None means the estimator's last
                 time (0.0 before any).
+            planar: the robot moves on the floor, upright (a UGV): roll and pitch
+                are zero and its height is that of ``initial_pose`` (0 without
+                one). Each measured mount pose is then projected on the plane at
+                the mount (:func:`moma_env.geometry.upright_body_from_mount`).
 
         Raises:
             ConfigError: bad or duplicate name, board id or camera id,
@@ -218,6 +226,8 @@ class MomaEstimator:
             raise ConfigError("name", f"duplicate robot name {name!r}")
         if not isinstance(static, bool):
             raise ConfigError(f"robots[{name!r}].static", f"must be a bool, got {static!r}")
+        if not isinstance(planar, bool):
+            raise ConfigError(f"robots[{name!r}].planar", f"must be a bool, got {planar!r}")
         if time is None:
             time = 0.0 if self._time is None else self._time
         t = self._checked_time(time)
@@ -251,7 +261,8 @@ class MomaEstimator:
 
         cfg = self._config
         gate = OutlierGate(cfg.gate) if cfg.gate is not None and cfg.gate.enabled else None
-        r = _Robot(name, board_mounts, camera_mounts, cfg.window, gate)
+        plane_z = (0.0 if pose is None else float(pose[2, 3])) if planar else None
+        r = _Robot(name, board_mounts, camera_mounts, cfg.window, gate, plane_z)
         r.pose = pose
         if pose is not None:
             r.last_fresh_time = t
@@ -371,12 +382,19 @@ class MomaEstimator:
             for d in group:
                 r = board_owner[d.board_id]
                 if r.phase is not _REFERENCE and r is not own:
-                    sample = T_w_c @ d.T_c_m @ r.board_inverses[d.board_id]  # T_w_c @ T_c_m @ T_m_b
+                    if r.plane_z is None:
+                        sample = T_w_c @ d.T_c_m @ r.board_inverses[d.board_id]  # T_w_c @ T_c_m @ T_m_b
+                    else:
+                        sample = upright_body_from_mount(T_w_c @ d.T_c_m, r.board_mounts[d.board_id], r.plane_z)
                     samples.setdefault(r, []).append(sample)
         for camera_id, T_w_c in camera_poses.items():
             r = camera_owner[camera_id]
             if r.phase is not _REFERENCE:
-                samples.setdefault(r, []).append(T_w_c @ r.camera_inverses[camera_id])  # T_w_c @ T_c_b
+                if r.plane_z is None:
+                    sample = T_w_c @ r.camera_inverses[camera_id]  # T_w_c @ T_c_b
+                else:
+                    sample = upright_body_from_mount(T_w_c, r.camera_mounts[camera_id], r.plane_z)
+                samples.setdefault(r, []).append(sample)
 
         measured: set[_Robot] = set()
         settle_delay = self._config.settle_delay_s

@@ -54,6 +54,9 @@ class SquareConfig:
         observer: ``"quadcopter"`` or ``"handheld"``.
         control_hz: control and camera rate (Hz); the paper's camera ran at 25.
         max_time_s: a run that has not finished by then is stopped and flagged (s).
+        planar_ugvs: tell the estimator that the UGVs move upright on the floor
+            (see ``MomaEstimator.add_robot(planar=...)``); False estimates their
+            full 6-DoF pose as the paper's system did.
     """
 
     side: float = 1.0
@@ -64,6 +67,7 @@ class SquareConfig:
     observer: str = "quadcopter"
     control_hz: float = 25.0
     max_time_s: float = 300.0
+    planar_ugvs: bool = True
     camera: CameraConfig = field(default_factory=CameraConfig)
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
     odometry: WheelOdometryConfig = field(default_factory=WheelOdometryConfig)
@@ -181,7 +185,14 @@ def run_square(config: SquareConfig, seed: int) -> SquareRun:
     estimator = MomaEstimator(config.estimator)
     boards = {}
     for index, ugv in enumerate(world.config.ugvs):
-        estimator.add_robot(ugv.name, boards={index: ugv.board_mount}, static=True, initial_pose=world.ugv_transform(ugv.name), time=world.time)
+        estimator.add_robot(
+            ugv.name,
+            boards={index: ugv.board_mount},
+            static=True,
+            initial_pose=world.ugv_transform(ugv.name),
+            time=world.time,
+            planar=config.planar_ugvs,
+        )
         boards[ugv.name] = (index, ugv.board)
     estimator.add_robot(uav_cfg.name, cameras={uav_cfg.camera_name: uav_cfg.camera_mount}, static=False, time=world.time)
 
