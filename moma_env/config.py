@@ -24,6 +24,7 @@ __all__ = [
     "check_range",
     "check_choice",
     "check_unique",
+    "check_rigid_transform",
     "from_mapping",
 ]
 
@@ -95,6 +96,30 @@ def check_unique(field: str, values: Iterable[Any]) -> None:
         if v in seen:
             raise ConfigError(field, f"duplicate value {v!r}")
         seen.add(v)
+
+
+def check_rigid_transform(field: str, value: Any, tolerance: float = 1e-6) -> "np.ndarray":
+    """``value`` as a new float 4x4 array if it is a rigid transform, else ConfigError.
+
+    A rigid transform is finite, has the last row ``(0, 0, 0, 1)`` and a proper
+    rotation block (orthonormal within ``tolerance``, determinant +1).
+    """
+    import numpy as np
+
+    try:
+        T = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(field, f"must be a 4x4 array of numbers, got {value!r}") from None
+    if T.shape != (4, 4):
+        raise ConfigError(field, f"must be a 4x4 transform, got shape {T.shape}")
+    if not np.isfinite(T).all():
+        raise ConfigError(field, "must be finite (found NaN or inf)")
+    if np.abs(T[3] - (0.0, 0.0, 0.0, 1.0)).max() > tolerance:
+        raise ConfigError(field, f"last row must be (0, 0, 0, 1), got {tuple(T[3])}")
+    R = T[:3, :3]
+    if np.abs(R.T @ R - np.eye(3)).max() > tolerance or np.linalg.det(R) <= 0.0:
+        raise ConfigError(field, "rotation block must be a proper rotation (orthonormal, det +1)")
+    return T
 
 
 def from_mapping(cls: type[C], mapping: Mapping[str, Any], *, name: str | None = None) -> C:

@@ -144,11 +144,11 @@ def test_duplicate_names_and_ids_are_rejected():
         ({"boards": {0.5: BOARD_TOP}}, "board ids must be integers"),
         ({"boards": {2: np.eye(3)}}, r"boards\[2\]: must be a 4x4"),
         ({"boards": {2: np.full((4, 4), np.nan)}}, r"boards\[2\]: must be finite"),
-        ({"boards": {2: 2.0 * np.eye(4)}}, r"boards\[2\]: must be a rigid"),
+        ({"boards": {2: 2.0 * np.eye(4)}}, r"boards\[2\]: last row must be"),
         ({"boards": [BOARD_TOP]}, "must be a mapping"),
         ({"cameras": {"": CAM_DOWN}}, "camera ids must be non-empty strings"),
         ({"cameras": {"cam": "eye"}}, r"cameras\['cam'\]: must be a 4x4 array"),
-        ({"initial_pose": g.make_transform(np.diag([1.0, 1.0, -1.0]))}, "initial_pose: must be a rigid"),
+        ({"initial_pose": g.make_transform(np.diag([1.0, 1.0, -1.0]))}, "initial_pose: rotation block must be a proper rotation"),
         ({"static": 1}, "static: must be a bool"),
     ],
 )

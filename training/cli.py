@@ -22,24 +22,19 @@ from moma_env.config import ConfigError
 __all__ = ["main", "build_parser"]
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
+def _int_at_least(minimum: int, what: str):
+    """An argparse type: an integer >= ``minimum``."""
 
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer {what}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{what} must be >= {minimum}, got {value}")
+        return value
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer seed, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"seed must be >= 0, got {value}")
-    return value
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,8 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
     exp = sub.add_parser("experiment", help="run one of the paper's experiments")
     exp_sub = exp.add_subparsers(dest="experiment", required=True)
     sq = exp_sub.add_parser("square", help="two UGVs leapfrog around a 1 m square under a UAV observer")
-    sq.add_argument("--runs", type=_positive_int, default=10, help="number of runs (default 10, as in the paper)")
-    sq.add_argument("--seed", type=_seed, default=0, help="seed of the first run; run k uses seed+k (default 0)")
+    sq.add_argument("--runs", type=_int_at_least(1, "count"), default=10, help="number of runs (default 10, as in the paper)")
+    sq.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first run; run k uses seed+k (default 0)")
     sq.add_argument("--out", type=Path, default=Path("runs/square"), help="output folder (default runs/square)")
     sq.add_argument("--observer", choices=("quadcopter", "handheld"), default="quadcopter", help="the observer carrying the camera")
     sq.add_argument("--noise-px", type=float, default=None, help="corner noise std in pixels (default: the camera config's)")

@@ -11,7 +11,7 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from moma_env.config import ConfigError
+from moma_env.config import ConfigError, check_rigid_transform
 from moma_env.estimator.config import EstimatorConfig
 from moma_env.estimator.detection import Detection
 from moma_env.estimator.errors import (
@@ -31,27 +31,6 @@ _SETTLING = Phase.SETTLING
 _REFERENCE = Phase.REFERENCE
 
 #: Tolerances when checking that a given mount or pose is a rigid transform.
-_ORTHONORMAL_TOL = 1e-6
-
-
-def _rigid(field: str, value: object) -> np.ndarray:
-    """A float copy of ``value`` if it is a 4x4 rigid transform, else ConfigError."""
-    try:
-        T = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(field, f"must be a 4x4 array of numbers, got {value!r}") from None
-    if T.shape != (4, 4):
-        raise ConfigError(field, f"must be a 4x4 transform, got shape {T.shape}")
-    if not np.isfinite(T).all():
-        raise ConfigError(field, "must be finite (found NaN or inf)")
-    R = T[:3, :3]
-    if (
-        np.abs(T[3] - (0.0, 0.0, 0.0, 1.0)).max() > _ORTHONORMAL_TOL
-        or np.abs(R.T @ R - np.eye(3)).max() > _ORTHONORMAL_TOL
-        or np.linalg.det(R) < 0.0
-    ):
-        raise ConfigError(field, "must be a rigid transform (orthonormal rotation, last row 0 0 0 1)")
-    return T
 
 
 class _Robot:
@@ -242,7 +221,7 @@ class MomaEstimator:
                 raise ConfigError(
                     f"robots[{name!r}].boards", f"duplicate board id {board_id} (already on robot {owner.name!r})"
                 )
-            board_mounts[board_id] = _rigid(f"robots[{name!r}].boards[{board_id}]", mount)
+            board_mounts[board_id] = check_rigid_transform(f"robots[{name!r}].boards[{board_id}]", mount)
 
         camera_mounts: dict[str, np.ndarray] = {}
         for camera_id, mount in self._mapping(f"robots[{name!r}].cameras", cameras).items():
@@ -255,9 +234,9 @@ class MomaEstimator:
                 raise ConfigError(
                     f"robots[{name!r}].cameras", f"duplicate camera id {camera_id!r} (already on robot {owner.name!r})"
                 )
-            camera_mounts[camera_id] = _rigid(f"robots[{name!r}].cameras[{camera_id!r}]", mount)
+            camera_mounts[camera_id] = check_rigid_transform(f"robots[{name!r}].cameras[{camera_id!r}]", mount)
 
-        pose = None if initial_pose is None else _rigid(f"robots[{name!r}].initial_pose", initial_pose)
+        pose = None if initial_pose is None else check_rigid_transform(f"robots[{name!r}].initial_pose", initial_pose)
 
         cfg = self._config
         gate = OutlierGate(cfg.gate) if cfg.gate is not None and cfg.gate.enabled else None

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from moma_env.config import ConfigError, check_finite, check_non_negative
+from moma_env.config import check_finite, check_non_negative, check_rigid_transform
 from moma_env.geometry import (
     R_BODY_BOARD_BACK,
     R_BODY_BOARD_UP,
@@ -20,10 +20,6 @@ from moma_env.geometry import (
 )
 
 __all__ = ["board_on_top", "board_on_back", "camera_forward", "camera_down", "rigid_transform"]
-
-#: Tolerance on the orthonormality of a mount's rotation block.
-_ROTATION_TOLERANCE = 1e-6
-
 
 def board_on_top(height: float = 0.40) -> np.ndarray:
     """``T_b_m`` of a board lying face-up, centred on the robot, ``height`` m above the floor."""
@@ -69,25 +65,7 @@ def camera_down(height: float = -0.05, offset: float = 0.0) -> np.ndarray:
 
 
 def rigid_transform(field: str, value: object) -> np.ndarray:
-    """Validate a 4x4 rigid transform and return it as a read-only float array.
-
-    Raises:
-        ConfigError: naming ``field`` if the shape is not 4x4, a value is not
-            finite, the rotation block is not a proper rotation or the last row is
-            not ``(0, 0, 0, 1)``.
-    """
-    try:
-        T = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(field, f"must be a 4x4 transform, got {value!r}") from None
-    if T.shape != (4, 4):
-        raise ConfigError(field, f"must be a 4x4 transform, got shape {T.shape}")
-    if not np.all(np.isfinite(T)):
-        raise ConfigError(field, "must contain only finite numbers")
-    if not np.array_equal(T[3], [0.0, 0.0, 0.0, 1.0]):
-        raise ConfigError(field, f"last row must be (0, 0, 0, 1), got {tuple(T[3])}")
-    R = T[:3, :3]
-    if np.max(np.abs(R.T @ R - np.eye(3))) > _ROTATION_TOLERANCE or np.linalg.det(R) <= 0.0:
-        raise ConfigError(field, "rotation block must be a proper rotation (orthonormal, det +1)")
+    """Validate a 4x4 rigid transform (``config.check_rigid_transform``) and return it read-only."""
+    T = check_rigid_transform(field, value)
     T.setflags(write=False)
     return T
