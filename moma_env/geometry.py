@@ -51,6 +51,8 @@ __all__ = [
     "R_BODY_CAM_FORWARD",
     "R_BODY_BOARD_UP",
     "R_BODY_BOARD_BACK",
+    "R_BODY_CAM_BACKWARD",
+    "R_BODY_BOARD_FRONT",
 ]
 
 
@@ -274,3 +276,8 @@ R_BODY_BOARD_UP = np.eye(3)
 #: Vertical board on a robot's back, printed face looking backward:
 #: z_M = -x_B, y_M = z_B (up), x_M = -y_B.
 R_BODY_BOARD_BACK = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+#: Backward camera: optical axis -x_B, image x = +y_B, image y = -z_B.
+R_BODY_CAM_BACKWARD = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+#: Vertical board on a body's front, printed face looking forward:
+#: z_M = x_B, y_M = z_B (up), x_M = y_B.
+R_BODY_BOARD_FRONT = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])

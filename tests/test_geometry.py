@@ -59,7 +59,7 @@ def test_wrap_angle():
 
 
 def test_mount_rotations_are_proper_and_point_the_right_way():
-    for R in (g.R_BODY_CAM_DOWN, g.R_BODY_CAM_FORWARD, g.R_BODY_BOARD_UP, g.R_BODY_BOARD_BACK):
+    for R in (g.R_BODY_CAM_DOWN, g.R_BODY_CAM_FORWARD, g.R_BODY_BOARD_UP, g.R_BODY_BOARD_BACK, g.R_BODY_CAM_BACKWARD, g.R_BODY_BOARD_FRONT):
         np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
         assert np.linalg.det(R) == pytest.approx(1.0)
     # Column 2 of R_b_c is the optical axis in the body frame.
@@ -70,6 +70,10 @@ def test_mount_rotations_are_proper_and_point_the_right_way():
     # Board on the back: printed face (z_M) looks backward, its y axis up.
     np.testing.assert_allclose(g.R_BODY_BOARD_BACK[:, 2], [-1, 0, 0])
     np.testing.assert_allclose(g.R_BODY_BOARD_BACK[:, 1], [0, 0, 1])
+    np.testing.assert_allclose(g.R_BODY_CAM_BACKWARD[:, 2], [-1, 0, 0])
+    np.testing.assert_allclose(g.R_BODY_CAM_BACKWARD[:, 1], [0, 0, -1])
+    np.testing.assert_allclose(g.R_BODY_BOARD_FRONT[:, 2], [1, 0, 0])
+    np.testing.assert_allclose(g.R_BODY_BOARD_FRONT[:, 1], [0, 0, 1])
 
 
 def test_forward_camera_sees_back_board_face_on():
