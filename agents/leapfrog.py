@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from agents.waypoint import WaypointFollower
+from moma_env.control.waypoint import WaypointFollower
 
 __all__ = ["Leg", "StateChange", "LeapfrogSchedule"]
 

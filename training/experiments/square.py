@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from agents.leapfrog import LeapfrogSchedule, Leg
-from agents.uav_tracking import BoardTrackingController, TrackingControllerConfig
-from agents.waypoint import WaypointFollower, WaypointFollowerConfig
+from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
+from moma_env.control.waypoint import WaypointFollower, WaypointFollowerConfig
 from moma_env.camera import BoardView, CameraConfig, GeometricCamera
 from moma_env.config import ConfigError, check_choice, check_non_negative, check_positive
 from moma_env.estimator import EstimatorConfig, MomaEstimator, Status

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from agents.leapfrog import LeapfrogSchedule, Leg, StateChange
-from agents.uav_tracking import BoardTrackingController, TrackingControllerConfig
-from agents.waypoint import WaypointFollower, WaypointFollowerConfig
+from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
+from moma_env.control.waypoint import WaypointFollower, WaypointFollowerConfig
 from moma_env.config import ConfigError
 from moma_env.geometry import R_BODY_CAM_DOWN
 

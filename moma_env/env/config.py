@@ -1,0 +1,88 @@
+"""Configuration of the PettingZoo environment: action mode, agents, rewards.
+
+The scenario (world, cameras, goals) comes from a configuration of
+:mod:`moma_env.scenarios`; this module holds what is about the learning problem,
+in the spirit of highway-env's ``default_config()``: the action type is chosen by
+config, the reward is a weighted sum of named terms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+from moma_env.config import ConfigError, check_bool, check_choice, check_finite, check_non_negative
+
+__all__ = ["ACTION_MODES", "RewardConfig", "EnvConfig"]
+
+#: ``velocity``: continuous body velocities plus a requested static/mobile state;
+#: ``switching``: discrete hold / advance per UGV, built-in controllers drive.
+ACTION_MODES = ("velocity", "switching")
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    """Weights of the team reward's terms (every agent gets the same team reward).
+
+    Attributes:
+        progress: per metre the UGVs got closer to their goals this step (truth).
+        localisation_error: per metre of the mean position error of the UGVs'
+            MOMA estimates this step (truth vs estimate; a lost robot counts
+            ``lost_error_m``).
+        switch: per granted static/mobile switch.
+        refused: per refused request to become mobile.
+        collision: per new collision pair involving a robot.
+        lost: per step and per robot whose estimate is LOST.
+        goal_bonus: once per UGV reaching its goal.
+        time: per step (a negative value rewards finishing early).
+        lost_error_m: error (m) charged for a robot without a usable estimate.
+    """
+
+    progress: float = 1.0
+    localisation_error: float = -0.5
+    switch: float = -0.01
+    refused: float = -0.05
+    collision: float = -0.2
+    lost: float = -0.05
+    goal_bonus: float = 5.0
+    time: float = -0.005
+    lost_error_m: float = 1.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            check_finite(f"rewards.{f.name}", getattr(self, f.name))
+        check_non_negative("rewards.lost_error_m", self.lost_error_m)
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """How the environment exposes a scenario to learning agents.
+
+    Attributes:
+        action_mode: one of :data:`ACTION_MODES`.
+        observer_agent: whether the UAV observer is an agent. ``None`` means yes
+            in ``velocity`` mode and no in ``switching`` mode (its built-in
+            tracking controller flies it).
+        max_cycles: episode length in steps; ``None`` takes the scenario's.
+        rewards: reward weights.
+    """
+
+    action_mode: str = "switching"
+    observer_agent: bool | None = None
+    max_cycles: int | None = None
+    rewards: RewardConfig = field(default_factory=RewardConfig)
+
+    def __post_init__(self) -> None:
+        check_choice("env.action_mode", self.action_mode, ACTION_MODES)
+        if self.observer_agent is not None:
+            check_bool("env.observer_agent", self.observer_agent)
+        if self.max_cycles is not None and (
+            isinstance(self.max_cycles, bool) or not isinstance(self.max_cycles, int) or self.max_cycles < 1
+        ):
+            raise ConfigError("env.max_cycles", f"must be an integer >= 1 or None, got {self.max_cycles!r}")
+        if not isinstance(self.rewards, RewardConfig):
+            raise ConfigError("env.rewards", f"must be a RewardConfig, got {type(self.rewards).__name__}")
+
+    @property
+    def observer_is_agent(self) -> bool:
+        """The resolved ``observer_agent``."""
+        return self.action_mode == "velocity" if self.observer_agent is None else self.observer_agent

@@ -1,0 +1,630 @@
+"""The PettingZoo ParallelEnv of every MOMA configuration.
+
+One step: the agents' state requests go through the paper's motion rules
+(:mod:`moma_env.env.rules`); granted ones lock or release devices in the world
+and are declared to the estimator; the world advances one control step; every
+camera measures the boards it sees; the MOMA estimator updates; observations are
+built from the estimates only (:mod:`moma_env.env.observations`).
+
+Agents: the UGVs (``ugv_0``, ``ugv_1``, ...) and, when it is a learning agent,
+the UAV ``observer``. A sled is a device without an agent: the robot that tows it
+commands its state and its reel.
+
+Actions (chosen by ``EnvConfig.action_mode``):
+
+* ``velocity``: a UGV sends ``Box(-1, 1, (4,))``: body velocities vx, vy (times
+  its max speed), yaw rate (times its max yaw rate), and a mobile request (> 0:
+  be mobile, <= 0: be static). A robot towing a sled sends two more values: the
+  reel rate (> 0 reels in) and the sled's mobile request: ``Box(-1, 1, (6,))``.
+  The observer sends ``Box(-1, 1, (4,))``: vx, vy, yaw rate, climb rate (times
+  its limits).
+* ``switching``: a UGV sends ``Discrete(2)``: 0 hold (be static), 1 advance (be
+  mobile and drive the next leg towards its goal with the built-in controller;
+  at the leg's end the robot stops and is declared static). A robot towing a
+  sled has ``Discrete(3)``: 2 reels the sled in (sled mobile until the rope is
+  at its minimum, then static). The observer, if an agent, keeps the velocity
+  Box; otherwise its tracking controller flies it.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+
+from moma_env.camera import BoardView, GeometricCamera
+from moma_env.control import BoardTrackingController, WaypointFollower, WaypointFollowerConfig
+from moma_env.env.config import EnvConfig
+from moma_env.env.observations import DeviceSnapshot, ObservationLayout
+from moma_env.env.rules import MotionRules
+from moma_env.estimator import MomaEstimator, Phase, Status
+from moma_env.geometry import se3_to_se2, wrap_angle
+from moma_env.scenarios import Scenario
+from moma_env.world import World
+
+__all__ = ["MomaParallelEnv", "OBSERVER"]
+
+#: Name of the observer agent.
+OBSERVER = "observer"
+
+ScenarioFactory = Callable[[np.random.Generator | None], Scenario]
+
+
+class MomaParallelEnv(ParallelEnv):
+    """MOMA multi-robot localisation as a PettingZoo parallel environment.
+
+    Args:
+        scenario: a :class:`Scenario`, or a factory ``f(rng) -> Scenario`` called
+            at every reset (random scenarios); every scenario it returns must
+            have the same robots.
+        config: action mode, observer agent, rewards, episode length.
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
+        name: the environment's name in ``metadata``.
+    """
+
+    metadata = {"name": "moma_v0", "render_modes": ["rgb_array", "human"], "render_fps": 25, "is_parallelizable": True}
+
+    def __init__(
+        self,
+        scenario: Scenario | ScenarioFactory,
+        config: EnvConfig | None = None,
+        render_mode: str | None = None,
+        name: str | None = None,
+    ):
+        self.config = config or EnvConfig()
+        if not isinstance(self.config, EnvConfig):
+            raise TypeError(f"config must be an EnvConfig, got {type(self.config).__name__}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        if isinstance(scenario, Scenario):
+            self._factory: ScenarioFactory = lambda rng, s=scenario: s
+        elif callable(scenario):
+            self._factory = scenario
+        else:
+            raise TypeError(f"scenario must be a Scenario or a callable rng -> Scenario, got {type(scenario).__name__}")
+        self.metadata = dict(self.metadata)
+        first = self._factory(None)
+        if not isinstance(first, Scenario):
+            raise TypeError(f"the scenario factory returned {type(first).__name__}, not a Scenario")
+        self.metadata["name"] = name or f"{first.name}_v0"
+        self.metadata["render_fps"] = int(round(first.world.control_hz))
+        self._signature = self._robots_signature(first)
+        self._setup(first)
+        self._np_random = np.random.default_rng()
+        self._seeded = False
+        self._window = None
+
+    # ------------------------------------------------------------------ set-up
+    @staticmethod
+    def _robots_signature(s: Scenario) -> tuple:
+        sleds = tuple((sled.name, sled.robot) for sled in getattr(s.world, "sleds", ()))
+        return (s.world.ugv_names, sleds, s.world.uav is not None, tuple(sorted(s.goals)))
+
+    def _setup(self, scenario: Scenario) -> None:
+        """Build the episode's world, cameras, estimator, rules and layouts."""
+        self.scenario = scenario
+        wc = scenario.world
+        self.world = World(wc)
+        self._ugvs = wc.ugv_names
+        sleds = tuple(getattr(wc, "sleds", ()))
+        self._sleds = tuple(s.name for s in sleds)
+        self._tows = {s.robot: s.name for s in sleds}
+        self._devices = self._ugvs + self._sleds
+        self._has_uav = wc.uav is not None
+        agents = list(self._ugvs)
+        self._observer_agent = self._has_uav and self.config.observer_is_agent
+        if self._observer_agent:
+            agents.append(OBSERVER)
+        self.possible_agents = agents
+        self.agents = []
+
+        # Boards and cameras, as the estimator and the cameras see them.
+        self._boards: list[tuple[str, int, Any]] = []  # (device, board id, layout)
+        board_owner: dict[int, str] = {}
+        for index, ugv in enumerate(wc.ugvs):
+            if ugv.board is not None:
+                self._boards.append((ugv.name, index, ugv.board))
+                board_owner[index] = ugv.name
+        for k, sled in enumerate(sleds):
+            board_id = len(wc.ugvs) + k
+            self._boards.append((sled.name, board_id, sled.board))
+            board_owner[board_id] = sled.name
+        camera_owner: dict[str, str] = {}
+        for ugv in wc.ugvs:
+            for cam in ugv.cameras:
+                camera_owner[cam.name] = ugv.name
+        if self._has_uav:
+            camera_owner[wc.uav.camera_name] = wc.uav.name
+        self._camera_owner = camera_owner
+        self._board_owner = board_owner
+        self._cameras = {name: GeometricCamera(name, scenario.camera) for name in camera_owner}
+        self.rules = MotionRules(board_owner, camera_owner, scenario.dwell_s)
+        self._max_cycles = self.config.max_cycles or scenario.max_cycles
+
+        arena = wc.arena
+        xmin, ymin, xmax, ymax = arena.bounds
+        centre = ((xmin + xmax) / 2.0, (ymin + ymax) / 2.0)
+        self._half_diag = 0.5 * math.hypot(xmax - xmin, ymax - ymin)
+        self.layout = ObservationLayout(
+            self._devices, self._ugvs, self._tows, self._observer_agent, centre, self._half_diag, scenario.dwell_s
+        )
+        self._action_spaces = {a: self._make_action_space(a) for a in self.possible_agents}
+        self._follower = WaypointFollower(WaypointFollowerConfig(max_speed=0.3, position_tolerance=0.02, yaw_tolerance=0.04))
+        if self._has_uav:
+            uav = wc.uav
+            self._tracker = BoardTrackingController(uav.camera_mount[:3, :3], scenario.camera.fx, (scenario.camera.width, scenario.camera.height))
+        n_state = 5 * len(self._devices) + (7 if self._has_uav else 0) + 4 * len(self._ugvs)
+        self.state_space = spaces.Box(-np.inf, np.inf, shape=(n_state,), dtype=np.float32)
+
+    def _make_action_space(self, agent: str) -> spaces.Space:
+        if agent == OBSERVER:
+            return spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
+        if self.config.action_mode == "switching":
+            return spaces.Discrete(3 if agent in self._tows else 2)
+        return spaces.Box(-1.0, 1.0, shape=(6 if agent in self._tows else 4,), dtype=np.float32)
+
+    # ------------------------------------------------------------------ spaces
+    @functools.lru_cache(maxsize=None)  # noqa: B019 - spaces are fixed per instance
+    def observation_space(self, agent: str) -> spaces.Space:
+        return self.layout.spaces[self._checked_agent(agent)]
+
+    @functools.lru_cache(maxsize=None)  # noqa: B019
+    def action_space(self, agent: str) -> spaces.Space:
+        return self._action_spaces[self._checked_agent(agent)]
+
+    def _checked_agent(self, agent: str) -> str:
+        if agent not in self.possible_agents:
+            raise KeyError(f"unknown agent {agent!r}; agents are {self.possible_agents}")
+        return agent
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        if seed is not None:
+            self._np_random = np.random.default_rng(seed)
+            self._seeded = True
+        rng_scenario, self._rng_camera = self._np_random.spawn(2)
+        scenario = self._factory(rng_scenario)
+        if self._robots_signature(scenario) != self._signature:
+            raise ValueError("the scenario factory changed the set of robots between resets; agents must stay fixed")
+        if scenario is not self.scenario:
+            self._setup(scenario)
+        else:
+            self.world.reset()
+        self.agents = list(self.possible_agents)
+        self.rules.reset()
+        self._steps = 0
+        self._last_switch_time = 0.0
+        self._mobile: set[str] = set()
+        self._legs: dict[str, tuple[float, float, float]] = {}
+        self._reeling: set[str] = set()
+        self._reached_goal: set[str] = set()
+        self._refused_total = 0
+        self._switches_total = 0
+
+        est = MomaEstimator(self.scenario.estimator)
+        wc = self.scenario.world
+        boards_of: dict[str, dict[int, np.ndarray]] = {}
+        for device, board_id, _ in self._boards:
+            boards_of.setdefault(device, {})[board_id] = self._board_mount(device)
+        for ugv in wc.ugvs:
+            est.add_robot(
+                ugv.name,
+                boards=boards_of.get(ugv.name, {}),
+                cameras={c.name: c.T_b_c for c in ugv.cameras},
+                static=True,
+                initial_pose=self.world.ugv_transform(ugv.name),
+                time=0.0,
+                planar=True,
+            )
+        for sled in self._sleds:
+            est.add_robot(sled, boards=boards_of.get(sled, {}), static=True, initial_pose=self._device_transform(sled), time=0.0, planar=True)
+        if self._has_uav:
+            est.add_robot(wc.uav.name, cameras={wc.uav.camera_name: wc.uav.camera_mount}, static=False, time=0.0)
+        self.estimator = est
+        self._detections = self._measure()
+        est.update(self.world.time, self._detections)
+        self._prev_goal_distance = self._goal_distances()
+        self._prev_contacts: frozenset = frozenset()
+        observations = self._observations()
+        infos = {a: self._info(a, [], 0.0) for a in self.agents}
+        return observations, infos
+
+    def _board_mount(self, device: str) -> np.ndarray:
+        wc = self.scenario.world
+        if device in self._sleds:
+            return next(s for s in wc.sleds if s.name == device).board_mount
+        return wc.ugv(device).board_mount
+
+    def _device_transform(self, device: str) -> np.ndarray:
+        if device in self._sleds:
+            return self.world.sled_transform(device)
+        return self.world.ugv_transform(device)
+
+    def _device_pose(self, device: str) -> tuple[float, float, float]:
+        if device in self._sleds:
+            return self.world.sled_pose(device)
+        return self.world.ugv_pose(device)
+
+    # ------------------------------------------------------------------ step
+    def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+        if not self.agents:
+            raise RuntimeError("step() called on a finished episode; call reset() first")
+        if not isinstance(actions, Mapping):
+            raise TypeError(f"actions must be a mapping agent -> action, got {type(actions).__name__}")
+        for agent in actions:
+            if agent not in self.agents:
+                if agent in self.possible_agents:
+                    raise ValueError(f"action for finished agent {agent!r}")
+                raise KeyError(f"action for unknown agent {agent!r}; agents are {self.agents}")
+        parsed = {a: self._parse_action(a, actions.get(a)) for a in self.agents}
+        t = self.world.time
+        events: dict[str, list[str]] = {a: [] for a in self.agents}
+        n_switch, n_refused = 0, 0
+
+        # 1. State requests: static first (always granted), then mobile (rules).
+        wants = self._requests(parsed)
+        for device, want_mobile in wants.items():
+            if not want_mobile and device in self._mobile:
+                self._make_static(device, t)
+                n_switch += 1
+                events[self._agent_of(device)].append(f"static:{device}")
+        references = {n for n, e in self.estimator.estimates().items() if e.phase is Phase.REFERENCE}
+        for device, want_mobile in wants.items():
+            if want_mobile and device not in self._mobile:
+                reason = self.rules.check_mobile(device, t, self._mobile, references, self._detections)
+                agent = self._agent_of(device)
+                if reason is None:
+                    self._make_mobile(device, t)
+                    references.discard(device)
+                    n_switch += 1
+                    events[agent].append(f"mobile:{device}")
+                else:
+                    n_refused += 1
+                    events[agent].append(f"refused:{device}:{reason}")
+
+        # 2. Commands.
+        ugv_commands = self._ugv_commands(parsed, events)
+        uav_command = self._uav_command(parsed)
+
+        # 3. Physics, cameras, estimator.
+        self.world.step(ugv_commands, uav_command)
+        self._steps += 1
+        self._detections = self._measure()
+        self.estimator.update(self.world.time, self._detections)
+        self._auto_static_sleds(events)
+
+        # 4. Rewards, terminations, observations.
+        reward, newly_reached, collisions = self._reward(n_switch, n_refused)
+        for device in newly_reached:
+            events[self._agent_of(device)].append(f"goal:{device}")
+        self._switches_total += n_switch
+        self._refused_total += n_refused
+        done = bool(self.scenario.goals) and len(self._reached_goal) == len(self.scenario.goals)
+        truncate = self._steps >= self._max_cycles
+        observations = self._observations()
+        rewards = {a: reward for a in self.agents}
+        terminations = {a: done for a in self.agents}
+        truncations = {a: truncate and not done for a in self.agents}
+        infos = {a: self._info(a, events[a], reward, collisions) for a in self.agents}
+        if done or truncate:
+            self.agents = []
+        if self.render_mode == "human":
+            self.render()
+        return observations, rewards, terminations, truncations, infos
+
+    def _agent_of(self, device: str) -> str:
+        for robot, sled in self._tows.items():
+            if sled == device:
+                return robot
+        return device
+
+    def _parse_action(self, agent: str, action: Any) -> Any:
+        """Validated action: an int for Discrete, a clipped float array for Box."""
+        space = self._action_spaces[agent]
+        if action is None:
+            return 0 if isinstance(space, spaces.Discrete) else np.zeros(space.shape, dtype=np.float64)
+        if isinstance(space, spaces.Discrete):
+            try:
+                value = int(action)
+            except (TypeError, ValueError):
+                raise ValueError(f"action of {agent!r} must be an integer in [0, {space.n}), got {action!r}") from None
+            if value != action or not 0 <= value < space.n:
+                raise ValueError(f"action of {agent!r} must be an integer in [0, {space.n}), got {action!r}")
+            return value
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != space.shape:
+            raise ValueError(f"action of {agent!r} must have shape {space.shape}, got {a.shape}")
+        if not np.isfinite(a).all():
+            raise ValueError(f"action of {agent!r} must be finite, got {a.tolist()}")
+        return np.clip(a, -1.0, 1.0)
+
+    def _requests(self, parsed: Mapping[str, Any]) -> dict[str, bool]:
+        """Device -> wants to be mobile, from this step's actions."""
+        wants: dict[str, bool] = {}
+        switching = self.config.action_mode == "switching"
+        for agent, action in parsed.items():
+            if agent == OBSERVER:
+                continue
+            sled = self._tows.get(agent)
+            if switching:
+                if action == 1:
+                    wants[agent] = True
+                elif action == 0 and agent in self._mobile:
+                    wants[agent] = False
+                if sled is not None and action == 2 and sled not in self._mobile:
+                    wants[sled] = True
+            else:
+                wants[agent] = bool(action[3] > 0.0)
+                if sled is not None:
+                    wants[sled] = bool(action[5] > 0.0)
+        return wants
+
+    def _make_static(self, device: str, t: float) -> None:
+        self.world.set_static(device, True)
+        self.estimator.set_static(device, True, t)
+        self._mobile.discard(device)
+        self._legs.pop(device, None)
+        if device in self._sleds:
+            self.world.set_reel(device, 0.0)
+            self._reeling.discard(device)
+        self.rules.note_static(t)
+        self._last_switch_time = t
+
+    def _make_mobile(self, device: str, t: float) -> None:
+        self.world.set_static(device, False)
+        self.estimator.set_static(device, False, t)
+        self._mobile.add(device)
+        self._last_switch_time = t
+        if self.config.action_mode == "switching":
+            if device in self._sleds:
+                self._reeling.add(device)
+                self.world.set_reel(device, 1.0)
+            else:
+                self._legs[device] = self._next_leg(device)
+
+    def _next_leg(self, device: str) -> tuple[float, float, float]:
+        """Target of the next advance: at most ``leg_length`` towards the goal, from the estimate."""
+        goal = self.scenario.goals.get(device)
+        pose = self._estimated_pose(device)
+        if pose is None:
+            pose = self._device_pose(device)  # never used for control: a static device has a frozen estimate
+        if goal is None:
+            return pose
+        x, y, yaw = pose
+        dx, dy = goal[0] - x, goal[1] - y
+        dist = math.hypot(dx, dy)
+        if dist <= self.scenario.leg_length:
+            return goal
+        f = self.scenario.leg_length / dist
+        return (x + f * dx, y + f * dy, yaw)
+
+    def _estimated_pose(self, device: str) -> tuple[float, float, float] | None:
+        e = self.estimator.estimate(device)
+        if e.T_w_b is None or e.status is Status.LOST:
+            return None
+        return se3_to_se2(e.T_w_b)
+
+    def _ugv_commands(self, parsed: Mapping[str, Any], events: dict[str, list[str]]) -> dict[str, np.ndarray]:
+        commands: dict[str, np.ndarray] = {}
+        wc = self.scenario.world
+        t = self.world.time
+        if self.config.action_mode == "velocity":
+            for agent, a in parsed.items():
+                if agent == OBSERVER:
+                    continue
+                u = wc.ugv(agent)
+                commands[agent] = np.array([a[0] * u.max_speed, a[1] * u.max_speed, a[2] * u.max_yaw_rate])
+                sled = self._tows.get(agent)
+                if sled is not None and sled in self._mobile:
+                    self.world.set_reel(sled, float(a[4]))
+            return commands
+        for device, leg in list(self._legs.items()):
+            pose = self._estimated_pose(device)
+            e = self.estimator.estimate(device)
+            if pose is None or e.status is not Status.LOCALISED:
+                commands[device] = np.zeros(3)  # wait where it is until it is localised again
+                continue
+            if self._follower.reached(pose, leg):
+                self._make_static(device, t)
+                events[self._agent_of(device)].append(f"leg_done:{device}")
+                commands[device] = np.zeros(3)
+            else:
+                commands[device] = self._follower.command(pose, leg)
+        return commands
+
+    def _auto_static_sleds(self, events: dict[str, list[str]]) -> None:
+        """In switching mode a reeled sled becomes static once the rope is at its minimum."""
+        for sled in list(self._reeling):
+            cfg = next(s for s in self.scenario.world.sleds if s.name == sled)
+            if self.world.rope_length(sled) <= cfg.min_rope + 1e-6:
+                self._make_static(sled, self.world.time)
+                agent = self._agent_of(sled)
+                if agent in events:
+                    events[agent].append(f"leg_done:{sled}")
+
+    def _uav_command(self, parsed: Mapping[str, Any]) -> np.ndarray | None:
+        if not self._has_uav:
+            return None
+        uav = self.scenario.world.uav
+        if self._observer_agent:
+            a = parsed[OBSERVER]
+            return np.array([a[0] * uav.max_speed, a[1] * uav.max_speed, a[2] * uav.max_yaw_rate, a[3] * uav.max_climb])
+        positions = [d.T_c_m[:3, 3] for d in self._detections if d.camera_id == uav.camera_name]
+        return self._tracker.command(positions)
+
+    def _measure(self) -> list:
+        views = [BoardView(board_id, layout, self.world.board_transform(device)) for device, board_id, layout in self._boards]
+        detections = []
+        for name, camera in self._cameras.items():
+            detections += camera.measure(self.world.camera_transform(name), views, self.world.time, self._rng_camera)
+        return detections
+
+    # ------------------------------------------------------------------ reward
+    def _goal_distances(self) -> dict[str, float]:
+        out = {}
+        for device, goal in self.scenario.goals.items():
+            x, y, _ = self._device_pose(device)
+            out[device] = math.hypot(goal[0] - x, goal[1] - y)
+        return out
+
+    def _reward(self, n_switch: int, n_refused: int) -> tuple[float, list[str], int]:
+        w = self.config.rewards
+        dist = self._goal_distances()
+        progress = sum(self._prev_goal_distance[d] - dist[d] for d in dist)
+        self._prev_goal_distance = dist
+        errors, n_lost = [], 0
+        for device in self._ugvs:
+            err = self.localisation_error(device)
+            if math.isnan(err):
+                errors.append(w.lost_error_m)
+            else:
+                errors.append(err)
+            if self.estimator.estimate(device).status is Status.LOST:
+                n_lost += 1
+        newly = []
+        for device, goal in self.scenario.goals.items():
+            if device in self._reached_goal:
+                continue
+            x, y, yaw = self._device_pose(device)
+            if dist[device] <= self.scenario.goal_tolerance_m and abs(wrap_angle(goal[2] - yaw)) <= self.scenario.goal_tolerance_rad:
+                self._reached_goal.add(device)
+                newly.append(device)
+        contacts = self.world.collisions_since_last_step
+        new_contacts = contacts - self._prev_contacts
+        self._prev_contacts = contacts
+        reward = (
+            w.progress * progress
+            + w.localisation_error * (sum(errors) / max(1, len(errors)))
+            + w.switch * n_switch
+            + w.refused * n_refused
+            + w.collision * len(new_contacts)
+            + w.lost * n_lost
+            + w.goal_bonus * len(newly)
+            + w.time
+        )
+        return float(reward), newly, len(new_contacts)
+
+    def localisation_error(self, device: str) -> float:
+        """Planar position error (m) of a device's MOMA estimate, NaN without one."""
+        e = self.estimator.estimate(device)
+        if e.T_w_b is None:
+            return math.nan
+        x, y, _ = self._device_pose(device)
+        return math.hypot(e.T_w_b[0, 3] - x, e.T_w_b[1, 3] - y)
+
+    # ------------------------------------------------------------------ observations
+    def _snapshots(self) -> dict[str, DeviceSnapshot]:
+        seen: set[str] = set()
+        for d in self._detections:
+            seen.add(self._board_owner[d.board_id])
+            seen.add(self._camera_owner[d.camera_id])
+        window = self.scenario.estimator.window
+        lost_after = self.scenario.estimator.lost_after_s
+        t = self.world.time
+        snaps = {}
+        for device in self._devices:
+            e = self.estimator.estimate(device)
+            pose = None if e.T_w_b is None or e.status is Status.LOST else se3_to_se2(e.T_w_b)
+            age = 1.0 if e.last_fresh_time is None else min(1.0, (t - e.last_fresh_time) / lost_after)
+            fill = e.n_window / window if e.phase is Phase.SETTLING else (1.0 if e.phase is Phase.REFERENCE else 0.0)
+            snaps[device] = DeviceSnapshot(pose, e.status, device not in self._mobile, age, min(1.0, fill), device in seen)
+        return snaps
+
+    def _observations(self) -> dict[str, np.ndarray]:
+        if not self.agents:
+            return {}
+        snaps = self._snapshots()
+        t = self.world.time
+        since = t - self._last_switch_time
+        dwell_left = self.rules.dwell_remaining(t)
+        obs = {}
+        for agent in self.agents:
+            if agent == OBSERVER:
+                continue
+            rope = None
+            sled = self._tows.get(agent)
+            if sled is not None:
+                cfg = next(s for s in self.scenario.world.sleds if s.name == sled)
+                rope = self.world.rope_length(sled) / cfg.max_rope
+            obs[agent] = self.layout.ugv(agent, snaps, self.scenario.goals.get(agent), since, dwell_left, rope)
+        if self._observer_agent and OBSERVER in self.agents:
+            uav = self.scenario.world.uav
+            e = self.estimator.estimate(uav.name)
+            pose = None if e.T_w_b is None or e.status is Status.LOST else se3_to_se2(e.T_w_b)
+            altitude = None if pose is None else float(e.T_w_b[2, 3])
+            in_cam = {self._board_owner[d.board_id]: d.T_c_m[:3, 3] for d in self._detections if d.camera_id == uav.camera_name}
+            obs[OBSERVER] = self.layout.observer(pose, altitude, e.status, in_cam, since, dwell_left)
+        return obs
+
+    def _info(self, agent: str, events: list[str], reward: float, collisions: int = 0) -> dict:
+        if agent == OBSERVER:
+            uav = self.scenario.world.uav
+            s = self.world.uav_state
+            e = self.estimator.estimate(uav.name)
+            err = math.nan if e.T_w_b is None else float(np.linalg.norm(e.T_w_b[:3, 3] - np.array([s.x, s.y, s.z])))
+            return {"truth": (s.x, s.y, s.yaw, s.z), "status": e.status.name.lower(), "localisation_error": err, "events": events}
+        e = self.estimator.estimate(agent)
+        info = {
+            "truth": self._device_pose(agent),
+            "estimate": None if e.T_w_b is None else se3_to_se2(e.T_w_b),
+            "localisation_error": self.localisation_error(agent),
+            "status": e.status.name.lower(),
+            "static": agent not in self._mobile,
+            "events": events,
+            "refused": [ev.split(":", 2)[2] for ev in events if ev.startswith("refused:")],
+            "reached_goal": agent in self._reached_goal,
+            "collisions": collisions,
+            "switches_total": self._switches_total,
+        }
+        sled = self._tows.get(agent)
+        if sled is not None:
+            info["sled_truth"] = self._device_pose(sled)
+            info["sled_localisation_error"] = self.localisation_error(sled)
+        return info
+
+    # ------------------------------------------------------------------ state, render
+    def state(self) -> np.ndarray:
+        """Global truth for centralised critics: device poses, UAV pose, goals."""
+        out: list[float] = []
+        for device in self._devices:
+            x, y, yaw = self._device_pose(device)
+            out += [x, y, math.cos(yaw), math.sin(yaw), 0.0 if device in self._mobile else 1.0]
+        if self._has_uav:
+            s = self.world.uav_state
+            out += [s.x, s.y, s.z, math.cos(s.yaw), math.sin(s.yaw), s.roll, s.pitch]
+        for ugv in self._ugvs:
+            goal = self.scenario.goals.get(ugv)
+            out += [0.0, 0.0, 0.0, 0.0] if goal is None else [goal[0], goal[1], math.cos(goal[2]), math.sin(goal[2])]
+        return np.asarray(out, dtype=np.float32)
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            return None
+        from moma_env.env.rendering import render_env
+
+        frame = render_env(self)
+        if self.render_mode == "human":
+            self._show(frame)
+            return None
+        return frame
+
+    def _show(self, frame: np.ndarray) -> None:
+        try:
+            import cv2
+
+            cv2.imshow(self.metadata["name"], frame[:, :, ::-1])
+            cv2.waitKey(1)
+        except Exception as err:  # headless OpenCV has no window support
+            raise RuntimeError(
+                "render_mode='human' needs a window library; this OpenCV build is headless. Use render_mode='rgb_array'."
+            ) from err
+
+    def close(self) -> None:
+        if self._window is not None:
+            self._window = None

@@ -1,0 +1,119 @@
+"""The paper's motion rules, enforced by the environment (section II of the paper).
+
+1. A marker is static while the camera that measures it moves and vice versa;
+   with several markers the camera may move all the time while one observed
+   marker is static.
+2. Markers and cameras move in turns.
+3. At every transition there is a dwell time during which at least two devices
+   are static.
+
+A *device* is anything the owner declares static or mobile: a UGV or a sled. A
+request to become static is always granted (the world locks the device). A
+request to become mobile is granted only if
+
+* the dwell time has passed since the last device became static (rule 3: the
+  estimator averages its switch window meanwhile), and
+* after the switch every mobile device, the requester included, stays
+  localisable from a static reference other than itself, as observed in the
+  latest camera frame (rules 1 and 2).
+
+A refused request is reported, never raised: the caller puts the reason in
+``infos``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+
+from moma_env.estimator import Detection
+
+__all__ = ["MotionRules", "REFUSED_DWELL", "REFUSED_NO_REFERENCE"]
+
+#: Refusal reasons, as reported in ``infos``.
+REFUSED_DWELL = "dwell"
+REFUSED_NO_REFERENCE = "no_reference"
+
+
+class MotionRules:
+    """Grants or refuses state changes of devices.
+
+    Args:
+        board_owner: board id -> device (or robot) that carries it.
+        camera_owner: camera id -> robot that carries it (the UAV's camera is
+            owned by the UAV, which is never a device).
+        dwell_s: rule 3's dwell time (s).
+    """
+
+    def __init__(self, board_owner: Mapping[int, str], camera_owner: Mapping[str, str], dwell_s: float):
+        self._board_owner = dict(board_owner)
+        self._camera_owner = dict(camera_owner)
+        self._boards_of: dict[str, list[int]] = {}
+        for board_id, owner in self._board_owner.items():
+            self._boards_of.setdefault(owner, []).append(board_id)
+        self._cameras_of: dict[str, list[str]] = {}
+        for camera_id, owner in self._camera_owner.items():
+            self._cameras_of.setdefault(owner, []).append(camera_id)
+        self.dwell_s = dwell_s
+        self._last_static_time = float("-inf")
+
+    def reset(self) -> None:
+        """Forget the last switch (all devices start static and settled)."""
+        self._last_static_time = float("-inf")
+
+    def note_static(self, time: float) -> None:
+        """A device became static at ``time`` (s): the dwell starts."""
+        self._last_static_time = time
+
+    def dwell_remaining(self, time: float) -> float:
+        """Seconds left before a mobile request can be granted (0 if none)."""
+        return max(0.0, self._last_static_time + self.dwell_s - time)
+
+    def check_mobile(
+        self,
+        device: str,
+        time: float,
+        mobile: Iterable[str],
+        references: Iterable[str],
+        detections: Sequence[Detection],
+    ) -> str | None:
+        """None if ``device`` may become mobile now, else the refusal reason.
+
+        Args:
+            device: the requester (currently static).
+            time: now (s).
+            mobile: devices that are mobile now.
+            references: devices the estimator holds as frozen static references.
+            detections: the latest camera frame.
+        """
+        if time < self._last_static_time + self.dwell_s - 1e-9:
+            return REFUSED_DWELL
+        refs = set(references)
+        refs.discard(device)
+        movers = set(mobile)
+        movers.add(device)
+        refs -= movers
+        if not refs:
+            return REFUSED_NO_REFERENCE
+        located = self._located_cameras(refs, detections)
+        for mover in movers:
+            if not self._localisable(mover, refs, located, detections):
+                return REFUSED_NO_REFERENCE
+        return None
+
+    def _located_cameras(self, refs: set[str], detections: Sequence[Detection]) -> set[str]:
+        located = {camera for camera, owner in self._camera_owner.items() if owner in refs}
+        for d in detections:
+            owner = self._board_owner.get(d.board_id)
+            if owner in refs and owner != self._camera_owner.get(d.camera_id):
+                located.add(d.camera_id)
+        return located
+
+    def _localisable(self, device: str, refs: set[str], located: set[str], detections: Sequence[Detection]) -> bool:
+        own_cameras = self._cameras_of.get(device, ())
+        for d in detections:
+            owner = self._board_owner.get(d.board_id)
+            if owner == device and d.camera_id in located and self._camera_owner.get(d.camera_id) != device:
+                return True
+            if d.camera_id in own_cameras and owner in refs:
+                return True
+        return False
