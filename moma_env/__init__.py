@@ -2,7 +2,16 @@
 
 Layers, with imports flowing one way (see DESIGN.md):
 world (pymunk truth) -> camera (detections) -> estimator (MOMA estimates)
--> metrics. The estimator imports nothing from the simulator.
+-> env (PettingZoo / Gymnasium). The estimator imports nothing from the simulator.
+
+Environments: ``from moma_env import top_observer_v0; top_observer_v0.parallel_env()``
+(also ``caterpillar_v0``, ``caterpillar_sled_v0``, ``caterpillar_multi_v0``);
+importing ``moma_env`` registers ``gymnasium.make("moma_env/TopObserver-v0")`` and the
+PettingZoo ids (see :mod:`moma_env.registration`).
 """
 
+from moma_env.registration import register_envs
+
 __version__ = "0.1.0"
+
+register_envs()

@@ -55,6 +55,11 @@ OBSERVER = "observer"
 ScenarioFactory = Callable[[np.random.Generator | None], Scenario]
 
 
+def _none_if_nan(value: float) -> float | None:
+    """Infos carry None, not NaN, for a missing value (NaN != NaN breaks equality checks)."""
+    return None if math.isnan(value) else value
+
+
 class MomaParallelEnv(ParallelEnv):
     """MOMA multi-robot localisation as a PettingZoo parallel environment.
 
@@ -144,6 +149,10 @@ class MomaParallelEnv(ParallelEnv):
         self._camera_owner = camera_owner
         self._board_owner = board_owner
         self._cameras = {name: GeometricCamera(name, scenario.camera) for name in camera_owner}
+        # Ground cameras look across the floor: robots and obstacles can hide boards.
+        # The UAV looks down over everything.
+        uav_camera = wc.uav.camera_name if self._has_uav else None
+        self._occlusions = {name: self._occlusion_query(owner) for name, owner in camera_owner.items() if name != uav_camera}
         self.rules = MotionRules(board_owner, camera_owner, scenario.dwell_s)
         self._max_cycles = self.config.max_cycles or scenario.max_cycles
 
@@ -462,8 +471,21 @@ class MomaParallelEnv(ParallelEnv):
         views = [BoardView(board_id, layout, self.world.board_transform(device)) for device, board_id, layout in self._boards]
         detections = []
         for name, camera in self._cameras.items():
-            detections += camera.measure(self.world.camera_transform(name), views, self.world.time, self._rng_camera)
+            occluded = self._occlusions.get(name)
+            detections += camera.measure(self.world.camera_transform(name), views, self.world.time, self._rng_camera, occluded)
         return detections
+
+    def _occlusion_query(self, camera_owner: str):
+        """Line-of-sight test for a ground camera: walls, obstacles and robots other than
+        the camera's owner and the device carrying the marker (the one nearest the marker)."""
+        world = self.world
+        devices = self._devices
+
+        def occluded(p_from: np.ndarray, p_to: np.ndarray) -> bool:
+            nearest = min(devices, key=lambda d: math.dist(self._device_pose(d)[:2], p_to[:2]))
+            return world.segment_blocked(p_from[:2], p_to[:2], ignore=(camera_owner, nearest))
+
+        return occluded
 
     # ------------------------------------------------------------------ reward
     def _goal_distances(self) -> dict[str, float]:
@@ -567,13 +589,13 @@ class MomaParallelEnv(ParallelEnv):
             uav = self.scenario.world.uav
             s = self.world.uav_state
             e = self.estimator.estimate(uav.name)
-            err = math.nan if e.T_w_b is None else float(np.linalg.norm(e.T_w_b[:3, 3] - np.array([s.x, s.y, s.z])))
+            err = None if e.T_w_b is None else float(np.linalg.norm(e.T_w_b[:3, 3] - np.array([s.x, s.y, s.z])))
             return {"truth": (s.x, s.y, s.yaw, s.z), "status": e.status.name.lower(), "localisation_error": err, "events": events}
         e = self.estimator.estimate(agent)
         info = {
             "truth": self._device_pose(agent),
             "estimate": None if e.T_w_b is None else se3_to_se2(e.T_w_b),
-            "localisation_error": self.localisation_error(agent),
+            "localisation_error": _none_if_nan(self.localisation_error(agent)),
             "status": e.status.name.lower(),
             "static": agent not in self._mobile,
             "events": events,
@@ -585,7 +607,7 @@ class MomaParallelEnv(ParallelEnv):
         sled = self._tows.get(agent)
         if sled is not None:
             info["sled_truth"] = self._device_pose(sled)
-            info["sled_localisation_error"] = self.localisation_error(sled)
+            info["sled_localisation_error"] = _none_if_nan(self.localisation_error(sled))
         return info
 
     # ------------------------------------------------------------------ state, render
@@ -604,27 +626,20 @@ class MomaParallelEnv(ParallelEnv):
         return np.asarray(out, dtype=np.float32)
 
     def render(self) -> np.ndarray | None:
+        """``rgb_array``: the frame, (H, W, 3) uint8; ``human``: shows it in a window and returns None."""
         if self.render_mode is None:
             return None
-        from moma_env.env.rendering import render_env
+        from moma_env.env.rendering import HumanWindow, render_env
 
         frame = render_env(self)
         if self.render_mode == "human":
-            self._show(frame)
+            if self._window is None:
+                self._window = HumanWindow(self.metadata["name"], self.metadata["render_fps"])
+            self._window.show(frame)
             return None
         return frame
 
-    def _show(self, frame: np.ndarray) -> None:
-        try:
-            import cv2
-
-            cv2.imshow(self.metadata["name"], frame[:, :, ::-1])
-            cv2.waitKey(1)
-        except Exception as err:  # headless OpenCV has no window support
-            raise RuntimeError(
-                "render_mode='human' needs a window library; this OpenCV build is headless. Use render_mode='rgb_array'."
-            ) from err
-
     def close(self) -> None:
         if self._window is not None:
+            self._window.close()
             self._window = None

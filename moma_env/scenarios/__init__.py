@@ -1,5 +1,44 @@
-"""Typed configurations of the paper's robot set-ups and their random generators."""
+"""Typed configurations of the paper's robot set-ups and their random generators.
+
+* :class:`Scenario` -- the contract with the environment: one episode's layout.
+* :class:`TopObserverConfig` -- UGVs with boards on top, an observer above them.
+* :class:`CaterpillarConfig` -- a follower's forward camera on its leader's back board.
+* :class:`CaterpillarSledConfig` -- one robot's backward camera on the sled it tows.
+* :class:`CaterpillarMultiConfig` -- a file of robots, each watching the one ahead.
+* :data:`CONFIGURATIONS`, :func:`make_scenario`, :func:`random_config` -- by name.
+* :func:`missing_views` -- boards a configuration's cameras fail to see at the start.
+
+Every configuration is a frozen dataclass validated at construction (errors name
+the field, e.g. ``"caterpillar.standoff"``); ``config.scenario()`` lays out the
+episode and ``Config.random(rng)`` draws a valid random one from a seeded
+``np.random.Generator``.
+"""
 
 from moma_env.scenarios.base import Scenario
+from moma_env.scenarios.caterpillar import CaterpillarConfig, RobotFileConfig
+from moma_env.scenarios.caterpillar_multi import CaterpillarMultiConfig
+from moma_env.scenarios.caterpillar_sled import CaterpillarSledConfig
+from moma_env.scenarios.common import ScenarioConfig
+from moma_env.scenarios.registry import CONFIGURATIONS, config_type, make_config, make_scenario, random_config
+from moma_env.scenarios.top_observer import FORMATIONS, TopObserverConfig
+from moma_env.scenarios.views import missing_views, start_boards, start_camera_poses, visible_marker_counts
 
-__all__ = ["Scenario"]
+__all__ = [
+    "Scenario",
+    "ScenarioConfig",
+    "TopObserverConfig",
+    "FORMATIONS",
+    "CaterpillarConfig",
+    "RobotFileConfig",
+    "CaterpillarSledConfig",
+    "CaterpillarMultiConfig",
+    "CONFIGURATIONS",
+    "config_type",
+    "make_config",
+    "make_scenario",
+    "random_config",
+    "missing_views",
+    "start_boards",
+    "start_camera_poses",
+    "visible_marker_counts",
+]

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from types import MappingProxyType
 
 from moma_env.camera import CameraConfig
 from moma_env.config import ConfigError, check_finite, check_non_negative, check_positive
@@ -72,7 +71,7 @@ class Scenario:
             for v in goal:
                 check_finite(f"scenario.goals[{name!r}]", v)
             goals[name] = tuple(float(v) for v in goal)
-        object.__setattr__(self, "goals", MappingProxyType(goals))
+        object.__setattr__(self, "goals", goals)
         check_positive("scenario.leg_length", self.leg_length)
         check_non_negative("scenario.dwell_s", self.dwell_s)
         check_positive("scenario.goal_tolerance_m", self.goal_tolerance_m)

@@ -25,6 +25,8 @@ __all__ = [
     "box_corners",
     "disk_overlaps_box",
     "disk_inside_rectangle",
+    "boxes_overlap",
+    "box_inside_rectangle",
     "add_static_shapes",
 ]
 
@@ -70,6 +72,36 @@ def disk_inside_rectangle(x: float, y: float, radius: float, bounds: tuple[float
         and x + radius <= xmax + tol
         and y - radius >= ymin - tol
         and y + radius <= ymax + tol
+    )
+
+
+def boxes_overlap(a: BoxObstacle, b: BoxObstacle) -> bool:
+    """True if two rotated boxes intersect (touching is not overlap).
+
+    Separating-axis test: two convex polygons are disjoint if and only if their
+    projections on the normal of some edge do not overlap.
+    """
+    corners_a, corners_b = box_corners(a), box_corners(b)
+    for yaw in (a.yaw, b.yaw):
+        c, s = math.cos(yaw), math.sin(yaw)
+        for axis in ((c, s), (-s, c)):
+            pa = corners_a @ axis
+            pb = corners_b @ axis
+            if min(pa.max(), pb.max()) - max(pa.min(), pb.min()) <= _OVERLAP_TOLERANCE:
+                return False
+    return True
+
+
+def box_inside_rectangle(box: BoxObstacle, bounds: tuple[float, float, float, float]) -> bool:
+    """True if the rotated box lies within ``bounds = (xmin, ymin, xmax, ymax)`` (touching allowed)."""
+    xmin, ymin, xmax, ymax = bounds
+    corners = box_corners(box)
+    tol = _OVERLAP_TOLERANCE
+    return bool(
+        corners[:, 0].min() >= xmin - tol
+        and corners[:, 0].max() <= xmax + tol
+        and corners[:, 1].min() >= ymin - tol
+        and corners[:, 1].max() <= ymax + tol
     )
 
 

@@ -1,4 +1,4 @@
-"""Validated configuration of the physics world: arena, UGVs, UAV.
+"""Validated configuration of the physics world: arena, UGVs, sleds, UAV.
 
 Every configuration is a frozen dataclass that checks itself in ``__post_init__``
 and raises :class:`moma_env.config.ConfigError` naming the offending field
@@ -7,7 +7,9 @@ and raises :class:`moma_env.config.ConfigError` naming the offending field
 mappings (JSON, YAML) and reports errors with their full path ("ugvs[1].radius").
 
 Units: metres, seconds, radians (``max_tilt_deg`` in degrees), kilograms.
-Poses ``(x, y, yaw)`` are planar poses of the body frame B in the world frame W.
+Poses ``(x, y, yaw)`` are planar poses of the body frame B in the world frame W
+(for a sled: its frame S, origin at the centre of its footprint, x towards the
+front where the rope is tied).
 Mount transforms (``board_mount`` = T_b_m, camera ``T_b_c``) are 4x4 rigid
 transforms in the body frame, stored as read-only arrays; configurations compare
 and hash by value.
@@ -33,9 +35,15 @@ from moma_env.config import (
     check_range,
     from_mapping,
 )
-from moma_env.markers import BoardLayout
-from moma_env.world.arena import WALL_NAME, disk_inside_rectangle, disk_overlaps_box
-from moma_env.world.mounts import board_on_top, camera_down, rigid_transform
+from moma_env.markers import BoardLayout, board_for_robot
+from moma_env.world.arena import (
+    WALL_NAME,
+    box_inside_rectangle,
+    boxes_overlap,
+    disk_inside_rectangle,
+    disk_overlaps_box,
+)
+from moma_env.world.mounts import board_on_front, board_on_top, camera_down, rigid_transform
 
 __all__ = [
     "BoxObstacle",
@@ -44,6 +52,7 @@ __all__ = [
     "UGVConfig",
     "UAVConfig",
     "UAV_KINDS",
+    "SledConfig",
     "WorldConfig",
     "world_config_from_mapping",
     "unknown_name",
@@ -85,6 +94,18 @@ def _planar_pose(field_name: str, value: object) -> tuple[float, float, float]:
     for name, item in zip(("x", "y", "yaw"), items):
         check_finite(f"{field_name}.{name}", item)
     return (float(items[0]), float(items[1]), float(items[2]))
+
+
+def _planar_point(field_name: str, value: object) -> tuple[float, float]:
+    try:
+        items = tuple(value)  # type: ignore[arg-type]
+    except TypeError:
+        raise ConfigError(field_name, f"must be (x, y), got {value!r}") from None
+    if len(items) != 2:
+        raise ConfigError(field_name, f"must be (x, y), got {len(items)} values")
+    for name, item in zip(("x", "y"), items):
+        check_finite(f"{field_name}.{name}", item)
+    return (float(items[0]), float(items[1]))
 
 
 def _matrix_key(T: np.ndarray) -> tuple[float, ...]:
@@ -321,9 +342,140 @@ class UAVConfig:
         return math.radians(self.max_tilt_deg)
 
 
+def _default_sled_board() -> BoardLayout:
+    return board_for_robot(1)
+
+
+@dataclass(frozen=True)
+class SledConfig:
+    """A sled towed by a ground robot through a rope on a pulley (single-robot caterpillar).
+
+    The sled is a box on the floor with a vertical board on its front. A rope
+    joins ``robot_anchor`` on the robot to ``sled_anchor`` on the sled: slack
+    below its current length, taut at it. While the sled is *static* (a static
+    marker) the world holds it still and the rope pays out freely as the robot
+    drives away, up to ``max_rope`` (a leash). While it is *mobile*, the robot
+    reels the rope in or lets it out (``World.set_reel``) and a taut rope drags
+    the sled, against ground friction.
+
+    Sled frame S: origin at the centre of the footprint, x towards the front
+    (where the rope and the board are), y left, z up.
+
+    Attributes:
+        name: unique sled name (not "wall" nor "obstacle[...]").
+        robot: name of the UGV that tows it (one sled per robot).
+        initial_pose: (x, y, yaw) of S in W at reset (m, m, rad).
+        size: footprint (length along x_S, width along y_S) (m).
+        mass: mass (kg); the moment of inertia is that of a uniform box.
+        friction_accel: ground friction as the largest deceleration it gives the
+            sled (m/s^2); the friction force is ``mass * friction_accel`` (N).
+        board: the ArUco board on the sled's front (default ids 4..7,
+            ``markers.board_for_robot(1)``, next to a robot with ids 0..3).
+        board_mount: 4x4 T_s_m of the board; None (default) means
+            ``board_on_front(height=0.25, offset=size[0]/2)``.
+        rope_length: rope length at reset, anchor to anchor (m). If the sled
+            starts farther from the robot than that, the world starts with the
+            rope taut at the anchors' distance instead (``World.rope_length``).
+        min_rope, max_rope: limits of the rope length (m), 0 < min < max.
+        reel_speed: rope speed at a reel rate of +-1 (m/s).
+        max_tension: largest rope tension (N): how hard the leash holds the
+            robot and the winch pulls. The default stops a 20 kg robot at
+            0.5 m/s within one 10 ms substep; contacts always win against it.
+        robot_anchor: (x, y) of the rope's end in the robot's body frame B (m);
+            None (default) means the robot's back, ``(-radius, 0)``, filled in
+            by :class:`WorldConfig`.
+        sled_anchor: (x, y) of the rope's end in S (m); None (default) means the
+            middle of the front edge, ``(size[0]/2, 0)``.
+        static: whether the sled starts static (held still by the world).
+    """
+
+    name: str = "sled"
+    robot: str = ""
+    initial_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    size: tuple[float, float] = (0.30, 0.30)
+    mass: float = 3.0
+    friction_accel: float = 2.0
+    board: BoardLayout = field(default_factory=_default_sled_board)
+    board_mount: np.ndarray | None = field(default=None, compare=False)
+    rope_length: float = 0.6
+    min_rope: float = 0.35
+    max_rope: float = 1.5
+    reel_speed: float = 0.15
+    max_tension: float = 2000.0
+    robot_anchor: tuple[float, float] | None = None
+    sled_anchor: tuple[float, float] | None = None
+    static: bool = True
+    _board_mount_key: tuple[float, ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        _check_name("sled.name", self.name)
+        if self.name == WALL_NAME or self.name.startswith("obstacle["):
+            raise ConfigError("sled.name", f"{self.name!r} is reserved for static shapes")
+        _check_name("sled.robot", self.robot)
+        object.__setattr__(self, "initial_pose", _planar_pose("sled.initial_pose", self.initial_pose))
+        size = _planar_point("sled.size", self.size)
+        check_positive("sled.size.x", size[0])
+        check_positive("sled.size.y", size[1])
+        object.__setattr__(self, "size", size)
+        check_positive("sled.mass", self.mass)
+        check_non_negative("sled.friction_accel", self.friction_accel)
+        if not isinstance(self.board, BoardLayout):
+            raise ConfigError("sled.board", f"must be a BoardLayout, got {type(self.board).__name__}")
+        mount = board_on_front(0.25, size[0] / 2.0) if self.board_mount is None else self.board_mount
+        T = rigid_transform("sled.board_mount", mount)
+        object.__setattr__(self, "board_mount", T)
+        object.__setattr__(self, "_board_mount_key", _matrix_key(T))
+        check_positive("sled.min_rope", self.min_rope)
+        check_positive("sled.max_rope", self.max_rope)
+        if self.max_rope <= self.min_rope:
+            raise ConfigError("sled.max_rope", f"must be > min_rope={self.min_rope}, got {self.max_rope}")
+        check_range("sled.rope_length", self.rope_length, self.min_rope, self.max_rope)
+        check_positive("sled.reel_speed", self.reel_speed)
+        check_positive("sled.max_tension", self.max_tension)
+        if self.robot_anchor is not None:
+            object.__setattr__(self, "robot_anchor", _planar_point("sled.robot_anchor", self.robot_anchor))
+        anchor = (size[0] / 2.0, 0.0) if self.sled_anchor is None else self.sled_anchor
+        object.__setattr__(self, "sled_anchor", _planar_point("sled.sled_anchor", anchor))
+        if not isinstance(self.static, bool):
+            raise ConfigError("sled.static", f"must be a bool, got {self.static!r}")
+
+    @property
+    def board_height(self) -> float:
+        """Height of the board frame's origin above the floor (m)."""
+        return float(self.board_mount[2, 3])
+
+    @property
+    def moment(self) -> float:
+        """Moment of inertia about the vertical axis (kg m^2), uniform box."""
+        length, width = self.size
+        return self.mass * (length**2 + width**2) / 12.0
+
+    def footprint(self, pose: Sequence[float] | None = None) -> BoxObstacle:
+        """The sled's footprint at planar ``pose`` (default: its initial pose), as a box."""
+        x, y, yaw = self.initial_pose if pose is None else pose
+        return BoxObstacle(float(x), float(y), self.size[0], self.size[1], float(yaw))
+
+    def anchor_distance(self, robot_pose: Sequence[float], sled_pose: Sequence[float] | None = None) -> float:
+        """Distance (m) between the rope's anchors with the robot and the sled at planar poses.
+
+        ``sled_pose`` defaults to the initial pose. Needs a resolved
+        ``robot_anchor`` (every sled of a :class:`WorldConfig` has one).
+        """
+        if self.robot_anchor is None:
+            raise ValueError(f"sled {self.name!r} has no robot_anchor yet; WorldConfig resolves it")
+        rx, ry, ryaw = robot_pose
+        sx, sy, syaw = self.initial_pose if sled_pose is None else sled_pose
+        (ax, ay), (bx, by) = self.robot_anchor, self.sled_anchor
+        c, s = math.cos(ryaw), math.sin(ryaw)
+        px, py = rx + c * ax - s * ay, ry + s * ax + c * ay
+        c, s = math.cos(syaw), math.sin(syaw)
+        qx, qy = sx + c * bx - s * by, sy + s * bx + c * by
+        return math.hypot(qx - px, qy - py)
+
+
 @dataclass(frozen=True)
 class WorldConfig:
-    """The whole world: arena, ground robots, optional UAV, and the step rate.
+    """The whole world: arena, ground robots, sleds, optional UAV, and the step rate.
 
     Attributes:
         arena: walls and obstacles.
@@ -331,10 +483,15 @@ class WorldConfig:
         uav: the flying (or hand-held) observer, or None.
         control_hz: control steps per second (Hz); one ``World.step`` is 1/control_hz s.
         substeps: physics substeps per control step.
+        sleds: sleds towed by the robots (at most one per robot). Stored with
+            their ``robot_anchor`` resolved (None becomes the robot's back).
 
-    Checked here: robot and camera names are unique, no two boards share a marker
-    id of the same dictionary, every robot starts inside the arena, clear of the
-    obstacles and of every other robot (touching is allowed).
+    Checked here: robot, sled and UAV names are unique (a sled's name is not a
+    camera's name either) and camera names are unique; every sled's robot
+    exists; no two boards share a marker id of the same dictionary; every robot
+    and sled starts inside the arena, clear of the obstacles and of every other
+    robot and sled (touching is allowed); every sled starts within ``max_rope``
+    of its robot's anchor.
     """
 
     arena: ArenaConfig = field(default_factory=ArenaConfig)
@@ -342,7 +499,9 @@ class WorldConfig:
     uav: UAVConfig | None = None
     control_hz: float = 25.0
     substeps: int = 4
+    sleds: tuple[SledConfig, ...] = ()
     _ugv_index: dict[str, int] = field(init=False, repr=False, compare=False)
+    _sled_index: dict[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.arena, ArenaConfig):
@@ -357,10 +516,39 @@ class WorldConfig:
         check_positive("control_hz", self.control_hz)
         if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1:
             raise ConfigError("substeps", f"must be an int >= 1, got {self.substeps!r}")
+        object.__setattr__(self, "_ugv_index", {ugv.name: i for i, ugv in enumerate(ugvs)})
+        self._resolve_sleds()
         self._check_names()
         self._check_marker_ids()
         self._check_placement()
-        object.__setattr__(self, "_ugv_index", {ugv.name: i for i, ugv in enumerate(ugvs)})
+        self._check_sled_placement()
+        object.__setattr__(self, "_sled_index", {sled.name: k for k, sled in enumerate(self.sleds)})
+
+    def _resolve_sleds(self) -> None:
+        """Type-check the sleds, check their robots, and fill in default robot anchors."""
+        try:
+            sleds = tuple(self.sleds)
+        except TypeError:
+            raise ConfigError("sleds", f"must be a sequence of SledConfig, got {type(self.sleds).__name__}") from None
+        towed_by: dict[str, int] = {}
+        resolved = []
+        for k, sled in enumerate(sleds):
+            if not isinstance(sled, SledConfig):
+                raise ConfigError(f"sleds[{k}]", f"must be a SledConfig, got {type(sled).__name__}")
+            if sled.robot not in self._ugv_index:
+                raise ConfigError(
+                    f"sleds[{k}].robot", f"unknown robot {sled.robot!r}; known robots are {list(self.ugv_names)}"
+                )
+            if sled.robot in towed_by:
+                raise ConfigError(
+                    f"sleds[{k}].robot", f"robot {sled.robot!r} already tows sleds[{towed_by[sled.robot]}]"
+                )
+            towed_by[sled.robot] = k
+            if sled.robot_anchor is None:
+                radius = self.ugvs[self._ugv_index[sled.robot]].radius
+                sled = dataclasses.replace(sled, robot_anchor=(-radius, 0.0))
+            resolved.append(sled)
+        object.__setattr__(self, "sleds", tuple(resolved))
 
     def _check_names(self) -> None:
         owner: dict[str, str] = {}
@@ -368,6 +556,10 @@ class WorldConfig:
             if ugv.name in owner:
                 raise ConfigError(f"ugvs[{i}].name", f"duplicate name {ugv.name!r} (also {owner[ugv.name]})")
             owner[ugv.name] = f"ugvs[{i}]"
+        for k, sled in enumerate(self.sleds):
+            if sled.name in owner:
+                raise ConfigError(f"sleds[{k}].name", f"duplicate name {sled.name!r} (also {owner[sled.name]})")
+            owner[sled.name] = f"sleds[{k}]"
         if self.uav is not None and self.uav.name in owner:
             raise ConfigError("uav.name", f"duplicate name {self.uav.name!r} (also {owner[self.uav.name]})")
         camera_owner: dict[str, str] = {}
@@ -382,22 +574,29 @@ class WorldConfig:
         if self.uav is not None and self.uav.camera_name in camera_owner:
             name = self.uav.camera_name
             raise ConfigError("uav.camera_name", f"duplicate camera name {name!r} (also {camera_owner[name]})")
+        if self.uav is not None:
+            camera_owner[self.uav.camera_name] = "uav.camera_name"
+        for k, sled in enumerate(self.sleds):
+            if sled.name in camera_owner:
+                raise ConfigError(
+                    f"sleds[{k}].name", f"{sled.name!r} is also the name of a camera ({camera_owner[sled.name]})"
+                )
 
     def _check_marker_ids(self) -> None:
-        owner: dict[tuple[str, int], int] = {}
-        for i, ugv in enumerate(self.ugvs):
-            if ugv.board is None:
-                continue
-            for marker_id in ugv.board.marker_ids:
-                key = (ugv.board.dictionary, marker_id)
+        boards = [(f"ugvs[{i}]", ugv.name, ugv.board) for i, ugv in enumerate(self.ugvs) if ugv.board is not None]
+        boards += [(f"sleds[{k}]", sled.name, sled.board) for k, sled in enumerate(self.sleds)]
+        owner: dict[tuple[str, int], tuple[str, str]] = {}
+        for path, name, board in boards:
+            for marker_id in board.marker_ids:
+                key = (board.dictionary, marker_id)
                 if key in owner:
-                    j = owner[key]
+                    other_path, other_name = owner[key]
                     raise ConfigError(
-                        f"ugvs[{i}].board.marker_ids",
-                        f"marker id {marker_id} ({ugv.board.dictionary}) is also on ugvs[{j}] "
-                        f"({self.ugvs[j].name!r}); give each robot its own ids, e.g. markers.board_for_robot({i})",
+                        f"{path}.board.marker_ids",
+                        f"marker id {marker_id} ({board.dictionary}) is also on {other_path} ({other_name!r}); "
+                        "give each board its own ids, e.g. markers.board_for_robot(i) for the i-th board",
                     )
-                owner[key] = i
+                owner[key] = (path, name)
 
     def _check_placement(self) -> None:
         bounds = self.arena.bounds
@@ -419,6 +618,31 @@ class WorldConfig:
                         field_name, f"robot {ugv.name!r} overlaps ugvs[{j}] ({other.name!r}) by {-gap:.4g} m"
                     )
 
+    def _check_sled_placement(self) -> None:
+        bounds = self.arena.bounds
+        footprints = [sled.footprint() for sled in self.sleds]
+        for k, (sled, box) in enumerate(zip(self.sleds, footprints)):
+            field_name = f"sleds[{k}].initial_pose"
+            where = f"sled {sled.name!r} (size {sled.size}) at {sled.initial_pose}"
+            if not box_inside_rectangle(box, bounds):
+                raise ConfigError(field_name, f"{where} is not inside the arena {bounds}")
+            for j, obstacle in enumerate(self.arena.obstacles):
+                if boxes_overlap(box, obstacle):
+                    raise ConfigError(field_name, f"{where} overlaps arena.obstacles[{j}]")
+            for i, ugv in enumerate(self.ugvs):
+                x, y, _ = ugv.initial_pose
+                if disk_overlaps_box(x, y, ugv.radius, box):
+                    raise ConfigError(field_name, f"{where} overlaps ugvs[{i}] ({ugv.name!r})")
+            for j in range(k):
+                if boxes_overlap(box, footprints[j]):
+                    raise ConfigError(field_name, f"{where} overlaps sleds[{j}] ({self.sleds[j].name!r})")
+            distance = sled.anchor_distance(self.ugv(sled.robot).initial_pose)
+            if distance > sled.max_rope + 1e-9:
+                raise ConfigError(
+                    field_name,
+                    f"{where} starts {distance:.4g} m from its robot's anchor, beyond max_rope={sled.max_rope}",
+                )
+
     @property
     def dt(self) -> float:
         """Duration of one control step (s)."""
@@ -439,6 +663,18 @@ class WorldConfig:
     def ugv(self, name: str) -> UGVConfig:
         """Configuration of the robot called ``name``; KeyError listing known names otherwise."""
         return self.ugvs[self.ugv_index(name)]
+
+    @property
+    def sled_names(self) -> tuple[str, ...]:
+        """Names of the sleds, in order."""
+        return tuple(sled.name for sled in self.sleds)
+
+    def sled(self, name: str) -> SledConfig:
+        """Configuration of the sled called ``name``; KeyError listing known names otherwise."""
+        try:
+            return self.sleds[self._sled_index[name]]
+        except (KeyError, TypeError):
+            raise unknown_name("sled", name, self.sled_names) from None
 
 
 # -- building from plain mappings -------------------------------------------------------
@@ -478,7 +714,8 @@ def world_config_from_mapping(mapping: Mapping[str, Any]) -> WorldConfig:
     ``arena.obstacles`` and ``ugvs`` are lists of mappings, ``ugvs[i].cameras`` a
     list of ``{name, T_b_c}``, ``ugvs[i].board`` a BoardLayout mapping or None,
     ``uav`` a mapping or None (``kind: handheld`` starts from the hand-held
-    defaults). Errors name the full path, e.g. ``ugvs[1].radius``.
+    defaults), ``sleds`` a list of mappings (``board`` a BoardLayout mapping).
+    Errors name the full path, e.g. ``ugvs[1].radius``.
     """
     if not isinstance(mapping, Mapping):
         raise ConfigError("world", f"expected a mapping, got {type(mapping).__name__}")
@@ -511,6 +748,14 @@ def world_config_from_mapping(mapping: Mapping[str, Any]) -> WorldConfig:
                     )
             ugvs.append(_build(UGVConfig, item, "ugv", path))
         kwargs["ugvs"] = tuple(ugvs)
+    if "sleds" in kwargs:
+        sleds = []
+        for k, item in enumerate(_build_list(kwargs["sleds"], "sleds")):
+            path = f"sleds[{k}]"
+            if isinstance(item, Mapping) and isinstance(item.get("board"), Mapping):
+                item = {**item, "board": _build(BoardLayout, item["board"], "board", f"{path}.board")}
+            sleds.append(_build(SledConfig, item, "sled", path))
+        kwargs["sleds"] = tuple(sleds)
     uav = kwargs.get("uav")
     if isinstance(uav, Mapping):
         if uav.get("kind") == "handheld":

@@ -2,8 +2,9 @@
 
 The body frame B follows ``moma_env.geometry``: origin on the floor at the robot's
 centre (for the UAV: at its centre of mass), x forward, y left, z up; metres.
-The mounted frame is a board frame M (face-up or on the robot's back) or an
-OpenCV camera frame C (looking down or forward); see the ``R_BODY_*`` constants.
+The mounted frame is a board frame M (face-up, on the robot's back, or on a
+body's front such as a sled's) or an OpenCV camera frame C (looking down,
+forward or backward); see the ``R_BODY_*`` constants.
 """
 
 from __future__ import annotations
@@ -13,13 +14,24 @@ import numpy as np
 from moma_env.config import check_finite, check_non_negative, check_rigid_transform
 from moma_env.geometry import (
     R_BODY_BOARD_BACK,
+    R_BODY_BOARD_FRONT,
     R_BODY_BOARD_UP,
+    R_BODY_CAM_BACKWARD,
     R_BODY_CAM_DOWN,
     R_BODY_CAM_FORWARD,
     make_transform,
 )
 
-__all__ = ["board_on_top", "board_on_back", "camera_forward", "camera_down", "rigid_transform"]
+__all__ = [
+    "board_on_top",
+    "board_on_back",
+    "board_on_front",
+    "camera_forward",
+    "camera_backward",
+    "camera_down",
+    "rigid_transform",
+]
+
 
 def board_on_top(height: float = 0.40) -> np.ndarray:
     """``T_b_m`` of a board lying face-up, centred on the robot, ``height`` m above the floor."""
@@ -39,6 +51,18 @@ def board_on_back(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
     return make_transform(R_BODY_BOARD_BACK, (-float(offset), 0.0, float(height)))
 
 
+def board_on_front(height: float = 0.25, offset: float = 0.15) -> np.ndarray:
+    """``T_b_m`` of a vertical board on a body's front (a sled's), its printed face looking forward.
+
+    Args:
+        height: height of the board centre above the floor (m).
+        offset: distance of the board face ahead of the body origin (m), along +x_B.
+    """
+    check_non_negative("board_on_front.height", height)
+    check_non_negative("board_on_front.offset", offset)
+    return make_transform(R_BODY_BOARD_FRONT, (float(offset), 0.0, float(height)))
+
+
 def camera_forward(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
     """``T_b_c`` of a forward-looking camera (optical axis +x_B).
 
@@ -49,6 +73,18 @@ def camera_forward(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
     check_non_negative("camera_forward.height", height)
     check_finite("camera_forward.offset", offset)
     return make_transform(R_BODY_CAM_FORWARD, (float(offset), 0.0, float(height)))
+
+
+def camera_backward(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
+    """``T_b_c`` of a backward-looking camera (optical axis -x_B), e.g. towards a towed sled.
+
+    Args:
+        height: height of the optical centre above the floor (m).
+        offset: distance of the optical centre behind the body origin (m), along -x_B.
+    """
+    check_non_negative("camera_backward.height", height)
+    check_finite("camera_backward.offset", offset)
+    return make_transform(R_BODY_CAM_BACKWARD, (-float(offset), 0.0, float(height)))
 
 
 def camera_down(height: float = -0.05, offset: float = 0.0) -> np.ndarray:

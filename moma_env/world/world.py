@@ -1,9 +1,14 @@
-"""The simulated world: ground robots and walls in pymunk, the UAV's 2.5D state.
+"""The simulated world: ground robots, sleds and walls in pymunk, the UAV's 2.5D state.
 
 This is the ground truth. The camera model and the estimator sit on top of it and
 are not imported here. Frames follow ``moma_env.geometry``: world W (z up),
 robot body B (x forward, y left, origin on the floor at the robot's centre),
+sled frame S (x towards the sled's front, origin at its footprint's centre),
 board M, camera C (OpenCV). Units: metres, seconds, radians.
+
+A *device* is anything that can be static or mobile: a robot or a sled.
+``set_static``, ``is_static`` and ``board_transform`` take either kind of name;
+a sled's rope and pulley are described in ``moma_env.world.sled``.
 
 One :meth:`World.step` advances ``1/control_hz`` s with ``substeps`` pymunk
 steps. Everything is deterministic: the same configuration and the same
@@ -19,6 +24,7 @@ substep's travel, then settles with at most :data:`COLLISION_SLOP` of overlap.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -27,6 +33,7 @@ import pymunk
 from moma_env.geometry import se2_to_se3, wrap_angle
 from moma_env.world.arena import add_static_shapes
 from moma_env.world.config import WorldConfig, unknown_name
+from moma_env.world.sled import SledBody
 from moma_env.world.uav import UAVDynamics, UAVState
 from moma_env.world.ugv import UGVBody
 
@@ -38,8 +45,9 @@ COLLISION_SLOP = 1e-3
 UAV_OWNER = -1
 
 _STATIC_CATEGORY = 1
-#: Robots 0..29 get their own shape-filter category bit (1..30); later robots
-#: share bit 31, and segment queries ignoring them take a slower path.
+#: Bodies 0..29 (robots, then sleds) get their own shape-filter category bit
+#: (1..30); later ones share bit 31, and segment queries ignoring them take a
+#: slower path.
 _DEDICATED_BITS = 30
 _SHARED_BIT = 1 << 31
 _ALL_MASKS = pymunk.ShapeFilter.ALL_MASKS()
@@ -106,7 +114,7 @@ def _mean_body_twist(previous: Sequence[float], current: Sequence[float], dt: fl
 
 
 class World:
-    """Ground robots, walls and obstacles in pymunk, plus the UAV's 2.5D state.
+    """Ground robots, sleds, walls and obstacles in pymunk, plus the UAV's 2.5D state.
 
     Attributes:
         config: the world's configuration.
@@ -122,6 +130,9 @@ class World:
         self._ugv_names = config.ugv_names
         self._ugv_index = {name: i for i, name in enumerate(self._ugv_names)}
         self._boards = tuple(ugv.board_mount if ugv.board is not None else None for ugv in config.ugvs)
+        self._sled_names = config.sled_names
+        self._sled_index = {name: k for k, name in enumerate(self._sled_names)}
+        self._sled_robots = tuple(self._ugv_index[sled.robot] for sled in config.sleds)
         cameras: dict[str, tuple[int, np.ndarray]] = {}
         for i, ugv in enumerate(config.ugvs):
             for camera in ugv.cameras:
@@ -136,7 +147,9 @@ class World:
     # -- simulation ----------------------------------------------------------------
 
     def reset(self, rng: np.random.Generator | None = None) -> None:
-        """Rebuild the space with every robot at its initial pose and static flag.
+        """Rebuild the space with every robot and sled at its initial pose and static flag.
+
+        Sleds start with their initial rope length and a zero reel rate.
 
         The world draws no random numbers (its physics is deterministic);
         ``rng`` is accepted so that callers can pass their generator uniformly.
@@ -151,8 +164,14 @@ class World:
             UGVBody(ugv, space, pymunk.ShapeFilter(categories=_category(i)), self._substep)
             for i, ugv in enumerate(self.config.ugvs)
         )
-        for ugv in self._ugvs:
-            names[ugv.shape] = ugv.config.name
+        first = len(self._ugvs)
+        self._sleds = tuple(
+            SledBody(sled, self._ugvs[robot], space, pymunk.ShapeFilter(categories=_category(first + k)))
+            for k, (sled, robot) in enumerate(zip(self.config.sleds, self._sled_robots))
+        )
+        self._shapes = tuple(body.shape for body in self._ugvs + self._sleds)
+        for body in self._ugvs + self._sleds:
+            names[body.shape] = body.config.name
         self._contacts: set[frozenset[str]] = set()
         space.on_collision(None, None, pre_solve=_record_contact, data=(names, self._contacts))
         self._space = space
@@ -174,6 +193,7 @@ class World:
             ugv_commands: robot name -> body-frame velocity (vx forward m/s, vy left
                 m/s, omega rad/s), clipped to the robot's limits. Robots left out
                 get a zero command (they brake); static robots ignore theirs.
+                Sleds follow their reel rate (:meth:`set_reel`).
             uav_command: (vx forward m/s, vy left m/s, yaw rate rad/s, climb m/s)
                 in the UAV's yaw frame; None hovers.
 
@@ -211,10 +231,22 @@ class World:
         self._contacts.clear()
         moving = [ugv for ugv in ugvs if not ugv.static]
         space, h = self._space, self._substep
-        for _ in range(self.config.substeps):
-            for ugv in moving:
-                ugv.drive()
-            space.step(h)
+        if self._sleds:
+            reeling = [sled for sled in self._sleds if not sled.static and sled.reel_rate != 0.0]
+            paying = [sled for sled in self._sleds if sled.static and not sled.robot.static]
+            for _ in range(self.config.substeps):
+                for ugv in moving:
+                    ugv.drive()
+                for sled in reeling:
+                    sled.reel(h)
+                space.step(h)
+                for sled in paying:
+                    sled.pay_out()
+        else:
+            for _ in range(self.config.substeps):
+                for ugv in moving:
+                    ugv.drive()
+                space.step(h)
         self._previous_poses = self._poses
         self._poses = self._read_poses()
         if self._uav is not None:
@@ -244,19 +276,41 @@ class World:
 
     # -- static lock ---------------------------------------------------------------
 
-    def set_static(self, name: str, static: bool) -> None:
-        """Lock robot ``name`` in place (a static marker) or release it.
+    def _device(self, name: str) -> UGVBody | SledBody:
+        try:
+            i = self._ugv_index.get(name)
+            if i is not None:
+                return self._ugvs[i]
+            return self._sleds[self._sled_index[name]]
+        except (KeyError, TypeError):
+            raise self._unknown_device(name) from None
 
-        A static robot keeps a bit-identical pose whatever it is commanded and
-        however it is pushed; a released robot starts from rest.
+    def _unknown_device(self, name: object) -> KeyError:
+        return KeyError(
+            f"unknown ugv or sled {name!r}; known ugvs are {list(self._ugv_names)}, "
+            f"known sleds are {list(self._sled_names)}"
+        )
+
+    def set_static(self, name: str, static: bool) -> None:
+        """Lock robot or sled ``name`` in place (a static marker) or release it.
+
+        A static device keeps a bit-identical pose whatever it is commanded and
+        however it is pushed or pulled; a released one starts from rest. A
+        static sled lets its rope pay out freely up to ``max_rope``; a mobile
+        one follows its reel rate (which a switch keeps).
         """
         if not isinstance(static, (bool, np.bool_)):
             raise TypeError(f"static must be a bool, got {static!r}")
-        self._ugvs[self._index(name)].set_static(bool(static))
+        device = self._device(name)
+        device.set_static(bool(static))
+        if isinstance(device, UGVBody):
+            for sled in self._sleds:
+                if sled.robot is device:
+                    sled.sync_rope()
 
     def is_static(self, name: str) -> bool:
-        """Whether robot ``name`` is locked in place."""
-        return self._ugvs[self._index(name)].static
+        """Whether robot or sled ``name`` is locked in place."""
+        return self._device(name).static
 
     # -- ground robots ---------------------------------------------------------------
 
@@ -299,17 +353,25 @@ class World:
         return _mean_body_twist(self._previous_poses[i].tolist(), self._poses[i].tolist(), self.dt)
 
     def board_transform(self, name: str) -> np.ndarray | None:
-        """4x4 ``T_w_m`` of robot ``name``'s board (``T_w_b @ T_b_m``), or None without a board."""
-        mount = self._boards[self._index(name)]
+        """4x4 ``T_w_m`` of the board of robot or sled ``name``, or None for a robot without one.
+
+        ``T_w_b @ T_b_m`` for a robot, ``T_w_s @ T_s_m`` for a sled.
+        """
+        i = self._body_index(name)
+        if i >= len(self._ugvs):
+            sled = self._sleds[i - len(self._ugvs)]
+            return self.sled_transform(sled.config.name) @ sled.config.board_mount
+        mount = self._boards[i]
         if mount is None:
             return None
-        return self.ugv_transform(name) @ mount
+        x, y, angle = self._poses[i].tolist()
+        return se2_to_se3(x, y, angle) @ mount
 
     def segment_blocked(
         self, p_from_xy: Sequence[float], p_to_xy: Sequence[float], ignore: Iterable[str] = ()
     ) -> bool:
         """Whether the floor segment from ``p_from_xy`` to ``p_to_xy`` (W, m) hits a wall,
-        an obstacle or a robot not named in ``ignore``.
+        an obstacle, or a robot or sled not named in ``ignore``.
 
         A planar test (heights are not considered). A segment starting or ending
         inside a shape hits it.
@@ -318,15 +380,15 @@ class World:
         b = _point("p_to_xy", p_to_xy)
         mask = _ALL_MASKS
         shared = False
-        for name in ignore:
-            i = self._index(name)
+        indices = [self._body_index(name) for name in ignore]
+        for i in indices:
             if i >= _DEDICATED_BITS:
                 shared = True
             else:
                 mask &= ~_category(i)
         if not shared:
             return self._space.segment_query_first(a, b, 0.0, pymunk.ShapeFilter(mask=mask)) is not None
-        ignored = {self._ugvs[self._index(name)].shape for name in ignore}
+        ignored = {self._shapes[i] for i in indices}
         hits = self._space.segment_query(a, b, 0.0, pymunk.ShapeFilter(mask=mask))
         return any(hit.shape not in ignored for hit in hits)
 
@@ -334,10 +396,78 @@ class World:
     def collisions_since_last_step(self) -> frozenset[frozenset[str]]:
         """Pairs of names in contact at any substep of the last step.
 
-        Names are robot names, ``"wall"`` and ``"obstacle[k]"``; a static robot
-        touching only walls makes no pair (neither can move).
+        Names are robot and sled names, ``"wall"`` and ``"obstacle[k]"``; a static
+        device touching only walls or other static devices makes no pair (none can
+        move). A sled never touches the robot that tows it.
         """
         return frozenset(self._contacts) if self._contacts else _NO_CONTACTS
+
+    def _body_index(self, name: str) -> int:
+        """Index of robot or sled ``name`` among the bodies (robots, then sleds)."""
+        i = self._ugv_index.get(name) if isinstance(name, str) else None
+        if i is not None:
+            return i
+        try:
+            return len(self._ugvs) + self._sled_index[name]
+        except (KeyError, TypeError):
+            raise self._unknown_device(name) from None
+
+    # -- sleds ---------------------------------------------------------------------------
+
+    def _sled(self, name: str) -> SledBody:
+        try:
+            return self._sleds[self._sled_index[name]]
+        except (KeyError, TypeError):
+            raise unknown_name("sled", name, self._sled_names) from None
+
+    @property
+    def sled_names(self) -> tuple[str, ...]:
+        """Names of the sleds, in configuration order."""
+        return self._sled_names
+
+    def sled_pose(self, name: str) -> tuple[float, float, float]:
+        """Planar pose ``(x, y, yaw)`` of sled ``name``'s frame S in W (m, m, rad in [-pi, pi))."""
+        body = self._sled(name).body
+        x, y = body.position
+        return x, y, wrap_angle(body.angle)
+
+    def sled_transform(self, name: str) -> np.ndarray:
+        """4x4 ``T_w_s`` of sled ``name`` (origin on the floor at the footprint's centre, z = 0)."""
+        body = self._sled(name).body
+        x, y = body.position
+        return se2_to_se3(x, y, body.angle)
+
+    def rope_length(self, name: str) -> float:
+        """Current length (m) of sled ``name``'s rope, anchor to anchor.
+
+        The rope is slack while the anchors are closer than this and taut at it.
+        """
+        return self._sled(name).rope_length
+
+    def set_reel(self, name: str, rate: float) -> None:
+        """Command sled ``name``'s pulley: ``rate`` in [-1, 1], kept until changed.
+
+        While the sled is mobile, a positive rate reels the rope in at
+        ``rate * reel_speed`` m/s down to ``min_rope`` (a taut rope drags the
+        sled towards the robot), a negative one lets it out up to ``max_rope``,
+        and 0 holds the length. A static sled ignores the rate (its rope pays
+        out freely) until it is released.
+
+        Raises:
+            KeyError: an unknown sled name.
+            ValueError: ``rate`` is not a finite number in [-1, 1] (naming the sled).
+        """
+        sled = self._sled(name)
+        if isinstance(rate, (bool, np.bool_)) or not isinstance(rate, numbers.Real):
+            raise ValueError(f"reel rate for sled {name!r} must be a number in [-1, 1], got {rate!r}")
+        value = float(rate)
+        if not -1.0 <= value <= 1.0:  # also rejects NaN
+            raise ValueError(f"reel rate for sled {name!r} must be finite and in [-1, 1], got {rate!r}")
+        sled.reel_rate = value
+
+    def reel_rate(self, name: str) -> float:
+        """Last reel rate commanded for sled ``name`` (0 at reset)."""
+        return self._sled(name).reel_rate
 
     # -- cameras -----------------------------------------------------------------------
 
@@ -386,15 +516,22 @@ class World:
     def state_array(self) -> np.ndarray:
         """Flat float array of the full simulated state, for comparisons and logs.
 
-        Per robot ``x, y, angle (unwrapped), vx, vy (W), omega``; then the UAV's
+        Per robot ``x, y, angle (unwrapped), vx, vy (W), omega``; then per sled
+        the same six values and its rope length; then the UAV's
         ``UAVState.as_array()`` if there is one.
         """
-        parts = []
+        parts: list[float] = []
         for ugv in self._ugvs:
-            x, y = ugv.body.position
-            vx, vy = ugv.body.velocity
-            parts.append((x, y, ugv.body.angle, vx, vy, ugv.body.angular_velocity))
-        state = np.array(parts, dtype=float).ravel()
+            body = ugv.body
+            x, y = body.position
+            vx, vy = body.velocity
+            parts += (x, y, body.angle, vx, vy, body.angular_velocity)
+        for sled in self._sleds:
+            body = sled.body
+            x, y = body.position
+            vx, vy = body.velocity
+            parts += (x, y, body.angle, vx, vy, body.angular_velocity, sled.rope_length)
+        state = np.array(parts, dtype=float)
         if self._uav is not None:
             state = np.concatenate([state, self.uav_state.as_array()])
         return state

@@ -1,0 +1,142 @@
+"""From a running environment to pictures: the rgb_array frame and the human window.
+
+:func:`render_env` gathers the truth, the MOMA estimates, the goals, the camera
+footprints and the first camera's view of a :class:`MomaParallelEnv` into the
+plain data of :mod:`moma_env.env.render` and draws them. :class:`HumanWindow`
+shows frames in a pygame window (``render_mode="human"``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from moma_env.camera import BoardView, PinholeCamera
+from moma_env.env.render import RobotView, SceneView, compose, inset_size, render_camera_view, render_top_down
+from moma_env.estimator import Status
+from moma_env.geometry import se3_to_se2
+
+if TYPE_CHECKING:
+    from moma_env.env.parallel import MomaParallelEnv
+
+__all__ = ["render_env", "HumanWindow", "FRAME_SIZE"]
+
+#: Size (width, height) of a rendered frame in pixels.
+FRAME_SIZE = (640, 640)
+
+
+def _board_outline(T_w_m: np.ndarray, half_w: float, half_h: float) -> np.ndarray:
+    corners = np.array([[-half_w, half_h, 0, 1], [half_w, half_h, 0, 1], [half_w, -half_h, 0, 1], [-half_w, -half_h, 0, 1]])
+    return (T_w_m @ corners.T).T[:, :2]
+
+
+def scene_of(env: MomaParallelEnv) -> SceneView:
+    """The plain-data scene of the environment's current state."""
+    world = env.world
+    wc = env.scenario.world
+    robots = []
+    boards = {device: (layout, world.board_transform(device)) for device, _, layout in env._boards}  # noqa: SLF001
+    for device in env._devices:  # noqa: SLF001
+        e = env.estimator.estimate(device)
+        est = None if e.T_w_b is None else se3_to_se2(e.T_w_b)
+        outline = None
+        if device in boards:
+            layout, T = boards[device]
+            outline = _board_outline(T, layout.width / 2, layout.height / 2)
+        if device in env._sleds:  # noqa: SLF001
+            cfg = next(s for s in wc.sleds if s.name == device)
+            robots.append(
+                RobotView(device, world.sled_pose(device), est, max(cfg.size) / 2, world.is_static(device), e.status, shape="box", size=tuple(cfg.size), board_corners_w=outline)
+            )
+        else:
+            cfg = wc.ugv(device)
+            robots.append(RobotView(device, world.ugv_pose(device), est, cfg.radius, world.is_static(device), e.status, board_corners_w=outline))
+    observer_true = observer_est = None
+    footprints = []
+    camera = PinholeCamera(env.scenario.camera)
+    if wc.uav is not None:
+        s = world.uav_state
+        observer_true = (s.x, s.y, s.yaw, s.z)
+        e = env.estimator.estimate(wc.uav.name)
+        if e.T_w_b is not None and e.status is not Status.LOST:
+            observer_est = se3_to_se2(e.T_w_b)
+        footprints.append(camera.ground_footprint(world.camera_transform(wc.uav.camera_name)))
+    ropes = []
+    for sled in getattr(wc, "sleds", ()):
+        rx, ry, ryaw = world.ugv_pose(sled.robot)
+        sx, sy, syaw = world.sled_pose(sled.name)
+        ropes.append(((rx - math.cos(ryaw) * wc.ugv(sled.robot).radius, ry - math.sin(ryaw) * wc.ugv(sled.robot).radius), (sx, sy)))
+    lines = (
+        f"step {env._steps}",  # noqa: SLF001
+        f"mobile: {', '.join(sorted(env._mobile)) or '-'}",  # noqa: SLF001
+        f"switches {env._switches_total}  refused {env._refused_total}",  # noqa: SLF001
+    )
+    return SceneView(
+        bounds=wc.arena.bounds,
+        obstacles=tuple(_box_polygon(o) for o in wc.arena.obstacles),
+        robots=tuple(robots),
+        goals=dict(env.scenario.goals),
+        observer_true=observer_true,
+        observer_est=observer_est,
+        footprints=tuple(footprints),
+        ropes=tuple(ropes),
+        time=world.time,
+        info_lines=lines,
+    )
+
+
+def _box_polygon(o) -> np.ndarray:
+    c, s = math.cos(o.yaw), math.sin(o.yaw)
+    hw, hh = o.width / 2, o.height / 2
+    local = np.array([[-hw, -hh], [hw, -hh], [hw, hh], [-hw, hh]])
+    return local @ np.array([[c, s], [-s, c]]) + (o.x, o.y)
+
+
+def render_env(env: MomaParallelEnv, size: tuple[int, int] = FRAME_SIZE) -> np.ndarray:
+    """Top-down frame with the first camera's view as an inset, (H, W, 3) uint8 RGB."""
+    frame = render_top_down(scene_of(env), size)
+    camera_names = list(env._cameras)  # noqa: SLF001
+    if not camera_names:
+        return frame
+    name = camera_names[0]
+    cam = env._cameras[name].camera  # noqa: SLF001
+    views = [BoardView(board_id, layout, env.world.board_transform(device)) for device, board_id, layout in env._boards]  # noqa: SLF001
+    detected = {d.board_id for d in env._detections if d.camera_id == name}  # noqa: SLF001
+    cfg = env.scenario.camera
+    inset = render_camera_view(cam, env.world.camera_transform(name), views, detected, size=inset_size(size, (cfg.width, cfg.height)))
+    return compose(frame, inset)
+
+
+class HumanWindow:
+    """A pygame window that shows rgb_array frames (created on first use)."""
+
+    def __init__(self, title: str, fps: int):
+        self._title = title
+        self._fps = fps
+        self._screen = None
+        self._clock = None
+
+    def show(self, frame: np.ndarray) -> None:
+        os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+        import pygame
+
+        if self._screen is None:
+            pygame.init()
+            pygame.display.set_caption(self._title)
+            self._screen = pygame.display.set_mode((frame.shape[1], frame.shape[0]))
+            self._clock = pygame.time.Clock()
+        surface = pygame.surfarray.make_surface(np.ascontiguousarray(frame.swapaxes(0, 1)))
+        self._screen.blit(surface, (0, 0))
+        pygame.event.pump()
+        pygame.display.flip()
+        self._clock.tick(self._fps)
+
+    def close(self) -> None:
+        if self._screen is not None:
+            import pygame
+
+            pygame.display.quit()
+            self._screen = None

@@ -1,0 +1,70 @@
+"""Multi-robot caterpillar: a file of robots, each follower watching the robot ahead.
+
+``ugv_0`` leads with a board on its back only; ``ugv_1`` .. ``ugv_{N-1}`` each
+carry a forward camera (``"ugv_k/camera"``) on the board of the robot ahead and,
+except the last, a board on their own back (ids of ``board_for_robot(k)``). No
+observer. The robots start static in a file along the heading of ``start``,
+``distance`` apart; each goal is the start advanced by ``goal_distance`` along
+that heading. Mounts as in :mod:`moma_env.scenarios.caterpillar`: every camera
+starts ``standoff`` m from the board ahead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import ClassVar
+
+import numpy as np
+
+from moma_env.config import check_count
+from moma_env.scenarios.caterpillar import RobotFileConfig
+from moma_env.scenarios.sampling import (
+    draw_until_valid,
+    random_camera,
+    random_goal_distance,
+    random_heading,
+    random_surroundings,
+)
+
+__all__ = ["CaterpillarMultiConfig", "MAX_RANDOM_UGVS"]
+
+#: Largest number of robots a random configuration draws (at least 2).
+MAX_RANDOM_UGVS = 4
+
+
+@dataclass(frozen=True, kw_only=True)
+class CaterpillarMultiConfig(RobotFileConfig):
+    """A file of ``n_ugvs`` robots (fields of :class:`RobotFileConfig`, plus ``n_ugvs``).
+
+    Attributes:
+        n_ugvs: number of robots in the file (>= 2).
+    """
+
+    NAME: ClassVar[str] = "caterpillar_multi"
+
+    n_ugvs: int = 3
+
+    @property
+    def file_length(self) -> int:
+        """``n_ugvs``."""
+        return self.n_ugvs
+
+    def _check_fields(self) -> None:
+        check_count(self._field("n_ugvs"), self.n_ugvs, minimum=2)
+        super()._check_fields()
+
+    @classmethod
+    def random(cls, rng: np.random.Generator) -> CaterpillarMultiConfig:
+        """Random number of robots (2-4), heading, goal distance (1-3 m), camera, arena
+        and obstacles; every draw from ``rng``."""
+
+        def draw(rng: np.random.Generator) -> CaterpillarMultiConfig:
+            config = cls(
+                n_ugvs=int(rng.integers(2, MAX_RANDOM_UGVS + 1)),
+                start=(0.0, 0.0, random_heading(rng)),
+                goal_distance=random_goal_distance(rng),
+                camera=random_camera(rng),
+            )
+            return replace(config, **random_surroundings(rng, config.occupied_disks))
+
+        return draw_until_valid(cls, rng, draw)

@@ -1,0 +1,173 @@
+"""Top observer: ground robots with boards on top, a downward camera above them.
+
+The paper's main configuration (section IV, the 1 m square): UGVs ``ugv_0`` ..
+``ugv_{N-1}`` carry face-up ArUco boards (``markers.board_for_robot(i)``: ids
+``4i..4i+3``) and an observer (an Ar.Drone quadcopter or a hand-held camera)
+looks down on them from ``altitude``. All robots start static; each one's goal
+is its start shifted by ``goal_offset``.
+
+Formation (m, in the frame of ``start``: x along the robots' heading, y to
+their left), ``spacing`` between neighbours, centred on ``start``:
+
+* ``"row"``: side by side along y, ``ugv_0`` on the right (like the square's
+  main robot with its buddy on its left).
+* ``"compact"``: rows of ``ceil(sqrt(N))`` robots, front row first, each row
+  filled from the right and centred (2 robots: a row; 3: a triangle; 4: a
+  square), so that more robots fit in the camera's view.
+
+The observer starts above ``start`` with the robots' heading: its image's long
+side (720 px) spans the row.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import ClassVar
+
+import numpy as np
+
+from moma_env.config import ConfigError, check_choice, check_count, check_positive, check_range
+from moma_env.geometry import wrap_angle
+from moma_env.markers import board_for_robot
+from moma_env.scenarios.common import (
+    Layout,
+    ScenarioConfig,
+    default_ugv_radius,
+    field_default,
+    planar_pose,
+    ugv_name,
+)
+from moma_env.scenarios.layout import Pose2D, in_body_frame, shifted
+from moma_env.scenarios.sampling import (
+    ALTITUDE_RANGE_M,
+    draw_until_valid,
+    random_camera,
+    random_goal_distance,
+    random_heading,
+    random_surroundings,
+)
+from moma_env.world import UAV_KINDS, UAVConfig, UGVConfig
+
+__all__ = ["TopObserverConfig", "FORMATIONS", "formation_offsets", "MAX_RANDOM_UGVS"]
+
+#: Formations the robots may start in.
+FORMATIONS = ("compact", "row")
+#: Largest number of robots a random configuration draws (at least 2).
+MAX_RANDOM_UGVS = 4
+#: Largest turn (rad) of a random goal relative to the start.
+_MAX_RANDOM_GOAL_TURN = math.pi / 2
+
+
+def formation_offsets(n_ugvs: int, spacing: float, formation: str) -> np.ndarray:
+    """(n, 2) positions ``(forward, left)`` (m) of the robots relative to the formation centre."""
+    if formation == "row":
+        return np.column_stack([np.zeros(n_ugvs), (np.arange(n_ugvs) - (n_ugvs - 1) / 2.0) * spacing])
+    cols = math.ceil(math.sqrt(n_ugvs))
+    rows = math.ceil(n_ugvs / cols)
+    offsets = np.empty((n_ugvs, 2))
+    for k in range(n_ugvs):
+        row, col = divmod(k, cols)
+        in_row = min(cols, n_ugvs - row * cols)
+        offsets[k] = ((rows - 1) / 2.0 - row) * spacing, (col - (in_row - 1) / 2.0) * spacing
+    return offsets
+
+
+@dataclass(frozen=True, kw_only=True)
+class TopObserverConfig(ScenarioConfig):
+    """UGVs with boards on top seen from above (fields in addition to :class:`ScenarioConfig`'s).
+
+    Attributes:
+        n_ugvs: number of ground robots (>= 2: one moves while another is its reference).
+        spacing: distance between neighbouring robots' centres (m), at least
+            their diameter (the square experiment: 0.6 m).
+        formation: ``"compact"`` or ``"row"`` (see the module docstring).
+        start: ``(x, y, yaw)`` of the formation centre and the robots' common heading.
+        goal_offset: ``(dx, dy, dyaw)`` in W from every robot's start to its goal
+            (default: 2 m along +x).
+        observer: ``"quadcopter"`` (Ar.Drone) or ``"handheld"``.
+        altitude: height of the observer's body above the floor at the start (m).
+    """
+
+    NAME: ClassVar[str] = "top_observer"
+
+    n_ugvs: int = 2
+    spacing: float = 0.6
+    formation: str = "compact"
+    start: Pose2D = (0.0, 0.0, 0.0)
+    goal_offset: Pose2D = (2.0, 0.0, 0.0)
+    observer: str = "quadcopter"
+    altitude: float = 1.6
+
+    def _check_fields(self) -> None:
+        check_count(self._field("n_ugvs"), self.n_ugvs, minimum=2)
+        check_positive(self._field("spacing"), self.spacing)
+        diameter = 2.0 * default_ugv_radius()
+        if self.spacing < diameter:
+            raise ConfigError(
+                self._field("spacing"), f"must be at least the robots' diameter {diameter} m, got {self.spacing}"
+            )
+        check_choice(self._field("formation"), self.formation, FORMATIONS)
+        object.__setattr__(self, "start", planar_pose(self._field("start"), self.start))
+        object.__setattr__(self, "goal_offset", planar_pose(self._field("goal_offset"), self.goal_offset))
+        check_choice(self._field("observer"), self.observer, UAV_KINDS)
+        low, high = field_default(UAVConfig, "min_altitude"), field_default(UAVConfig, "max_altitude")
+        check_range(self._field("altitude"), self.altitude, low, high)
+
+    def _make_layout(self) -> Layout:
+        radius = default_ugv_radius()
+        ugvs, goals, disks = [], {}, []
+        for i, (forward, left) in enumerate(formation_offsets(self.n_ugvs, self.spacing, self.formation).tolist()):
+            name = ugv_name(i)
+            start = in_body_frame(self.start, forward, left)
+            start = (start[0], start[1], float(wrap_angle(start[2])))
+            goal = shifted(start, self.goal_offset)
+            goal = (goal[0], goal[1], float(wrap_angle(goal[2])))
+            ugvs.append(UGVConfig(name=name, initial_pose=start, board=board_for_robot(i)))
+            goals[name] = goal
+            disks += [(f"{name} start", start[0], start[1], radius), (f"{name} goal", goal[0], goal[1], radius)]
+        x, y, yaw = self.start
+        placement = {"initial": (x, y, float(wrap_angle(yaw))), "altitude": float(self.altitude)}
+        uav = UAVConfig.handheld(**placement) if self.observer == "handheld" else UAVConfig(**placement)
+        return Layout(
+            ugvs=tuple(ugvs),
+            goals=goals,
+            disks=tuple(disks),
+            movers=self.n_ugvs,
+            path_m=math.hypot(self.goal_offset[0], self.goal_offset[1]),
+            uav=uav,
+        )
+
+    def required_views(self) -> Mapping[str, tuple[str, ...]]:
+        """The observer's camera sees every robot's board."""
+        uav = self._make_layout().uav
+        assert uav is not None
+        return {uav.camera_name: tuple(ugv_name(i) for i in range(self.n_ugvs))}
+
+    @classmethod
+    def random(cls, rng: np.random.Generator) -> TopObserverConfig:
+        """Random robots (2-4, random formation), start heading, goal (1-3 m in a random
+        direction, turned by up to 90 degrees), observer kind and altitude (1.2-2.5 m),
+        camera, arena and obstacles; every draw from ``rng``."""
+
+        def draw(rng: np.random.Generator) -> TopObserverConfig:
+            n_ugvs = int(rng.integers(2, MAX_RANDOM_UGVS + 1))
+            formation = FORMATIONS[int(rng.integers(len(FORMATIONS)))]
+            heading = random_heading(rng)
+            distance, direction = random_goal_distance(rng), random_heading(rng)
+            turn = float(rng.uniform(-_MAX_RANDOM_GOAL_TURN, _MAX_RANDOM_GOAL_TURN))
+            observer = UAV_KINDS[int(rng.integers(len(UAV_KINDS)))]
+            altitude = float(rng.uniform(*ALTITUDE_RANGE_M))
+            config = cls(
+                n_ugvs=n_ugvs,
+                formation=formation,
+                start=(0.0, 0.0, heading),
+                goal_offset=(distance * math.cos(direction), distance * math.sin(direction), turn),
+                observer=observer,
+                altitude=altitude,
+                camera=random_camera(rng),
+            )
+            return replace(config, **random_surroundings(rng, config.occupied_disks))
+
+        return draw_until_valid(cls, rng, draw)
