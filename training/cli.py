@@ -2,6 +2,7 @@
 
 Subcommands:
     experiment square   the paper's 1 m square: table, figure, TUM files, JSON.
+    bench               environment steps per second against MPE2, memory over a long run.
 
 Every subcommand validates its arguments at the boundary and exits with status 2
 and a one-line message on bad input.
@@ -55,7 +56,23 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sq.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     sq.set_defaults(handler=_run_square)
+
+    bench = sub.add_parser("bench", help="steps per second of every environment against MPE2, and memory over a long run")
+    bench.add_argument("--steps", type=_int_at_least(100, "step count"), default=5000, help="random-action steps per row (default 5000)")
+    bench.add_argument(
+        "--memory-steps", type=_int_at_least(0, "step count"), default=100_000, help="steps of the memory run (default 100000; 0 skips it)"
+    )
+    bench.add_argument("--json", action="store_true", help="print the results as JSON")
+    bench.set_defaults(handler=_run_bench)
     return parser
+
+
+def _run_bench(args: argparse.Namespace) -> int:
+    from training.bench import format_bench, run_bench
+
+    result = run_bench(args.steps, args.memory_steps)
+    print(json.dumps(result, indent=2) if args.json else format_bench(result))
+    return 0
 
 
 def _run_square(args: argparse.Namespace) -> int:

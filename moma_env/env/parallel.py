@@ -51,6 +51,8 @@ __all__ = ["MomaParallelEnv", "OBSERVER"]
 
 #: Name of the observer agent.
 OBSERVER = "observer"
+#: A reeled sled whose rope has not shortened for this long (s) is declared static.
+_REEL_STALL_S = 1.0
 
 ScenarioFactory = Callable[[np.random.Generator | None], Scenario]
 
@@ -212,6 +214,7 @@ class MomaParallelEnv(ParallelEnv):
         self._mobile: set[str] = set()
         self._legs: dict[str, tuple[float, float, float]] = {}
         self._reeling: set[str] = set()
+        self._reel_progress: dict[str, tuple[float, float]] = {}  # sled -> (shortest rope m, when s)
         self._reached_goal: set[str] = set()
         self._refused_total = 0
         self._switches_total = 0
@@ -238,6 +241,7 @@ class MomaParallelEnv(ParallelEnv):
         self.estimator = est
         self._detections = self._measure()
         est.update(self.world.time, self._detections)
+        self._est = est.estimates()
         self._prev_goal_distance = self._goal_distances()
         self._prev_contacts: frozenset = frozenset()
         observations = self._observations()
@@ -247,7 +251,7 @@ class MomaParallelEnv(ParallelEnv):
     def _board_mount(self, device: str) -> np.ndarray:
         wc = self.scenario.world
         if device in self._sleds:
-            return next(s for s in wc.sleds if s.name == device).board_mount
+            return wc.sled(device).board_mount
         return wc.ugv(device).board_mount
 
     def _device_transform(self, device: str) -> np.ndarray:
@@ -283,7 +287,7 @@ class MomaParallelEnv(ParallelEnv):
                 self._make_static(device, t)
                 n_switch += 1
                 events[self._agent_of(device)].append(f"static:{device}")
-        references = {n for n, e in self.estimator.estimates().items() if e.phase is Phase.REFERENCE}
+        references = {n for n, e in self.estimator.estimates().items() if e.phase is Phase.REFERENCE}  # live: phases just changed
         for device, want_mobile in wants.items():
             if want_mobile and device not in self._mobile:
                 reason = self.rules.check_mobile(device, t, self._mobile, references, self._detections)
@@ -306,7 +310,9 @@ class MomaParallelEnv(ParallelEnv):
         self._steps += 1
         self._detections = self._measure()
         self.estimator.update(self.world.time, self._detections)
-        self._auto_static_sleds(events)
+        self._est = self.estimator.estimates()
+        if self._auto_static_sleds(events):
+            self._est = self.estimator.estimates()
 
         # 4. Rewards, terminations, observations.
         reward, newly_reached, collisions = self._reward(n_switch, n_refused)
@@ -393,6 +399,7 @@ class MomaParallelEnv(ParallelEnv):
         if self.config.action_mode == "switching":
             if device in self._sleds:
                 self._reeling.add(device)
+                self._reel_progress[device] = (math.inf, t)
                 self.world.set_reel(device, 1.0)
             else:
                 self._legs[device] = self._next_leg(device)
@@ -414,7 +421,7 @@ class MomaParallelEnv(ParallelEnv):
         return (x + f * dx, y + f * dy, yaw)
 
     def _estimated_pose(self, device: str) -> tuple[float, float, float] | None:
-        e = self.estimator.estimate(device)
+        e = self._est[device]
         if e.T_w_b is None or e.status is Status.LOST:
             return None
         return se3_to_se2(e.T_w_b)
@@ -435,7 +442,7 @@ class MomaParallelEnv(ParallelEnv):
             return commands
         for device, leg in list(self._legs.items()):
             pose = self._estimated_pose(device)
-            e = self.estimator.estimate(device)
+            e = self._est[device]
             if pose is None or e.status is not Status.LOCALISED:
                 commands[device] = np.zeros(3)  # wait where it is until it is localised again
                 continue
@@ -447,15 +454,27 @@ class MomaParallelEnv(ParallelEnv):
                 commands[device] = self._follower.command(pose, leg)
         return commands
 
-    def _auto_static_sleds(self, events: dict[str, list[str]]) -> None:
-        """In switching mode a reeled sled becomes static once the rope is at its minimum."""
+    def _auto_static_sleds(self, events: dict[str, list[str]]) -> bool:
+        """In switching mode a reeled sled becomes static once the rope is at its minimum,
+        or when it has not shortened for a second (the sled is stuck). True if one did."""
+        t = self.world.time
+        changed = False
         for sled in list(self._reeling):
-            cfg = next(s for s in self.scenario.world.sleds if s.name == sled)
-            if self.world.rope_length(sled) <= cfg.min_rope + 1e-6:
+            cfg = self.scenario.world.sled(sled)
+            rope = self.world.rope_length(sled)
+            shortest, since = self._reel_progress.get(sled, (math.inf, t))
+            if rope < shortest - 1e-4:
+                self._reel_progress[sled] = (rope, t)
+                since = t
+            stalled = t - since > _REEL_STALL_S
+            if rope <= cfg.min_rope + 1e-6 or stalled:
+                self._reel_progress.pop(sled, None)
+                changed = True
                 self._make_static(sled, self.world.time)
                 agent = self._agent_of(sled)
                 if agent in events:
                     events[agent].append(f"leg_done:{sled}")
+        return changed
 
     def _uav_command(self, parsed: Mapping[str, Any]) -> np.ndarray | None:
         if not self._has_uav:
@@ -507,7 +526,7 @@ class MomaParallelEnv(ParallelEnv):
                 errors.append(w.lost_error_m)
             else:
                 errors.append(err)
-            if self.estimator.estimate(device).status is Status.LOST:
+            if self._est[device].status is Status.LOST:
                 n_lost += 1
         newly = []
         for device, goal in self.scenario.goals.items():
@@ -534,7 +553,7 @@ class MomaParallelEnv(ParallelEnv):
 
     def localisation_error(self, device: str) -> float:
         """Planar position error (m) of a device's MOMA estimate, NaN without one."""
-        e = self.estimator.estimate(device)
+        e = self._est[device]
         if e.T_w_b is None:
             return math.nan
         x, y, _ = self._device_pose(device)
@@ -551,7 +570,7 @@ class MomaParallelEnv(ParallelEnv):
         t = self.world.time
         snaps = {}
         for device in self._devices:
-            e = self.estimator.estimate(device)
+            e = self._est[device]
             pose = None if e.T_w_b is None or e.status is Status.LOST else se3_to_se2(e.T_w_b)
             age = 1.0 if e.last_fresh_time is None else min(1.0, (t - e.last_fresh_time) / lost_after)
             fill = e.n_window / window if e.phase is Phase.SETTLING else (1.0 if e.phase is Phase.REFERENCE else 0.0)
@@ -572,12 +591,12 @@ class MomaParallelEnv(ParallelEnv):
             rope = None
             sled = self._tows.get(agent)
             if sled is not None:
-                cfg = next(s for s in self.scenario.world.sleds if s.name == sled)
+                cfg = self.scenario.world.sled(sled)
                 rope = self.world.rope_length(sled) / cfg.max_rope
             obs[agent] = self.layout.ugv(agent, snaps, self.scenario.goals.get(agent), since, dwell_left, rope)
         if self._observer_agent and OBSERVER in self.agents:
             uav = self.scenario.world.uav
-            e = self.estimator.estimate(uav.name)
+            e = self._est[uav.name]
             pose = None if e.T_w_b is None or e.status is Status.LOST else se3_to_se2(e.T_w_b)
             altitude = None if pose is None else float(e.T_w_b[2, 3])
             in_cam = {self._board_owner[d.board_id]: d.T_c_m[:3, 3] for d in self._detections if d.camera_id == uav.camera_name}
@@ -588,10 +607,10 @@ class MomaParallelEnv(ParallelEnv):
         if agent == OBSERVER:
             uav = self.scenario.world.uav
             s = self.world.uav_state
-            e = self.estimator.estimate(uav.name)
+            e = self._est[uav.name]
             err = None if e.T_w_b is None else float(np.linalg.norm(e.T_w_b[:3, 3] - np.array([s.x, s.y, s.z])))
             return {"truth": (s.x, s.y, s.yaw, s.z), "status": e.status.name.lower(), "localisation_error": err, "events": events}
-        e = self.estimator.estimate(agent)
+        e = self._est[agent]
         info = {
             "truth": self._device_pose(agent),
             "estimate": None if e.T_w_b is None else se3_to_se2(e.T_w_b),

@@ -1,0 +1,125 @@
+"""Benchmarks: environment steps per second against MPE2, and memory over long runs.
+
+``moma-env bench`` runs, on this machine and in the same process:
+
+* joint steps per second of every configuration (random actions sampled from the
+  action spaces, episodes reset when they end, geometric camera), in both action
+  modes;
+* MPE2 ``simple_spread`` (N=3, parallel API, random actions) as the reference;
+* the resident memory of ``top_observer`` sampled over a long run (``--memory-steps``).
+
+The numbers are measurements, not assertions: tests never time anything.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from typing import Any
+
+__all__ = ["steps_per_second", "bench_configurations", "bench_mpe2", "memory_profile", "resident_mb"]
+
+
+def resident_mb() -> float:
+    """Current resident set size of this process (MB), from /proc (Linux)."""
+    try:
+        with open("/proc/self/statm") as f:
+            pages = int(f.read().split()[1])
+        return pages * os.sysconf("SC_PAGE_SIZE") / 1e6
+    except (OSError, ValueError):
+        import resource
+
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
+
+
+def steps_per_second(make_env: Callable[[], Any], steps: int, seed: int = 0) -> float:
+    """Joint steps per second of a PettingZoo parallel env under random actions."""
+    env = make_env()
+    env.reset(seed=seed)
+    for space_owner in env.possible_agents:
+        env.action_space(space_owner).seed(seed)
+    start = time.perf_counter()
+    for _ in range(steps):
+        if not env.agents:
+            env.reset()
+        env.step({a: env.action_space(a).sample() for a in env.agents})
+    elapsed = time.perf_counter() - start
+    env.close()
+    return steps / elapsed
+
+
+def bench_configurations(steps: int) -> list[dict]:
+    """Steps per second of every configuration in both action modes."""
+    from moma_env.env.factory import parallel_env
+    from moma_env.scenarios import CONFIGURATIONS
+
+    rows = []
+    for name in CONFIGURATIONS:
+        for mode in ("switching", "velocity"):
+            sps = steps_per_second(lambda n=name, m=mode: parallel_env(n, action_mode=m), steps)
+            rows.append({"env": name, "action_mode": mode, "steps_per_s": sps})
+    return rows
+
+
+def bench_mpe2(steps: int) -> float | None:
+    """MPE2 simple_spread (N=3, parallel) steps per second, or None if mpe2 is missing."""
+    try:
+        from mpe2 import simple_spread_v3
+    except ImportError:
+        return None
+    return steps_per_second(lambda: simple_spread_v3.parallel_env(N=3), steps)
+
+
+def memory_profile(steps: int, samples: int = 10) -> list[tuple[int, float]]:
+    """(step, resident MB) of ``top_observer`` (switching, random actions) at ``samples`` points."""
+    from moma_env.env.factory import parallel_env
+
+    env = parallel_env("top_observer")
+    env.reset(seed=0)
+    points = [(0, resident_mb())]
+    every = max(1, steps // samples)
+    for k in range(1, steps + 1):
+        if not env.agents:
+            env.reset()
+        env.step({a: env.action_space(a).sample() for a in env.agents})
+        if k % every == 0:
+            points.append((k, resident_mb()))
+    env.close()
+    return points
+
+
+def run_bench(steps: int, memory_steps: int) -> dict:
+    """Everything ``moma-env bench`` reports, as a dict."""
+    mpe = bench_mpe2(steps)
+    rows = bench_configurations(steps)
+    for row in rows:
+        row["x_mpe2"] = None if mpe is None else row["steps_per_s"] / mpe
+    memory = memory_profile(memory_steps) if memory_steps > 0 else []
+    return {
+        "steps": steps,
+        "mpe2_simple_spread_steps_per_s": mpe,
+        "configurations": rows,
+        "memory_steps": memory_steps,
+        "memory_mb": memory,
+        "cpu_count": os.cpu_count(),
+    }
+
+
+def format_bench(result: dict) -> str:
+    """The benchmark table."""
+    mpe = result["mpe2_simple_spread_steps_per_s"]
+    lines = [f"{'environment':<20}{'action mode':<12}{'steps/s':>10}{'x MPE2':>9}", "-" * 51]
+    for row in result["configurations"]:
+        ratio = "n/a" if row["x_mpe2"] is None else f"{row['x_mpe2']:.2f}"
+        lines.append(f"{row['env']:<20}{row['action_mode']:<12}{row['steps_per_s']:>10.0f}{ratio:>9}")
+    lines.append(f"{'mpe2 simple_spread':<20}{'N=3':<12}{(mpe or float('nan')):>10.0f}{'1.00' if mpe else 'n/a':>9}")
+    if result["memory_mb"]:
+        first, last = result["memory_mb"][0], result["memory_mb"][-1]
+        peak = max(mb for _, mb in result["memory_mb"])
+        lines.append(
+            f"\nmemory of top_observer over {result['memory_steps']} steps: {first[1]:.1f} MB at start, "
+            f"{last[1]:.1f} MB at the end, peak {peak:.1f} MB"
+        )
+    lines.append(f"({result['steps']} random-action steps per row, {result['cpu_count']} cores)")
+    return "\n".join(lines)
