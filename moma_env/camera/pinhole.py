@@ -49,10 +49,14 @@ class PinholeCamera:
         self.dist.setflags(write=False)
         self.fold_r2 = fold_radius_sq(self._dist)
         self._tangential = self._dist[2] != 0.0 or self._dist[3] != 0.0
+        self._distorted = any(c != 0.0 for c in self._dist)
         self._focal = np.array([config.fx, config.fy])
         self._centre = np.array([config.cx, config.cy])
+        self._focal_col = self._focal.reshape(2, 1)
+        self._centre_col = self._centre.reshape(2, 1)
         self._lo = config.margin_px - 0.5
         self._hi = np.array([config.width - 0.5 - config.margin_px, config.height - 0.5 - config.margin_px])
+        self._hi_col = self._hi.reshape(2, 1)
         w, h = config.width, config.height
         self.sensor_corners_px = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
         self.sensor_corners_px.setflags(write=False)
@@ -101,6 +105,60 @@ class PinholeCamera:
         px += self._centre
         return px, r2
 
+    def project_rows(self, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixels of camera-frame points stored as rows: the hot-path form of :meth:`project`.
+
+        Args:
+            xyz: (3, n) array whose rows are the x, y and z coordinates in C (m),
+                all with ``z > 0``.
+
+        Returns:
+            ``(uv, r2)``: (2, n) pixels (rows u and v) with distortion, and the (n,)
+            squared undistorted normalised radius (see :meth:`distort_rows`).
+        """
+        return self.distort_rows(xyz[:2] / xyz[2])
+
+    def distort_rows(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixels of normalised undistorted coordinates stored as rows.
+
+        Args:
+            xy: (2, n) rows ``x = X_c / Z_c`` and ``y = Y_c / Z_c``.
+
+        Returns:
+            ``(uv, r2)``: (2, n) pixels with distortion (a new array) and the (n,)
+            squared radius ``x**2 + y**2``.
+        """
+        sq = xy * xy
+        r2 = sq[0] + sq[1]
+        if self._tangential:
+            xd, yd, _ = distort(xy[0], xy[1], self._dist)
+            uv = np.stack((xd, yd))
+        elif self._distorted:
+            uv = xy * self._radial(r2)
+        else:
+            uv = xy.copy()
+        uv *= self._focal_col
+        uv += self._centre_col
+        return uv, r2
+
+    def _radial(self, r2: np.ndarray) -> np.ndarray:
+        """Radial factor ``1 + k1 r2 + k2 r2^2 + k3 r2^3`` (a new array; Horner, zero trailing terms skipped)."""
+        k1, k2, _, _, k3 = self._dist
+        if k3 != 0.0:
+            radial = r2 * k3
+            radial += k2
+            radial *= r2
+            radial += k1
+            radial *= r2
+        elif k2 != 0.0:
+            radial = r2 * k2
+            radial += k1
+            radial *= r2
+        else:
+            radial = r2 * k1
+        radial += 1.0
+        return radial
+
     def undistort(self, px: np.ndarray) -> np.ndarray:
         """Normalised undistorted coordinates ``(x/z, y/z)`` of pixels ``(n, 2)``.
 
@@ -109,6 +167,8 @@ class PinholeCamera:
         pts = np.ascontiguousarray(px, dtype=float).reshape(-1, 1, 2)
         if pts.shape[0] == 0:
             return np.empty((0, 2))
+        if not self._distorted:
+            return ((pts - self._centre) / self._focal).reshape(-1, 2)
         return cv2.undistortPoints(pts, self.K, self.dist, criteria=_UNDISTORT_CRITERIA).reshape(-1, 2)
 
     def in_image(self, px: np.ndarray, margin: float | None = None) -> np.ndarray:
@@ -130,6 +190,12 @@ class PinholeCamera:
         ok = px >= lo
         ok &= px <= hi
         return ok
+
+    def in_image_rows(self, uv: np.ndarray) -> np.ndarray:
+        """Boolean (n,): pixels stored as rows (2, n) at least ``config.margin_px`` inside the sensor."""
+        inside = uv >= self._lo
+        inside &= uv <= self._hi_col
+        return inside[0] & inside[1]
 
     # ------------------------------------------------------------------ geometry
     @property

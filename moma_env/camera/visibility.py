@@ -27,7 +27,7 @@ from moma_env.camera.pinhole import PinholeCamera
 from moma_env.geometry import invert
 from moma_env.markers import BoardLayout
 
-__all__ = ["marker_visibility", "visible_markers", "apply_occlusion"]
+__all__ = ["marker_visibility", "marker_visibility_rows", "visible_markers", "apply_occlusion"]
 
 _NEXT_CORNER = np.array([1, 2, 3, 0])
 _NEXT_CORNER.setflags(write=False)
@@ -48,28 +48,56 @@ def marker_visibility(
         ``(visible, px)``: (n,) boolean mask and (n, 4, 2) pixels of the corners
         (NaN for corners behind the camera).
     """
-    cfg = camera.config
-    px, r2 = camera.project_with_r2(corners_c)
-    # Per corner: in front and inside the one-to-one region of the lens.
-    ok_corner = corners_c[..., 2] > cfg.min_range_m
-    if camera.fold_r2 < math.inf:
-        ok_corner &= r2 < camera.fold_r2
-    ok = np.logical_and.reduce(ok_corner, axis=1)
-    # All corners inside the image, margin included.
-    ok &= np.logical_and.reduce(camera.in_image_xy(px), axis=(1, 2))
-    # Shortest imaged side (NaN sides compare False).
-    sides = px - px.take(_NEXT_CORNER, axis=1)
-    sides *= sides
-    ok &= np.minimum.reduce(sides[..., 0] + sides[..., 1], axis=1) >= cfg.min_marker_px**2
-    # Range and incidence, from the marker centre (camera at the origin of C):
-    # cos(incidence) = z_M . (-centre) / |centre|.
+    corners_c = np.asarray(corners_c, dtype=float)
     centre = np.add.reduce(corners_c, axis=1)
     centre *= 0.25
-    dist2 = np.einsum("ni,ni->n", centre, centre)
-    ok &= dist2 <= cfg.max_range_m**2
+    range_sq = np.einsum("ni,ni->n", centre, centre)
     facing = centre @ normals_c if normals_c.ndim == 1 else np.einsum("ni,ni->n", normals_c, centre)
-    ok &= facing <= -math.cos(math.radians(cfg.max_incidence_deg)) * np.sqrt(dist2)
-    return ok, px
+    visible, _ = marker_visibility_rows(camera, corners_c.reshape(-1, 3).T, range_sq, facing)
+    return visible, camera.project(corners_c)
+
+
+def marker_visibility_rows(
+    camera: PinholeCamera, corners_rows: np.ndarray, range_sq: np.ndarray, facing: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Checks 1-6 of n markers, with the corners stored as rows (the camera's hot path).
+
+    Args:
+        camera: the camera model (its config holds the limits).
+        corners_rows: (3, 4n) rows x, y, z (m, in C) of the marker corners,
+            marker after marker, four corners each in ArUco order.
+        range_sq: (n,) squared distance from the camera centre to each marker
+            centre (m^2).
+        facing: (n,) dot product of each printed face's unit normal z_M with its
+            marker centre, both in C (m); negative when the face is turned
+            towards the camera.
+
+    Returns:
+        ``(visible, uv)``: (n,) boolean mask and (2, 4n) corner pixels (rows u, v).
+        Pixels of corners closer than ``min_range_m / 2`` (or behind the camera)
+        are meaningless; their markers are never visible.
+    """
+    cfg = camera.config
+    depth = corners_rows[2]
+    ok = depth > cfg.min_range_m
+    # Clamping the depth keeps the division finite; the clamped corners failed the depth check.
+    uv, r2 = camera.distort_rows(corners_rows[:2] / np.maximum(depth, 0.5 * cfg.min_range_m))
+    if camera.fold_r2 < math.inf:
+        ok &= r2 < camera.fold_r2
+    ok &= camera.in_image_rows(uv)
+    # Squared imaged sides, corner k to corner k+1 of each marker: (n, 4).
+    n = ok.shape[0] // 4
+    uv_markers = uv.reshape(2, n, 4)
+    sides = uv_markers[:, :, _NEXT_CORNER]
+    sides -= uv_markers
+    sides *= sides
+    ok_markers = ok.reshape(n, 4)
+    ok_markers &= sides[0] + sides[1] >= cfg.min_marker_px**2
+    visible = np.logical_and.reduce(ok_markers, axis=1)
+    visible &= range_sq <= cfg.max_range_m**2
+    # cos(incidence) = z_M . (-centre) / |centre|.
+    visible &= facing <= -math.cos(math.radians(cfg.max_incidence_deg)) * np.sqrt(range_sq)
+    return visible, uv
 
 
 def apply_occlusion(

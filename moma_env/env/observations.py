@@ -15,9 +15,11 @@ UGV ``ugv_k`` (one block per other device, in the order of ``devices``):
 ==================  ==========================================================
 own pose            x, y, cos(yaw), sin(yaw), valid
 own state           static (1 if declared static), status one-hot
-                    (localised, holding, lost), staleness (age of the last fresh
-                    estimate / lost_after, clipped to 1), window fill (switch
-                    window samples / window size)
+                    (localised, holding, lost), and the uncertainty proxies:
+                    staleness (age of the last fresh estimate / lost_after,
+                    clipped to 1), window fill (switch window samples / window
+                    size), switches (static declarations so far / 100, clipped:
+                    MOMA's error grows with them, not with time)
 goal                dx, dy in the robot's estimated body frame, cos(dyaw),
                     sin(dyaw), distance / 2R, has_goal
 timing              time since the last switch / 5 s (clipped), dwell remaining
@@ -51,6 +53,7 @@ __all__ = ["Feature", "ObservationLayout", "describe", "STATUS_ORDER"]
 STATUS_ORDER = (Status.LOCALISED, Status.HOLDING, Status.LOST)
 _SWITCH_HORIZON_S = 5.0
 _ALTITUDE_SCALE_M = 4.0
+_SWITCH_SCALE = 100.0
 
 
 @dataclass(frozen=True)
@@ -83,7 +86,13 @@ def _timing_features() -> list[Feature]:
 def ugv_features(devices: Sequence[str], me: str, tows_sled: bool) -> list[Feature]:
     """Feature list of UGV ``me`` among ``devices``."""
     feats = _pose_features("own")
-    feats += [Feature("own.static", 0.0, 1.0), *_status_features("own"), Feature("own.staleness", 0.0, 1.0), Feature("own.window_fill", 0.0, 1.0)]
+    feats += [
+        Feature("own.static", 0.0, 1.0),
+        *_status_features("own"),
+        Feature("own.staleness", 0.0, 1.0),
+        Feature("own.window_fill", 0.0, 1.0),
+        Feature("own.switches", 0.0, 1.0),
+    ]
     feats += [
         Feature("goal.dx", -2.0, 2.0),
         Feature("goal.dy", -2.0, 2.0),
@@ -145,6 +154,7 @@ class DeviceSnapshot:
     staleness: float  # in [0, 1]
     window_fill: float  # in [0, 1]
     seen: bool
+    switches: int  # times the device was frozen as a reference since the reset
 
 
 class ObservationLayout:
@@ -216,7 +226,7 @@ class ObservationLayout:
         self._abs_pose(out, me.pose)
         out.append(1.0 if me.static else 0.0)
         self._status(out, me.status)
-        out += [me.staleness, me.window_fill]
+        out += [me.staleness, me.window_fill, min(1.0, me.switches / _SWITCH_SCALE)]
         two_r = 2.0 * self._r
         if goal is not None and me.pose is not None:
             x, y, yaw = me.pose

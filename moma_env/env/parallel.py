@@ -216,6 +216,7 @@ class MomaParallelEnv(ParallelEnv):
         self._reeling: set[str] = set()
         self._reel_progress: dict[str, tuple[float, float]] = {}  # sled -> (shortest rope m, when s)
         self._reached_goal: set[str] = set()
+        self._static_count: dict[str, int] = {}
         self._refused_total = 0
         self._switches_total = 0
 
@@ -381,6 +382,7 @@ class MomaParallelEnv(ParallelEnv):
         return wants
 
     def _make_static(self, device: str, t: float) -> None:
+        self._static_count[device] = self._static_count.get(device, 0) + 1
         self.world.set_static(device, True)
         self.estimator.set_static(device, True, t)
         self._mobile.discard(device)
@@ -574,7 +576,9 @@ class MomaParallelEnv(ParallelEnv):
             pose = None if e.T_w_b is None or e.status is Status.LOST else se3_to_se2(e.T_w_b)
             age = 1.0 if e.last_fresh_time is None else min(1.0, (t - e.last_fresh_time) / lost_after)
             fill = e.n_window / window if e.phase is Phase.SETTLING else (1.0 if e.phase is Phase.REFERENCE else 0.0)
-            snaps[device] = DeviceSnapshot(pose, e.status, device not in self._mobile, age, min(1.0, fill), device in seen)
+            snaps[device] = DeviceSnapshot(
+                pose, e.status, device not in self._mobile, age, min(1.0, fill), device in seen, self._static_count.get(device, 0)
+            )
         return snaps
 
     def _observations(self) -> dict[str, np.ndarray]:
