@@ -25,6 +25,7 @@ __all__ = [
     "check_choice",
     "check_unique",
     "check_rigid_transform",
+    "check_numbers",
     "from_mapping",
 ]
 
@@ -96,6 +97,26 @@ def check_unique(field: str, values: Iterable[Any]) -> None:
         if v in seen:
             raise ConfigError(field, f"duplicate value {v!r}")
         seen.add(v)
+
+
+def check_numbers(
+    field: str, value: Any, names: tuple[str, ...], *, positive: bool = False
+) -> tuple[float, ...]:
+    """``value`` as a tuple of ``len(names)`` finite floats (``> 0`` if ``positive``).
+
+    ``names`` label the entries in the message, e.g. ``("x", "y", "yaw")``; an
+    entry's error names ``field.name``.
+    """
+    shape = "(" + ", ".join(names) + ")"
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise ConfigError(field, f"must be {shape}, got {value!r}") from None
+    if len(items) != len(names):
+        raise ConfigError(field, f"must be {shape}, got {len(items)} values")
+    for name, item in zip(names, items):
+        (check_positive if positive else check_finite)(f"{field}.{name}", item)
+    return tuple(float(item) for item in items)
 
 
 def check_rigid_transform(field: str, value: Any, tolerance: float = 1e-6) -> "np.ndarray":

@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from moma_env.camera import CameraConfig
-from moma_env.config import ConfigError, check_count, check_finite, check_non_negative, check_positive, from_mapping
+from moma_env.config import ConfigError, check_count, check_finite, check_numbers, check_non_negative, check_positive, from_mapping
 from moma_env.estimator import EstimatorConfig
 from moma_env.scenarios.base import Scenario
 from moma_env.scenarios.layout import Disk, Pose2D, convex_hull
@@ -77,29 +77,9 @@ def default_ugv_radius() -> float:
     return float(field_default(UGVConfig, "radius"))
 
 
-def _float_pair(field_name: str, value: object, positive: bool) -> tuple[float, float]:
-    try:
-        items = tuple(value)  # type: ignore[arg-type]
-    except TypeError:
-        raise ConfigError(field_name, f"must be a pair of numbers, got {value!r}") from None
-    if len(items) != 2:
-        raise ConfigError(field_name, f"must be a pair of numbers, got {len(items)} values")
-    for item in items:
-        (check_positive if positive else check_finite)(field_name, item)
-    return (float(items[0]), float(items[1]))
-
-
 def planar_pose(field_name: str, value: object) -> Pose2D:
     """``value`` as a float ``(x, y, yaw)``; ConfigError naming ``field_name`` otherwise."""
-    try:
-        items = tuple(value)  # type: ignore[arg-type]
-    except TypeError:
-        raise ConfigError(field_name, f"must be (x, y, yaw), got {value!r}") from None
-    if len(items) != 3:
-        raise ConfigError(field_name, f"must be (x, y, yaw), got {len(items)} values")
-    for item in items:
-        check_finite(field_name, item)
-    return (float(items[0]), float(items[1]), float(items[2]))
+    return check_numbers(field_name, value, ("x", "y", "yaw"))  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)
@@ -199,9 +179,9 @@ class ScenarioConfig(ABC):
 
     def _check_common_fields(self) -> None:
         if self.arena is not None:
-            object.__setattr__(self, "arena", _float_pair(self._field("arena"), self.arena, positive=True))
+            object.__setattr__(self, "arena", check_numbers(self._field("arena"), self.arena, ("width", "height"), positive=True))
         if self.arena_origin is not None:
-            origin = _float_pair(self._field("arena_origin"), self.arena_origin, positive=False)
+            origin = check_numbers(self._field("arena_origin"), self.arena_origin, ("x", "y"))
             object.__setattr__(self, "arena_origin", origin)
         object.__setattr__(self, "obstacles", self._checked_obstacles())
         if not isinstance(self.camera, CameraConfig):

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from moma_env.config import (
+    check_numbers,
     ConfigError,
     check_choice,
     check_finite,
@@ -85,27 +86,11 @@ def _check_name(field_name: str, value: object) -> None:
 
 
 def _planar_pose(field_name: str, value: object) -> tuple[float, float, float]:
-    try:
-        items = tuple(value)  # type: ignore[arg-type]
-    except TypeError:
-        raise ConfigError(field_name, f"must be (x, y, yaw), got {value!r}") from None
-    if len(items) != 3:
-        raise ConfigError(field_name, f"must be (x, y, yaw), got {len(items)} values")
-    for name, item in zip(("x", "y", "yaw"), items):
-        check_finite(f"{field_name}.{name}", item)
-    return (float(items[0]), float(items[1]), float(items[2]))
+    return check_numbers(field_name, value, ("x", "y", "yaw"))  # type: ignore[return-value]
 
 
 def _planar_point(field_name: str, value: object) -> tuple[float, float]:
-    try:
-        items = tuple(value)  # type: ignore[arg-type]
-    except TypeError:
-        raise ConfigError(field_name, f"must be (x, y), got {value!r}") from None
-    if len(items) != 2:
-        raise ConfigError(field_name, f"must be (x, y), got {len(items)} values")
-    for name, item in zip(("x", "y"), items):
-        check_finite(f"{field_name}.{name}", item)
-    return (float(items[0]), float(items[1]))
+    return check_numbers(field_name, value, ("x", "y"))  # type: ignore[return-value]
 
 
 def _matrix_key(T: np.ndarray) -> tuple[float, ...]:

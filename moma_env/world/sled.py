@@ -47,7 +47,7 @@ import math
 import pymunk
 
 from moma_env.world.config import SledConfig
-from moma_env.world.ugv import UGVBody
+from moma_env.world.ugv import UGVBody, set_body_locked
 
 __all__ = ["SLED_FRICTION", "ROPE_ERROR_BIAS", "SledBody", "friction_lever"]
 
@@ -205,22 +205,7 @@ class SledBody:
         """
         if static == self.static:
             return
-        space = self.body.space
-        body = self.body
-        if static:
-            space.remove(*self.joints)
-            body.body_type = pymunk.Body.KINEMATIC
-            body.velocity = (0.0, 0.0)
-            body.angular_velocity = 0.0
-            self.rope.max = self.config.max_rope
-        else:
-            body.body_type = pymunk.Body.DYNAMIC
-            if body.mass != self.config.mass:  # pymunk should have restored it from the shape
-                body.mass = self.config.mass
-                body.moment = self.config.moment
-            body.velocity = (0.0, 0.0)
-            body.angular_velocity = 0.0
-            space.add(*self.joints)
-            self.rope.max = self.rope_length
+        set_body_locked(self.body, self.joints, static, self.config.mass, self.config.moment)
+        self.rope.max = self.config.max_rope if static else self.rope_length
         self.static = static
         self.sync_rope()

@@ -26,6 +26,23 @@ __all__ = ["UGV_FRICTION", "UGVBody"]
 UGV_FRICTION = 0.3
 
 
+def set_body_locked(body: pymunk.Body, joints: tuple, locked: bool, mass: float, moment: float) -> None:
+    """Lock a body (kinematic, at rest, its friction joints out of the space) or release it
+    (dynamic with ``mass`` and ``moment``, at rest, joints back in). The world's static lock."""
+    space = body.space
+    if locked:
+        space.remove(*joints)
+        body.body_type = pymunk.Body.KINEMATIC
+    else:
+        body.body_type = pymunk.Body.DYNAMIC
+        if body.mass != mass:  # pymunk should have restored it from the shape
+            body.mass = mass
+            body.moment = moment
+        space.add(*joints)
+    body.velocity = (0.0, 0.0)
+    body.angular_velocity = 0.0
+
+
 class UGVBody:
     """pymunk body, shape and traction joints of one robot, plus its command.
 
@@ -108,21 +125,7 @@ class UGVBody:
         """Lock the robot in place (kinematic, zero velocity) or release it (dynamic)."""
         if static == self.static:
             return
-        space = self.body.space
-        body = self.body
-        if static:
-            space.remove(*self.joints)
-            body.body_type = pymunk.Body.KINEMATIC
-            body.velocity = (0.0, 0.0)
-            body.angular_velocity = 0.0
-        else:
-            body.body_type = pymunk.Body.DYNAMIC
-            if body.mass != self.config.mass:  # pymunk should have restored it from the shape
-                body.mass = self.config.mass
-                body.moment = self.config.moment
-            body.velocity = (0.0, 0.0)
-            body.angular_velocity = 0.0
-            space.add(*self.joints)
+        set_body_locked(self.body, self.joints, static, self.config.mass, self.config.moment)
         self.control.velocity = (0.0, 0.0)
         self.control.angular_velocity = 0.0
         self.command = (0.0, 0.0, 0.0)
