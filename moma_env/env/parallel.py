@@ -21,8 +21,8 @@ Actions (chosen by ``EnvConfig.action_mode``):
 * ``switching``: a UGV sends ``Discrete(2)``: 0 hold (be static), 1 advance (be
   mobile and drive the next leg towards its goal with the built-in controller;
   at the leg's end the robot stops and is declared static). A robot towing a
-  sled has ``Discrete(3)``: 2 reels the sled in (sled mobile until the rope is
-  at its minimum, then static). The observer, if an agent, keeps the velocity
+  sled has ``Discrete(3)``: 2 holds the robot and reels the sled in (sled
+  mobile until the rope is at its minimum or the sled is stuck, then static). The observer, if an agent, keeps the velocity
   Box; otherwise its tracking controller flies it.
 """
 
@@ -371,7 +371,7 @@ class MomaParallelEnv(ParallelEnv):
             if switching:
                 if action == 1:
                     wants[agent] = True
-                elif action == 0 and agent in self._mobile:
+                elif agent in self._mobile:  # hold, or reel (the camera must be static)
                     wants[agent] = False
                 if sled is not None and action == 2 and sled not in self._mobile:
                     wants[sled] = True
