@@ -3,6 +3,7 @@
 Subcommands:
     experiment square   the paper's 1 m square: table, figure, TUM files, JSON.
     bench               environment steps per second against MPE2, memory over a long run.
+    evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
 
 Every subcommand validates its arguments at the boundary and exits with status 2
 and a one-line message on bad input.
@@ -64,7 +65,75 @@ def build_parser() -> argparse.ArgumentParser:
     )
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
     bench.set_defaults(handler=_run_bench)
+
+    ev = sub.add_parser("evaluate", help="run a policy for N episodes and report success, errors and switches")
+    ev.add_argument("--scenario", required=True, help="configuration name (top_observer, caterpillar, caterpillar_sled, caterpillar_multi)")
+    ev.add_argument("--policy", default="scripted", help="'scripted', 'random' or the path of a trained policy (default scripted)")
+    ev.add_argument("--episodes", type=_int_at_least(1, "episode count"), default=10, help="number of episodes (default 10)")
+    ev.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first episode; episode k uses seed+k (default 0)")
+    layouts = ev.add_mutually_exclusive_group()
+    layouts.add_argument(
+        "--random-scenarios", dest="random_scenarios", action="store_true", default=True, help="a random layout per episode (default)"
+    )
+    layouts.add_argument("--fixed", dest="random_scenarios", action="store_false", help="the configuration's default layout every episode")
+    ev.add_argument("--out", type=Path, default=None, help="output folder (default runs/evaluate/<scenario>_<policy>)")
+    ev.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
+    ev.add_argument("--video", action="store_true", help="write an animated GIF of the first episode")
+    ev.add_argument("--action-mode", choices=("switching", "velocity"), default="switching", help="the env's action mode (default switching)")
+    ev.add_argument("--max-cycles", type=_int_at_least(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
+    ev.set_defaults(handler=_run_evaluate)
     return parser
+
+
+def _run_evaluate(args: argparse.Namespace) -> int:
+    from moma_env.io import to_jsonable
+    from moma_env.scenarios import CONFIGURATIONS
+    from training.evaluation import PolicyLoadError, evaluate, load_policy, policy_label
+    from training.evaluation.progress import EpisodeProgress
+    from training.evaluation.report import format_table, write_outputs
+    from training.evaluation.video import GifRecorder
+
+    if args.scenario not in CONFIGURATIONS:
+        print(f"moma-env evaluate: unknown scenario {args.scenario!r}; known: {', '.join(sorted(CONFIGURATIONS))}", file=sys.stderr)
+        return 2
+    try:
+        policy = load_policy(args.policy, args.scenario, args.seed)
+    except PolicyLoadError as err:
+        print(f"moma-env evaluate: {err}", file=sys.stderr)
+        return 2
+    label = policy_label(args.policy)
+    out = args.out if args.out is not None else Path("runs/evaluate") / f"{args.scenario}_{label}"
+    recorder = None
+    if args.video:
+        from moma_env.scenarios import make_scenario
+
+        recorder = GifRecorder(fps=make_scenario(args.scenario).world.control_hz)
+    start = time.perf_counter()
+    with EpisodeProgress(args.episodes, f"{args.scenario}/{label}") as bar:
+        result = evaluate(
+            args.scenario,
+            policy,
+            args.episodes,
+            args.seed,
+            random_scenarios=args.random_scenarios,
+            action_mode=args.action_mode,
+            max_cycles=args.max_cycles,
+            frame_sink=recorder,
+            progress=lambda _episode: bar.update(),
+        )
+    result = dataclasses.replace(result, policy=label)
+    paths = write_outputs(result, out)
+    if recorder is not None:
+        paths["video"] = out / f"{args.scenario}_episode_000.gif"
+        recorder.write(paths["video"])
+    wall = time.perf_counter() - start
+    if args.json:
+        print(json.dumps(to_jsonable(dict(result.summary) | {"scenario": args.scenario, "policy": label, "seed": args.seed,
+                                                              "files": paths, "wall_time_s": wall}), indent=2, sort_keys=True))
+    else:
+        print(format_table(result))
+        print("\n" + "\n".join(f"{kind}: {path}" for kind, path in paths.items()) + f"\nwall time: {wall:.1f} s")
+    return 0
 
 
 def _run_bench(args: argparse.Namespace) -> int:

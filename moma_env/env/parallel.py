@@ -180,6 +180,11 @@ class MomaParallelEnv(ParallelEnv):
             return spaces.Discrete(3 if agent in self._tows else 2)
         return spaces.Box(-1.0, 1.0, shape=(6 if agent in self._tows else 4,), dtype=np.float32)
 
+    @property
+    def max_cycles(self) -> int:
+        """Episode length in steps (truncation)."""
+        return self._max_cycles
+
     # ------------------------------------------------------------------ spaces
     @functools.lru_cache(maxsize=None)  # noqa: B019 - spaces are fixed per instance
     def observation_space(self, agent: str) -> spaces.Space:

@@ -1,0 +1,245 @@
+"""One evaluation episode: drive a policy in the env and record what happened.
+
+The harness (not the policy) reads the truth carried in the infos: each robot's
+true planar pose, its MOMA estimate, its estimator status and the rule events.
+Robots are the UGV agents (the observer, when it is an agent, is not scored).
+Poses are planar ``(x, y, yaw)`` in the world frame W (m, rad); times are the
+simulation clock (s), one sample at the reset and one after every step.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from moma_env.env.parallel import OBSERVER
+from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, run_metrics
+from training.evaluation.policies import Policy
+
+__all__ = ["RobotEpisode", "EpisodeResult", "run_episode", "robot_agents"]
+
+FrameSink = Callable[[np.ndarray], None]
+
+
+@dataclass(frozen=True, eq=False)
+class RobotEpisode:
+    """One robot over one episode.
+
+    Attributes:
+        truth: true trajectory ``T_w_b`` (planar, z = 0).
+        moma: MOMA estimate at the same times (invalid samples: no estimate).
+        switch_times: instants (s) the robot's board became static or mobile.
+        distance_m: planar length of the true path (m).
+        n_switches: static/mobile events of the robot.
+        n_refused: its refused requests to become mobile.
+        lost: whether its estimator status was ``lost`` at any sample.
+        goal_time_s: time (s) it reached its goal; NaN if it did not.
+        metrics: ME, E_f, % of path, heading errors of ``moma`` against ``truth``.
+    """
+
+    truth: Trajectory
+    moma: Trajectory
+    switch_times: tuple[float, ...]
+    distance_m: float
+    n_switches: int
+    n_refused: int
+    lost: bool
+    goal_time_s: float
+    metrics: RunMetrics
+
+
+@dataclass(frozen=True, eq=False)
+class EpisodeResult:
+    """One episode of one policy.
+
+    Attributes:
+        index: episode number k (0-based); the env was reset with ``seed``.
+        seed: ``seed + k`` of the evaluation.
+        success: every goal reached (the episode terminated).
+        truncated: stopped by ``max_cycles``.
+        steps: env steps taken.
+        duration_s: simulated time of the episode (s).
+        time_to_goal_s: simulated time until success (s); NaN without success.
+        total_reward: sum of the team reward over the steps.
+        n_switches: static/mobile events of every device (sleds included).
+        n_refused: refused requests to become mobile.
+        lost_track: some robot's estimator was ``lost`` at some step.
+        goals: robot -> goal ``(x, y, yaw)`` of this episode's layout.
+        robots: robot -> :class:`RobotEpisode`.
+    """
+
+    index: int
+    seed: int
+    success: bool
+    truncated: bool
+    steps: int
+    duration_s: float
+    time_to_goal_s: float
+    total_reward: float
+    n_switches: int
+    n_refused: int
+    lost_track: bool
+    goals: Mapping[str, tuple[float, float, float]]
+    robots: Mapping[str, RobotEpisode]
+
+    def row(self) -> dict[str, Any]:
+        """The episode as one flat CSV row (distances in m, angles in deg, times in s)."""
+        row: dict[str, Any] = {
+            "episode": self.index,
+            "seed": self.seed,
+            "success": int(self.success),
+            "truncated": int(self.truncated),
+            "steps": self.steps,
+            "duration_s": self.duration_s,
+            "time_to_goal_s": self.time_to_goal_s,
+            "total_reward": self.total_reward,
+            "n_switches": self.n_switches,
+            "n_refused": self.n_refused,
+            "lost_track": int(self.lost_track),
+        }
+        for name, r in self.robots.items():
+            m = r.metrics
+            row |= {
+                f"{name}_distance_m": r.distance_m,
+                f"{name}_n_switches": r.n_switches,
+                f"{name}_n_refused": r.n_refused,
+                f"{name}_lost": int(r.lost),
+                f"{name}_goal_time_s": r.goal_time_s,
+                f"{name}_ME_m": m.mean_error,
+                f"{name}_E_f_m": m.final_error,
+                f"{name}_E_f_pct_path": m.final_error_pct_path,
+                f"{name}_mean_heading_error_deg": m.mean_heading_error_deg,
+                f"{name}_final_heading_error_deg": m.final_heading_error_deg,
+            }
+        return row
+
+
+def robot_agents(env: Any) -> list[str]:
+    """The scored robots of ``env``: its agents except the observer."""
+    return [a for a in env.possible_agents if a != OBSERVER]
+
+
+class _RobotLog:
+    """Per-step accumulation for one robot (recorders and counters)."""
+
+    __slots__ = ("truth", "moma", "switch_times", "n_switches", "n_refused", "lost", "goal_time")
+
+    def __init__(self, capacity: int):
+        self.truth = TrajectoryRecorder(capacity=capacity)
+        self.moma = TrajectoryRecorder(capacity=capacity)
+        self.switch_times: list[float] = []
+        self.n_switches = 0
+        self.n_refused = 0
+        self.lost = False
+        self.goal_time = math.nan
+
+    def record(self, name: str, t: float, info: Mapping[str, Any]) -> None:
+        self.truth.append(t, info["truth"][:3])
+        self.moma.append(t, info["estimate"])
+        if info["status"] == "lost":
+            self.lost = True
+        switched = False
+        for event in info["events"]:
+            kind, _, rest = event.partition(":")
+            device = rest.split(":", 1)[0]
+            if kind in ("static", "mobile") and device == name:
+                switched = True
+                self.n_switches += 1
+            elif kind == "refused" and device == name:
+                self.n_refused += 1
+            elif kind == "goal" and device == name and math.isnan(self.goal_time):
+                self.goal_time = t
+        if switched:
+            self.switch_times.append(t)
+
+    def result(self) -> RobotEpisode:
+        truth = self.truth.to_trajectory()
+        moma = self.moma.to_trajectory()
+        switches = tuple(self.switch_times)
+        return RobotEpisode(
+            truth=truth,
+            moma=moma,
+            switch_times=switches,
+            distance_m=truth.path_length(),
+            n_switches=self.n_switches,
+            n_refused=self.n_refused,
+            lost=self.lost,
+            goal_time_s=self.goal_time,
+            metrics=run_metrics(moma, truth, switches),
+        )
+
+
+def _count_events(infos: Mapping[str, Mapping[str, Any]]) -> tuple[int, int]:
+    switches = refused = 0
+    for info in infos.values():
+        for event in info.get("events", ()):
+            if event.startswith(("static:", "mobile:")):
+                switches += 1
+            elif event.startswith("refused:"):
+                refused += 1
+    return switches, refused
+
+
+def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: FrameSink | None = None) -> EpisodeResult:
+    """Run one episode of ``policy`` in ``env`` reset with ``seed``; record it.
+
+    Args:
+        env: a :class:`moma_env.env.parallel.MomaParallelEnv` (any render mode;
+            with ``frame_sink`` it must be ``"rgb_array"``).
+        policy: see :class:`training.evaluation.policies.Policy`.
+        index: the episode number stored in the result.
+        seed: the env's reset seed, also given to ``policy.reset``.
+        frame_sink: called with every rendered frame ``(H, W, 3) uint8``, the
+            reset's first, when given.
+    """
+    if frame_sink is not None and getattr(env, "render_mode", None) != "rgb_array":
+        raise ValueError("recording frames needs an env with render_mode='rgb_array'")
+    observations, infos = env.reset(seed=seed)
+    policy.reset(env, seed=seed)
+    robots = robot_agents(env)
+    capacity = env.max_cycles + 1
+    logs = {name: _RobotLog(capacity) for name in robots}
+    t = env.world.time
+    for name in robots:
+        logs[name].record(name, t, infos[name])
+    if frame_sink is not None:
+        frame_sink(env.render())
+    steps, total_reward, n_switches, n_refused = 0, 0.0, 0, 0
+    terminated = truncated = False
+    while env.agents:
+        actions = policy.act(observations, infos)
+        observations, rewards, terminations, truncations, infos = env.step(actions)
+        steps += 1
+        t = env.world.time
+        total_reward += next(iter(rewards.values()), 0.0)
+        s, r = _count_events(infos)
+        n_switches += s
+        n_refused += r
+        for name in robots:
+            logs[name].record(name, t, infos[name])
+        terminated = any(terminations.values())
+        truncated = any(truncations.values())
+        if frame_sink is not None:
+            frame_sink(env.render())
+    duration = float(env.world.time)
+    results = {name: log.result() for name, log in logs.items()}
+    goals = {name: tuple(float(v) for v in goal) for name, goal in env.scenario.goals.items()}
+    return EpisodeResult(
+        index=index,
+        seed=seed,
+        success=bool(terminated),
+        truncated=bool(truncated and not terminated),
+        steps=steps,
+        duration_s=duration,
+        time_to_goal_s=duration if terminated else math.nan,
+        total_reward=float(total_reward),
+        n_switches=n_switches,
+        n_refused=n_refused,
+        lost_track=any(r.lost for r in results.values()),
+        goals=goals,
+        robots=results,
+    )

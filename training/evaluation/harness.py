@@ -1,0 +1,232 @@
+"""The evaluation core: run N episodes of one policy and aggregate them.
+
+``evaluate("top_observer", "scripted", episodes=10, seed=0)`` builds the env
+(``moma_env.env.factory.parallel_env``), resets episode k with ``seed + k`` (a
+new random layout per episode with ``random_scenarios``), and returns an
+:class:`EvaluationResult`: the episodes and their summary (means and standard
+deviations over episodes). Nothing here prints or writes files; see
+:mod:`training.evaluation.report`. Distances in m, angles in deg, times in s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from moma_env.env.factory import parallel_env
+from moma_env.metrics import aggregate
+from moma_env.scenarios import CONFIGURATIONS
+from moma_env.config import ConfigError
+from training.evaluation.episode import EpisodeResult, FrameSink, robot_agents, run_episode
+from training.evaluation.policies import Policy, load_policy, policy_label
+
+__all__ = ["EvaluationResult", "evaluate", "summarise", "mean_std"]
+
+#: Called after every episode (progress bars).
+ProgressCallback = Callable[[EpisodeResult], None]
+
+
+@dataclass(frozen=True, eq=False)
+class EvaluationResult:
+    """N episodes of one policy on one configuration.
+
+    Attributes:
+        configuration: configuration name (``"top_observer"``, ...).
+        policy: the policy spec's label (``"scripted"``, ``"random"``, a file stem).
+        seed: seed of episode 0 (episode k used ``seed + k``).
+        random_scenarios: whether every episode drew a random layout.
+        action_mode: the env's action mode.
+        max_cycles: the episode length limit given (None: the scenario's).
+        robots: the scored robots, in env order.
+        episodes: the episodes in order.
+        summary: see :func:`summarise`.
+    """
+
+    configuration: str
+    policy: str
+    seed: int
+    random_scenarios: bool
+    action_mode: str
+    max_cycles: int | None
+    robots: tuple[str, ...]
+    episodes: tuple[EpisodeResult, ...]
+    summary: Mapping[str, Any] = field(repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything for ``summary.json`` (NaN kept as float; the JSON writer makes it null)."""
+        return {
+            "scenario": self.configuration,
+            "policy": self.policy,
+            "seed": self.seed,
+            "n_episodes": len(self.episodes),
+            "random_scenarios": self.random_scenarios,
+            "action_mode": self.action_mode,
+            "max_cycles": self.max_cycles,
+            "robots": list(self.robots),
+            "summary": dict(self.summary),
+            "episodes": [episode_dict(ep) for ep in self.episodes],
+        }
+
+
+def episode_dict(ep: EpisodeResult) -> dict[str, Any]:
+    """One episode as nested plain data (the per-robot metrics in full)."""
+    return {
+        "episode": ep.index,
+        "seed": ep.seed,
+        "success": ep.success,
+        "truncated": ep.truncated,
+        "steps": ep.steps,
+        "duration_s": ep.duration_s,
+        "time_to_goal_s": ep.time_to_goal_s,
+        "total_reward": ep.total_reward,
+        "n_switches": ep.n_switches,
+        "n_refused": ep.n_refused,
+        "lost_track": ep.lost_track,
+        "goals": {name: list(goal) for name, goal in ep.goals.items()},
+        "robots": {
+            name: {
+                "distance_m": r.distance_m,
+                "n_switches": r.n_switches,
+                "n_refused": r.n_refused,
+                "lost": r.lost,
+                "goal_time_s": r.goal_time_s,
+                "switch_times": list(r.switch_times),
+                "metrics": r.metrics.to_dict(),
+            }
+            for name, r in ep.robots.items()
+        },
+    }
+
+
+def mean_std(values: Sequence[float] | np.ndarray, ddof: int = 1) -> dict[str, float | int]:
+    """``{"mean", "std", "n"}`` over the finite ``values`` (NaN when too few)."""
+    a = np.asarray(values, dtype=float)
+    a = a[np.isfinite(a)]
+    n = int(a.shape[0])
+    return {
+        "mean": float(a.mean()) if n else math.nan,
+        "std": float(a.std(ddof=ddof)) if n > ddof else math.nan,
+        "n": n,
+    }
+
+
+def summarise(episodes: Sequence[EpisodeResult], robots: Sequence[str]) -> dict[str, Any]:
+    """Aggregate episodes: rates, means and standard deviations (sample std, ddof 1).
+
+    Keys: ``n_episodes``, ``success_rate``, ``lost_track_rate``,
+    ``time_to_goal_s`` (over successful episodes), ``duration_s``,
+    ``total_reward``, ``n_switches``, ``n_refused`` (each ``{"mean", "std",
+    "n"}``), and ``robots``: per robot ``distance_m``, ``n_switches``,
+    ``mean_heading_error_deg``, ``final_heading_error_deg`` (mean/std) and
+    ``moma``: :func:`moma_env.metrics.aggregate` of its runs (ME_f, its std,
+    ME, % of path, best and worst, failures; m and %).
+
+    Raises:
+        ValueError: no episodes.
+    """
+    if not episodes:
+        raise ValueError("summarise needs at least one episode")
+    n = len(episodes)
+    out: dict[str, Any] = {
+        "n_episodes": n,
+        "success_rate": sum(ep.success for ep in episodes) / n,
+        "lost_track_rate": sum(ep.lost_track for ep in episodes) / n,
+        "time_to_goal_s": mean_std([ep.time_to_goal_s for ep in episodes]),
+        "duration_s": mean_std([ep.duration_s for ep in episodes]),
+        "total_reward": mean_std([ep.total_reward for ep in episodes]),
+        "n_switches": mean_std([ep.n_switches for ep in episodes]),
+        "n_refused": mean_std([ep.n_refused for ep in episodes]),
+    }
+    per_robot = {}
+    for name in robots:
+        runs = [ep.robots[name] for ep in episodes]
+        per_robot[name] = {
+            "distance_m": mean_std([r.distance_m for r in runs]),
+            "n_switches": mean_std([r.n_switches for r in runs]),
+            "lost_rate": sum(r.lost for r in runs) / n,
+            "mean_heading_error_deg": mean_std([r.metrics.mean_heading_error_deg for r in runs]),
+            "final_heading_error_deg": mean_std([r.metrics.final_heading_error_deg for r in runs]),
+            "moma": aggregate([r.metrics for r in runs]).to_dict(),
+        }
+    out["robots"] = per_robot
+    return out
+
+
+def evaluate(
+    configuration: str,
+    policy_spec: str | Policy,
+    episodes: int,
+    seed: int = 0,
+    *,
+    random_scenarios: bool = True,
+    action_mode: str = "switching",
+    max_cycles: int | None = None,
+    frame_sink: FrameSink | None = None,
+    progress: ProgressCallback | None = None,
+    **overrides: Any,
+) -> EvaluationResult:
+    """Run ``episodes`` episodes of a policy on ``configuration`` and summarise them.
+
+    Args:
+        configuration: a name of :data:`moma_env.scenarios.CONFIGURATIONS`.
+        policy_spec: ``"scripted"``, ``"random"``, a path (see
+            :func:`training.evaluation.policies.load_policy`) or a policy object.
+        episodes: number of episodes (>= 1); episode k resets with ``seed + k``.
+        seed: seed of the first episode (>= 0).
+        random_scenarios: a random layout per episode (else the default one).
+        action_mode: the env's action mode (``"switching"`` or ``"velocity"``).
+        max_cycles: episode length limit in steps (None: the scenario's).
+        frame_sink: receives the rendered frames of the first episode.
+        progress: called with every finished episode.
+        **overrides: fields of the configuration's dataclass.
+
+    Raises:
+        ConfigError: unknown configuration, bad option or override.
+        PolicyLoadError: the policy spec names no loadable policy.
+        ValueError: ``episodes`` < 1 or ``seed`` < 0.
+    """
+    if configuration not in CONFIGURATIONS:
+        raise ConfigError("scenario", f"unknown configuration {configuration!r}; known: {sorted(CONFIGURATIONS)}")
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    if isinstance(policy_spec, str):
+        label = policy_label(policy_spec)
+        policy = load_policy(policy_spec, configuration, seed)
+    else:
+        label = type(policy_spec).__name__
+        policy = policy_spec
+    env = parallel_env(
+        configuration,
+        random_scenarios=random_scenarios,
+        action_mode=action_mode,
+        max_cycles=max_cycles,
+        render_mode="rgb_array" if frame_sink is not None else None,
+        **overrides,
+    )
+    try:
+        robots = tuple(robot_agents(env))
+        results = []
+        for k in range(episodes):
+            ep = run_episode(env, policy, k, seed + k, frame_sink if k == 0 else None)
+            results.append(ep)
+            if progress is not None:
+                progress(ep)
+    finally:
+        env.close()
+    return EvaluationResult(
+        configuration=configuration,
+        policy=label,
+        seed=seed,
+        random_scenarios=random_scenarios,
+        action_mode=action_mode,
+        max_cycles=max_cycles,
+        robots=robots,
+        episodes=tuple(results),
+        summary=summarise(results, robots),
+    )

@@ -1,0 +1,99 @@
+"""Which policy the harness runs: the protocol it needs and :func:`load_policy`.
+
+A policy sees what an agent may see: the observations and the infos the env
+hands it. Only the harness reads the ground truth for its metrics.
+
+Specs understood by :func:`load_policy`:
+
+* ``"scripted"``: ``agents.policies.scripted_policy(configuration)``;
+* ``"random"``: ``agents.policies.RandomPolicy(seed)``;
+* a path: a trained policy (the hook for the Stable-Baselines3 loader of issue 6;
+  not supported yet, it raises :class:`PolicyLoadError`).
+
+``agents.policies`` is imported lazily, when a policy is loaded.
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+__all__ = ["Policy", "PolicyLoadError", "BUILTIN_POLICIES", "load_policy", "policy_label"]
+
+#: Policy specs that name a built-in policy rather than a file.
+BUILTIN_POLICIES = ("scripted", "random")
+
+
+class PolicyLoadError(ValueError):
+    """A policy spec that names no policy the harness can load (one-line message)."""
+
+
+@runtime_checkable
+class Policy(Protocol):
+    """What the harness drives: reset once per episode, then one action dict per step."""
+
+    def reset(self, env: Any, seed: int | None = None) -> None: ...
+
+    def act(self, observations: dict, infos: dict) -> dict: ...
+
+
+def policy_label(spec: str) -> str:
+    """A short name of a policy spec for folders and tables (a path gives its stem)."""
+    if spec in BUILTIN_POLICIES:
+        return spec
+    return Path(spec).stem or "policy"
+
+
+def _agents_policies():
+    try:
+        return importlib.import_module("agents.policies")
+    except ImportError as err:
+        raise PolicyLoadError(f"the built-in policies need the package agents.policies, which cannot be imported: {err}") from None
+
+
+def _load_trained_policy(path: Path, configuration: str) -> Policy:
+    """Hook for trained policies (issue 6): not supported yet."""
+    raise PolicyLoadError(f"loading trained policies from PATH needs issue 6's loader (got {str(path)!r})")
+
+
+def load_policy(spec: str, configuration: str, seed: int | None = None) -> Policy:
+    """The policy named by ``spec`` for configuration ``configuration``.
+
+    Args:
+        spec: ``"scripted"``, ``"random"`` or the path of a trained policy.
+        configuration: the configuration's name (``"top_observer"``, ...).
+        seed: the random policy's seed (ignored by the others).
+
+    Raises:
+        PolicyLoadError: an unknown spec, a path that does not exist or is not
+            supported yet, or ``agents.policies`` missing or lacking the policy.
+    """
+    if not isinstance(spec, str) or not spec:
+        raise PolicyLoadError(f"policy must be 'scripted', 'random' or a path, got {spec!r}")
+    if spec == "scripted":
+        module = _agents_policies()
+        factory = getattr(module, "scripted_policy", None)
+        if factory is None:
+            raise PolicyLoadError("agents.policies has no scripted_policy(configuration)")
+        try:
+            policy = factory(configuration)
+        except (KeyError, ValueError) as err:
+            raise PolicyLoadError(f"no scripted policy for configuration {configuration!r}: {err}") from None
+    elif spec == "random":
+        module = _agents_policies()
+        cls = getattr(module, "RandomPolicy", None)
+        if cls is None:
+            raise PolicyLoadError("agents.policies has no RandomPolicy(seed)")
+        policy = cls(seed)
+    else:
+        path = Path(spec)
+        if not path.exists():
+            raise PolicyLoadError(
+                f"unknown policy {spec!r}: expected 'scripted', 'random' or the path of a trained policy "
+                "(loading trained policies from PATH needs issue 6's loader)"
+            )
+        policy = _load_trained_policy(path, configuration)
+    if not isinstance(policy, Policy):
+        raise PolicyLoadError(f"policy {spec!r} lacks reset(env, seed) or act(observations, infos)")
+    return policy
