@@ -1,0 +1,202 @@
+"""Turn taking in switching mode: one device moves at a time, the others hold.
+
+:class:`TurnTakingPolicy` runs the cycle every scripted baseline shares, on the
+env's events only: pick a *move* (an agent and the action that moves one
+device: ``advance`` moves the robot, ``reel`` the sled it tows), hold until the
+dwell is over, request it until the env reports ``mobile:<device>``, keep it
+until ``leg_done:<device>``, then pick the next move. Subclasses only say which
+move comes next (:meth:`TurnTakingPolicy._next_moves`).
+
+Refusals never deadlock the cycle: a ``dwell`` refusal is retried; a move
+refused with ``no_reference`` for longer than ``give_up_s`` is set aside and the
+next candidate is tried; when every candidate is set aside, they are all
+retried. A leg that stalls (the mover's estimated pose has not changed by
+``stall_m`` / ``stall_rad`` for ``stall_s``: it is pushing against another
+robot or an obstacle on its straight path, or it is lost and waits) is ended by
+holding, and the turn passes, so the robot in the way can move on.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from agents.policies.base import HOLD, FeatureIndex
+from moma_env.env.parallel import MomaParallelEnv
+
+__all__ = ["Move", "TurnTakingPolicy"]
+
+
+
+@dataclass(frozen=True)
+class Move:
+    """``agent`` sends ``action`` to make ``device`` mobile for one leg."""
+
+    agent: str
+    action: int
+    device: str
+
+
+class TurnTakingPolicy:
+    """Base of the switching-mode scripted policies (see the module docstring).
+
+    Args:
+        give_up_s: a move refused for lack of a reference for this long (s) is
+            set aside for another candidate.
+        stall_s: a mover whose estimated pose moved less than ``stall_m`` (m)
+            and turned less than ``stall_rad`` (rad) for this long (s) is stopped.
+    """
+
+    def __init__(self, give_up_s: float = 2.0, stall_s: float = 2.0, stall_m: float = 0.02, stall_rad: float = 0.08):
+        for name, value in (("give_up_s", give_up_s), ("stall_s", stall_s), ("stall_m", stall_m), ("stall_rad", stall_rad)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        self.give_up_s = float(give_up_s)
+        self.stall_s = float(stall_s)
+        self.stall_m = float(stall_m)
+        self.stall_rad = float(stall_rad)
+        self._env_ready = False
+
+    # ------------------------------------------------------------------ episode facts
+    def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
+        """Read agents, layouts, goals and switching parameters; forget the last episode."""
+        self.ugvs: tuple[str, ...] = tuple(a for a in env.possible_agents if a in env.layout.features and a != "observer")
+        for agent in env.possible_agents:
+            if agent in self.ugvs and not isinstance(env.action_space(agent), spaces.Discrete):
+                raise ValueError(f"{type(self).__name__} needs action_mode='switching'; {agent} has {env.action_space(agent)}")
+            if agent not in self.ugvs:
+                raise ValueError(f"{type(self).__name__} cannot fly a learning observer agent ({agent!r}); use observer_agent=False")
+        scenario = env.scenario
+        xmin, ymin, xmax, ymax = scenario.world.arena.bounds
+        self.two_r = math.hypot(xmax - xmin, ymax - ymin)  # 2 * half-diagonal: the goal.distance scale (m)
+        self.goal_tolerance_m = scenario.goal_tolerance_m
+        self.goals = dict(scenario.goals)
+        self.tows: dict[str, str] = dict(env.layout.tows)
+        control_hz = scenario.world.control_hz
+        self._features = {a: FeatureIndex(env.layout.features[a]) for a in self.ugvs}
+        self._give_up_steps = max(1, int(round(self.give_up_s * control_hz)))
+        self._stall_steps = max(1, int(round(self.stall_s * control_hz)))
+        self._half_diagonal = 0.5 * self.two_r  # own.x, own.y scale (m)
+        self.stalls = 0
+        self._turn: Move | None = None
+        self._moving = False
+        self._refused_no_ref = 0
+        self._anchor: tuple[float, float, float] | None = None  # mover's (x m, y m, yaw rad) when it last moved
+        self._anchor_age = 0
+        self._set_aside: set[Move] = set()
+        self.last_move: Move | None = None
+        self.legs_done = 0
+        self._env_ready = True
+
+    # ------------------------------------------------------------------ observation helpers
+    def feature(self, agent: str, observations: Mapping[str, np.ndarray], name: str) -> float:
+        """One named feature of ``agent``'s observation."""
+        return float(observations[agent][self._features[agent][name]])
+
+    def goal_distance(self, agent: str, observations: Mapping[str, np.ndarray]) -> float:
+        """Estimated distance (m) from ``agent`` to its goal; inf if unknown, 0 without a goal."""
+        if agent not in self.goals:
+            return 0.0
+        if self.feature(agent, observations, "own.valid") < 0.5:
+            return math.inf
+        return self.feature(agent, observations, "goal.distance") * self.two_r
+
+    def at_goal(self, agent: str, observations: Mapping[str, np.ndarray]) -> bool:
+        """Whether ``agent``'s estimate is within the goal tolerance of its goal."""
+        return self.goal_distance(agent, observations) <= self.goal_tolerance_m
+
+    # ------------------------------------------------------------------ what subclasses decide
+    def _next_moves(self, observations: Mapping[str, np.ndarray]) -> Sequence[Move]:
+        """Candidate moves, best first; empty when nothing needs to move."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ the cycle
+    def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, int]:
+        """Hold for everyone but the mover, whose action depends on the turn's phase."""
+        if not self._env_ready:
+            raise RuntimeError("call reset(env) before act()")
+        if self._turn is not None:
+            self._follow_turn(infos)
+        if self._turn is None:
+            self._start_turn(observations)
+        actions = {agent: HOLD for agent in observations}
+        turn = self._turn
+        if turn is not None and turn.agent in actions:
+            waiting = not self._moving and self.feature(turn.agent, observations, "dwell_remaining") > 0.0
+            actions[turn.agent] = HOLD if waiting else turn.action
+            if self._moving and self._stalled(turn, observations):
+                actions[turn.agent] = HOLD  # blocked or lost: stop it and pass the turn
+                self.stalls += 1
+                self._end_turn(done=False)
+        return actions
+
+    def _stalled(self, turn: Move, observations: Mapping[str, np.ndarray]) -> bool:
+        """Whether the mover has not moved for ``stall_s`` (robots only: the env ends a
+        stuck reel itself when the rope stops shortening)."""
+        agent = turn.agent
+        if turn.device != agent:
+            return False
+        if self.feature(agent, observations, "own.valid") < 0.5:
+            pose = None
+        else:
+            pose = (
+                self.feature(agent, observations, "own.x") * self._half_diagonal,
+                self.feature(agent, observations, "own.y") * self._half_diagonal,
+                math.atan2(self.feature(agent, observations, "own.sin_yaw"), self.feature(agent, observations, "own.cos_yaw")),
+            )
+        anchor = self._anchor
+        if pose is not None and (
+            anchor is None
+            or math.hypot(pose[0] - anchor[0], pose[1] - anchor[1]) > self.stall_m
+            or abs(math.remainder(pose[2] - anchor[2], math.tau)) > self.stall_rad
+        ):
+            self._anchor = pose
+            self._anchor_age = 0
+            return False
+        self._anchor_age += 1
+        return self._anchor_age > self._stall_steps
+
+    def _follow_turn(self, infos: Mapping[str, Mapping[str, Any]]) -> None:
+        turn = self._turn
+        assert turn is not None
+        info = infos.get(turn.agent)
+        events = () if info is None else info["events"]
+        if not self._moving:
+            if f"mobile:{turn.device}" in events:
+                self._moving = True
+            else:
+                refused = () if info is None else info["refused"]
+                if "no_reference" in refused:
+                    self._refused_no_ref += 1
+                    if self._refused_no_ref >= self._give_up_steps:
+                        self._set_aside.add(turn)
+                        self._end_turn(done=False)
+                        return
+        if self._moving and (f"leg_done:{turn.device}" in events or f"static:{turn.device}" in events):
+            self._end_turn(done=True)
+
+    def _end_turn(self, done: bool) -> None:
+        if done:
+            self.legs_done += 1
+            self._set_aside.clear()
+        self.last_move = self._turn
+        self._turn = None
+        self._moving = False
+        self._refused_no_ref = 0
+        self._anchor = None
+        self._anchor_age = 0
+
+    def _start_turn(self, observations: Mapping[str, np.ndarray]) -> None:
+        candidates = [m for m in self._next_moves(observations) if m.agent in observations]
+        if not candidates:
+            return
+        fresh = [m for m in candidates if m not in self._set_aside]
+        if not fresh:  # every candidate was refused: retry them all rather than wait forever
+            self._set_aside.clear()
+            fresh = candidates
+        self._turn = fresh[0]
