@@ -91,7 +91,8 @@ def test_mapping_letterboxes_and_inverts(xmin, ymin, dx, dy, w, h):
     corners = np.array([[xmin, ymin + dy], [xmin + dx, ymin]])  # top-left, bottom-right
     (u0, v0), (u1, v1) = m.to_pixels(corners)
     # inside the image (edges of the pixel grid are at -0.5 and size - 0.5) and centred
-    assert -0.5 <= u0 < u1 <= w - 0.5 and -0.5 <= v0 < v1 <= h - 0.5
+    eps = 1e-9  # floating-point rounding of the affine map, in pixels
+    assert -0.5 - eps <= u0 < u1 <= w - 0.5 + eps and -0.5 - eps <= v0 < v1 <= h - 0.5 + eps
     assert (u0 + u1) / 2 == pytest.approx((w - 1) / 2) and (v0 + v1) / 2 == pytest.approx((h - 1) / 2)
     # one side fills the area inside the margins: the aspect ratio is kept, nothing is wasted
     pad = math.floor(0.03 * min(w, h))

@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from moma_env.camera import BoardView, CameraConfig, GeometricCamera
+from moma_env.camera import PNP_METHODS, BoardView, CameraConfig, GeometricCamera
 from moma_env.geometry import R_BODY_BOARD_UP, R_BODY_CAM_DOWN, make_transform, rot_x, rot_y, se2_to_se3
 from moma_env.markers import board_for_robot
 
@@ -82,7 +82,8 @@ def bench_camera(
         raise ValueError(f"n_boards must be in 1..{len(_BOARD_SLOTS)}, got {n_boards}")
     if iters < 1:
         raise ValueError(f"iters must be >= 1, got {iters}")
-    config = CameraConfig(noise_px=noise_px) if pnp_method is None else CameraConfig(noise_px=noise_px, pnp_method=pnp_method)
+    options = {} if pnp_method is None else {"pnp_method": pnp_method}
+    config = CameraConfig(noise_px=noise_px, **options)
     camera = GeometricCamera("bench", config)
     rng = np.random.default_rng(seed)
     poses, boards = _scene(n_boards, rng)
@@ -108,12 +109,34 @@ def bench_camera(
     }
 
 
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def _noise(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 0.0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return value
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print microseconds per ``measure`` call for 1, 2 and 4 boards."""
     parser = argparse.ArgumentParser(description="Micro-benchmark of GeometricCamera.measure.")
-    parser.add_argument("--iters", type=int, default=5000, help="timed calls per row (default 5000)")
-    parser.add_argument("--pnp-method", default=None, help="camera pnp_method (default: the config default)")
-    parser.add_argument("--noise-px", type=float, default=0.5, help="corner noise std in px (default 0.5)")
+    parser.add_argument("--iters", type=_positive_int, default=5000, help="timed calls per row (default 5000)")
+    parser.add_argument(
+        "--pnp-method", choices=PNP_METHODS, default=None, help="camera pnp_method (default: the config default)"
+    )
+    parser.add_argument("--noise-px", type=_noise, default=0.5, help="corner noise std in px (default 0.5)")
     args = parser.parse_args(argv)
     print(f"{'boards':>6} {'method':>10} {'median us':>10} {'mean us':>9} {'min us':>8} {'dets/call':>9}")
     for n in (1, 2, 4):

@@ -14,6 +14,7 @@ in the scene; it never tells the backend which boards are visible.
 
 from __future__ import annotations
 
+import math
 import operator
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -37,7 +38,8 @@ def as_pose(T: object, name: str) -> np.ndarray:
     T = np.asarray(T, dtype=float)
     if T.shape != (4, 4):
         raise ValueError(f"{name} must be a 4x4 pose, got shape {T.shape}")
-    if not np.isfinite(T).all():
+    # The sum is finite whenever every entry is (up to overflow, re-checked exactly).
+    if not math.isfinite(np.add.reduce(T, axis=None)) and not np.isfinite(T).all():
         raise ValueError(f"{name} must be finite, got {T.tolist()}")
     return T
 

@@ -36,6 +36,8 @@ class PinholeCamera:
             (``inf`` if it never does); points beyond it are not imaged.
         sensor_corners_px: read-only (4, 2) sensor corners (px): top-left,
             top-right, bottom-right, bottom-left.
+        image_limits_rows: read-only (2, 2, 1): lowest and highest pixel (rows u,
+            v) a marker corner may have, ``config.margin_px`` inside the sensor.
     """
 
     def __init__(self, config: CameraConfig) -> None:
@@ -53,10 +55,18 @@ class PinholeCamera:
         self._focal = np.array([config.fx, config.fy])
         self._centre = np.array([config.cx, config.cy])
         self._focal_col = self._focal.reshape(2, 1)
+        # Coefficients of f * (1 + k1 r2 + k2 r2^2 + k3 r2^3), highest degree first,
+        # trailing zero terms dropped (f = fx = fy when pixels are square, else 1).
+        self._square_pixels = config.fx == config.fy
+        k1, k2, _, _, k3 = self._dist
+        degree = 3 if k3 != 0.0 else 2 if k2 != 0.0 else 1 if k1 != 0.0 else 0
+        scale = config.fx if self._square_pixels else 1.0
+        self._radial_px = tuple(scale * c for c in (k3, k2, k1)[3 - degree :]) + (scale,)
         self._centre_col = self._centre.reshape(2, 1)
         self._lo = config.margin_px - 0.5
         self._hi = np.array([config.width - 0.5 - config.margin_px, config.height - 0.5 - config.margin_px])
-        self._hi_col = self._hi.reshape(2, 1)
+        self.image_limits_rows = np.array([[self._lo, self._lo], self._hi]).reshape(2, 2, 1)
+        self.image_limits_rows.setflags(write=False)
         w, h = config.width, config.height
         self.sensor_corners_px = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
         self.sensor_corners_px.setflags(write=False)
@@ -133,36 +143,30 @@ class PinholeCamera:
         if self._tangential:
             xd, yd, _ = distort(xy[0], xy[1], self._dist)
             uv = np.stack((xd, yd))
-        elif self._distorted:
-            uv = xy * self._radial(r2)
+            uv *= self._focal_col
         else:
-            uv = xy.copy()
-        uv *= self._focal_col
+            # Radial factor times the focal length(s), by Horner's rule in r2.
+            coeffs = self._radial_px
+            if len(coeffs) == 1:
+                uv = xy * coeffs[0]
+            else:
+                factor = r2 * coeffs[0]
+                for c in coeffs[1:-1]:
+                    factor += c
+                    factor *= r2
+                factor += coeffs[-1]
+                uv = xy * factor
+            if not self._square_pixels:
+                uv *= self._focal_col
         uv += self._centre_col
         return uv, r2
-
-    def _radial(self, r2: np.ndarray) -> np.ndarray:
-        """Radial factor ``1 + k1 r2 + k2 r2^2 + k3 r2^3`` (a new array; Horner, zero trailing terms skipped)."""
-        k1, k2, _, _, k3 = self._dist
-        if k3 != 0.0:
-            radial = r2 * k3
-            radial += k2
-            radial *= r2
-            radial += k1
-            radial *= r2
-        elif k2 != 0.0:
-            radial = r2 * k2
-            radial += k1
-            radial *= r2
-        else:
-            radial = r2 * k1
-        radial += 1.0
-        return radial
 
     def undistort(self, px: np.ndarray) -> np.ndarray:
         """Normalised undistorted coordinates ``(x/z, y/z)`` of pixels ``(n, 2)``.
 
         Inverts :meth:`project` to ~1e-13 (normalised units) inside the image.
+        The result is a view of an (n, 1, 2) array, so ``reshape(-1, 1, 2)``
+        gives solvePnP's layout without a copy.
         """
         pts = np.ascontiguousarray(px, dtype=float).reshape(-1, 1, 2)
         if pts.shape[0] == 0:
@@ -190,12 +194,6 @@ class PinholeCamera:
         ok = px >= lo
         ok &= px <= hi
         return ok
-
-    def in_image_rows(self, uv: np.ndarray) -> np.ndarray:
-        """Boolean (n,): pixels stored as rows (2, n) at least ``config.margin_px`` inside the sensor."""
-        inside = uv >= self._lo
-        inside &= uv <= self._hi_col
-        return inside[0] & inside[1]
 
     # ------------------------------------------------------------------ geometry
     @property

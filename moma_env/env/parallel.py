@@ -182,8 +182,14 @@ class MomaParallelEnv(ParallelEnv):
 
     @property
     def max_cycles(self) -> int:
-        """Episode length in steps (truncation)."""
+        """Episode length in steps (truncation); settable, as in PettingZoo's own envs."""
         return self._max_cycles
+
+    @max_cycles.setter
+    def max_cycles(self, value: int) -> None:
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"max_cycles must be an integer >= 1, got {value!r}")
+        self._max_cycles = value
 
     # ------------------------------------------------------------------ spaces
     @functools.lru_cache(maxsize=None)  # noqa: B019 - spaces are fixed per instance
