@@ -365,7 +365,7 @@ def test_non_planar_layout_data_is_rejected():
 def test_bench_camera_reports_timings_for_visible_boards():
     result = bench_camera(2, 5)
     assert set(result) == {"n_boards", "iters", "pnp_method", "median_us", "mean_us", "min_us", "detections_per_call"}
-    assert result["n_boards"] == 2 and result["iters"] == 5 and result["pnp_method"] == "IPPE"
+    assert result["n_boards"] == 2 and result["iters"] == 5 and result["pnp_method"] == "SQPNP"
     assert result["detections_per_call"] == 2.0
     assert 0.0 < result["min_us"] <= result["median_us"]
     with pytest.raises(ValueError, match="n_boards"):

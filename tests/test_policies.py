@@ -75,17 +75,7 @@ def run_episode(configuration: str, seed: int, random_scenarios: bool = False) -
     "configuration",
     [
         "top_observer",
-        pytest.param(
-            "caterpillar",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason=(
-                    "env accuracy, not the policy: on seed 0 the leader's MOMA estimate ends 8.5 cm to the side "
-                    "of the truth (yaw error of the follower's PnP on the vertical board, ~0.1 rad, times the "
-                    "~1 m stand-off); the estimate says 'at goal', the truth is outside the 5 cm goal tolerance"
-                ),
-            ),
-        ),
+        "caterpillar",
         "caterpillar_sled",
         "caterpillar_multi",
     ],

@@ -59,11 +59,14 @@ class CameraConfig:
         min_range_m: every corner must be at least this far in front of the camera
             (depth z_C, m).
         max_range_m: largest distance from the camera centre to a marker centre (m).
-        pnp_method: ``"IPPE"`` (default; closed form for planar targets),
-            ``"ITERATIVE"`` (IPPE, then Levenberg-Marquardt on the reprojection
-            error: the maximum-likelihood pose, less than half IPPE's rotation error
-            on face-on boards, ~1.7x the time) or ``"SQPNP"``. All are exact
-            without noise.
+        pnp_method: ``"SQPNP"`` (default: a globally optimal least-squares
+            solver; on face-on boards its rotation error is less than half of
+            IPPE's, which decides whether the caterpillars reach their goals:
+            the default caterpillar scenario succeeds in 10 of 10 seeds with
+            SQPNP, 7 of 10 with IPPE; ~1.3x IPPE's time), ``"ITERATIVE"``
+            (IPPE, then Levenberg-Marquardt on the reprojection error, as
+            good as SQPNP, ~1.7x IPPE's time) or ``"IPPE"`` (closed form for
+            planar targets, fastest). All are exact without noise.
     """
 
     width: int = 720
@@ -79,7 +82,7 @@ class CameraConfig:
     max_incidence_deg: float = 70.0
     min_range_m: float = 0.1
     max_range_m: float = 8.0
-    pnp_method: str = "IPPE"
+    pnp_method: str = "SQPNP"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "width", _check_positive_int("camera.width", self.width))
