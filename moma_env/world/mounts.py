@@ -33,6 +33,15 @@ __all__ = [
 ]
 
 
+def _mount(
+    what: str, R: np.ndarray, direction: float, offset: float, height: float, *, offset_sign_free: bool = True
+) -> np.ndarray:
+    """A mount ``offset`` m along ``direction`` * x_B and ``height`` m above the floor, validated."""
+    check_non_negative(f"{what}.height", height)
+    (check_finite if offset_sign_free else check_non_negative)(f"{what}.offset", offset)
+    return make_transform(R, (direction * float(offset), 0.0, float(height)))
+
+
 def board_on_top(height: float = 0.40) -> np.ndarray:
     """``T_b_m`` of a board lying face-up, centred on the robot, ``height`` m above the floor."""
     check_non_negative("board_on_top.height", height)
@@ -46,9 +55,7 @@ def board_on_back(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
         height: height of the board centre above the floor (m).
         offset: distance of the board face behind the body origin (m), along -x_B.
     """
-    check_non_negative("board_on_back.height", height)
-    check_non_negative("board_on_back.offset", offset)
-    return make_transform(R_BODY_BOARD_BACK, (-float(offset), 0.0, float(height)))
+    return _mount("board_on_back", R_BODY_BOARD_BACK, -1.0, offset, height, offset_sign_free=False)
 
 
 def board_on_front(height: float = 0.25, offset: float = 0.15) -> np.ndarray:
@@ -58,9 +65,7 @@ def board_on_front(height: float = 0.25, offset: float = 0.15) -> np.ndarray:
         height: height of the board centre above the floor (m).
         offset: distance of the board face ahead of the body origin (m), along +x_B.
     """
-    check_non_negative("board_on_front.height", height)
-    check_non_negative("board_on_front.offset", offset)
-    return make_transform(R_BODY_BOARD_FRONT, (float(offset), 0.0, float(height)))
+    return _mount("board_on_front", R_BODY_BOARD_FRONT, 1.0, offset, height, offset_sign_free=False)
 
 
 def camera_forward(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
@@ -70,9 +75,7 @@ def camera_forward(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
         height: height of the optical centre above the floor (m).
         offset: distance of the optical centre ahead of the body origin (m), along +x_B.
     """
-    check_non_negative("camera_forward.height", height)
-    check_finite("camera_forward.offset", offset)
-    return make_transform(R_BODY_CAM_FORWARD, (float(offset), 0.0, float(height)))
+    return _mount("camera_forward", R_BODY_CAM_FORWARD, 1.0, offset, height)
 
 
 def camera_backward(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
@@ -82,9 +85,7 @@ def camera_backward(height: float = 0.30, offset: float = 0.23) -> np.ndarray:
         height: height of the optical centre above the floor (m).
         offset: distance of the optical centre behind the body origin (m), along -x_B.
     """
-    check_non_negative("camera_backward.height", height)
-    check_finite("camera_backward.offset", offset)
-    return make_transform(R_BODY_CAM_BACKWARD, (-float(offset), 0.0, float(height)))
+    return _mount("camera_backward", R_BODY_CAM_BACKWARD, -1.0, offset, height)
 
 
 def camera_down(height: float = -0.05, offset: float = 0.0) -> np.ndarray:
