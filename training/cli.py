@@ -68,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ev = sub.add_parser("evaluate", help="run a policy for N episodes and report success, errors and switches")
     ev.add_argument("--scenario", required=True, help="configuration name (top_observer, caterpillar, caterpillar_sled, caterpillar_multi)")
-    ev.add_argument("--policy", default="scripted", help="'scripted', 'random' or the path of a trained policy (default scripted)")
+    ev.add_argument("--policy", default="scripted", help="'scripted', 'planned' (follows the MOMA navigation planner), 'random' or the path of a trained policy (default scripted)")
     ev.add_argument("--episodes", type=_int_at_least(1, "episode count"), default=10, help="number of episodes (default 10)")
     ev.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first episode; episode k uses seed+k (default 0)")
     layouts = ev.add_mutually_exclusive_group()
@@ -79,7 +79,12 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", type=Path, default=None, help="output folder (default runs/evaluate/<scenario>_<policy>)")
     ev.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
     ev.add_argument("--video", action="store_true", help="write an animated GIF of the first episode")
-    ev.add_argument("--action-mode", choices=("switching", "velocity"), default="switching", help="the env's action mode (default switching)")
+    ev.add_argument(
+        "--action-mode",
+        choices=("switching", "velocity"),
+        default=None,
+        help="the env's action mode (default: the policy's own, velocity for 'planned', else switching)",
+    )
     ev.add_argument("--max-cycles", type=_int_at_least(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
     ev.set_defaults(handler=_run_evaluate)
     return parser
@@ -89,6 +94,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     from moma_env.io import to_jsonable
     from moma_env.scenarios import CONFIGURATIONS
     from training.evaluation import PolicyLoadError, evaluate, load_policy, policy_label
+    from training.evaluation.policies import POLICY_ACTION_MODES
     from training.evaluation.progress import EpisodeProgress
     from training.evaluation.report import format_table, write_outputs
     from training.evaluation.video import GifRecorder
@@ -116,7 +122,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
             args.episodes,
             args.seed,
             random_scenarios=args.random_scenarios,
-            action_mode=args.action_mode,
+            action_mode=args.action_mode or POLICY_ACTION_MODES.get(args.policy, "switching"),
             max_cycles=args.max_cycles,
             frame_sink=recorder,
             progress=lambda _episode: bar.update(),

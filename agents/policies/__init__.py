@@ -16,6 +16,7 @@ from __future__ import annotations
 from agents.policies.base import ADVANCE, ALLOWED_INFO_KEYS, FORBIDDEN_INFO_KEYS, HOLD, REEL, Policy
 from agents.policies.caterpillar_multi import CaterpillarMulti, CaterpillarTwo
 from agents.policies.caterpillar_sled import CaterpillarSled
+from agents.policies.planned import PlannedPolicy
 from agents.policies.random_policy import RandomPolicy
 from agents.policies.top_observer import TopObserverLeapfrog
 from agents.policies.turns import Move, TurnTakingPolicy
@@ -27,6 +28,7 @@ __all__ = [
     "CaterpillarTwo",
     "CaterpillarSled",
     "CaterpillarMulti",
+    "PlannedPolicy",
     "TurnTakingPolicy",
     "Move",
     "scripted_policy",

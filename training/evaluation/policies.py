@@ -19,10 +19,13 @@ import importlib
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["Policy", "PolicyLoadError", "BUILTIN_POLICIES", "load_policy", "policy_label"]
+__all__ = ["Policy", "PolicyLoadError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "load_policy", "policy_label"]
 
 #: Policy specs that name a built-in policy rather than a file.
-BUILTIN_POLICIES = ("scripted", "random")
+BUILTIN_POLICIES = ("scripted", "planned", "random")
+
+#: The action mode each built-in policy acts in.
+POLICY_ACTION_MODES = {"scripted": "switching", "planned": "velocity", "random": "switching"}
 
 
 class PolicyLoadError(ValueError):
@@ -61,7 +64,9 @@ def load_policy(spec: str, configuration: str, seed: int | None = None) -> Polic
     """The policy named by ``spec`` for configuration ``configuration``.
 
     Args:
-        spec: ``"scripted"``, ``"random"`` or the path of a trained policy.
+        spec: ``"scripted"`` (switching mode), ``"planned"`` (follows the MOMA
+            navigation planner's plan, velocity mode), ``"random"`` or the path
+            of a trained policy.
         configuration: the configuration's name (``"top_observer"``, ...).
         seed: the random policy's seed (ignored by the others).
 
@@ -80,6 +85,12 @@ def load_policy(spec: str, configuration: str, seed: int | None = None) -> Polic
             policy = factory(configuration)
         except (KeyError, ValueError) as err:
             raise PolicyLoadError(f"no scripted policy for configuration {configuration!r}: {err}") from None
+    elif spec == "planned":
+        module = _agents_policies()
+        cls = getattr(module, "PlannedPolicy", None)
+        if cls is None:
+            raise PolicyLoadError("agents.policies has no PlannedPolicy()")
+        policy = cls()
     elif spec == "random":
         module = _agents_policies()
         cls = getattr(module, "RandomPolicy", None)
