@@ -127,6 +127,14 @@ class PlannedPolicy:
         return self.turn_index >= len(self.plan.turns)
 
     # ------------------------------------------------------------------ acting
+    def _current_turn(self, observations: Mapping[str, np.ndarray]) -> tuple[Any, str, str] | None:
+        """(turn, device, agent) of the turn in progress, None when done or its agent is gone."""
+        if self.done:
+            return None
+        turn = self.plan.turns[self.turn_index]
+        agent = self._robot_of.get(turn.device, turn.device)
+        return (turn, turn.device, agent) if agent in observations else None
+
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, np.ndarray]:
         """Actions of every agent in ``observations``: the turn's device moves, the others hold."""
         if not self._ready:
@@ -134,26 +142,20 @@ class PlannedPolicy:
         actions = {a: self._hold(a) for a in observations if a != OBSERVER}
         if OBSERVER in observations:
             actions[OBSERVER] = self._observer_action(observations[OBSERVER])
-        if self.done:
+        current = self._current_turn(observations)
+        if current is None:
             return actions
-        turn = self.plan.turns[self.turn_index]
-        device = turn.device
-        agent = self._robot_of.get(device, device)
-        if agent not in observations:
-            return actions
+        turn, device, agent = current
         events = _read_info(infos, agent, "events") or ()
         if self._phase == _REQUEST and f"mobile:{device}" in events:
             self.device_order.append(device)
             self._phase = _MOVE
         if self._phase == _STOP and f"static:{device}" in events:
             self._next_turn()
-            if self.done:
+            current = self._current_turn(observations)
+            if current is None:
                 return actions
-            turn = self.plan.turns[self.turn_index]
-            device = turn.device
-            agent = self._robot_of.get(device, device)
-            if agent not in observations:
-                return actions
+            turn, device, agent = current
         if self._phase == _WAIT and self._feature(agent, observations, "dwell_remaining") <= 0.0:
             self._phase = _REQUEST
         action = actions[agent]
