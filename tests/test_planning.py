@@ -298,3 +298,25 @@ def test_shortest_path_clears_a_box_in_the_way(y, width, height, yaw):
     dense = sample_polyline([(*p, 0.0) for p in path], 0.005)[:, :2]
     assert box_distances(dense, arena.obstacles[0]).min() >= clearance - 1e-9
     assert polyline_length(path) >= 6.0 - 1e-9
+
+
+@pytest.mark.parametrize("n_ugvs, max_altitude", [(2, None), (4, None), (3, 2.6)])
+def test_top_observer_switch_points_keep_the_team_away_from_the_image_border(n_ugvs, max_altitude):
+    import dataclasses
+
+    from moma_env.planning.planner import PREFERRED_COVERAGE_FRACTION, team_spread
+    from moma_env.planning.validate import RuleChecker, coverage_radius
+    from moma_env.scenarios import TopObserverConfig
+
+    scenario = TopObserverConfig(n_ugvs=n_ugvs, goal_offset=(3.0, 0.0, 0.0)).scenario()
+    if max_altitude is not None:
+        # A lower ceiling: without the preference, 3 robots' legs would reach 75 % of the coverage.
+        uav = dataclasses.replace(scenario.world.uav, max_altitude=max_altitude)
+        scenario = dataclasses.replace(scenario, world=dataclasses.replace(scenario.world, uav=uav))
+    result = plan(scenario)
+    assert validate(scenario, result) == []
+    checker = RuleChecker(scenario)
+    limit = PREFERRED_COVERAGE_FRACTION * coverage_radius(scenario)
+    assert team_spread(checker, result.poses_after(-1)) <= limit  # the start meets the preference
+    for k in range(len(result.turns)):
+        assert team_spread(checker, result.poses_after(k)) <= limit + 1e-9, k

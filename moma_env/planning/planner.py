@@ -43,15 +43,29 @@ import numpy as np
 from moma_env.geometry import wrap_angle
 from moma_env.planning.paths import point_along, polyline_length, shortest_path
 from moma_env.planning.plan import Plan, PlanningError, Pose2D, Turn
-from moma_env.planning.validate import CLEARANCE_M, RuleChecker
+from moma_env.planning.validate import CLEARANCE_M, RuleChecker, enclosing_circle
 from moma_env.scenarios.base import Scenario
 
-__all__ = ["plan", "SUPPORTED_CONFIGURATIONS", "PATH_SLACK_M", "ADVANCE_FRACTIONS", "MIN_ADVANCE_M"]
+__all__ = [
+    "plan",
+    "SUPPORTED_CONFIGURATIONS",
+    "PATH_SLACK_M",
+    "ADVANCE_FRACTIONS",
+    "MIN_ADVANCE_M",
+    "PREFERRED_COVERAGE_FRACTION",
+    "team_spread",
+]
 
 #: Extra clearance (m) of the planned paths beyond the rule's CLEARANCE_M.
 PATH_SLACK_M = 0.01
 #: Fractions of the wanted advance tried, in order, until a leg passes the checks.
 ADVANCE_FRACTIONS = (1.0, 0.8, 0.6, 0.4, 0.25, 0.1)
+#: Top observer: switch points are preferred where the team's spread (enclosing circle
+#: plus a board) stays within this fraction of the camera's coverage radius, so that at
+#: a switch, with the UAV centred over the team, the boards are away from the image
+#: border (where lens distortion and a tilting UAV hurt the estimate most). A leg that
+#: cannot meet the preference falls back to the hard coverage rule.
+PREFERRED_COVERAGE_FRACTION = 0.6
 #: Advances shorter than this (m) are not worth a turn.
 MIN_ADVANCE_M = 0.01
 #: Progress (m) within which a path counts as done.
@@ -103,23 +117,34 @@ class _Team:
         self.poses[name] = waypoints[-1]
 
     def try_advance(self, name: str, wanted: float) -> float:
-        """Advance ``name`` by the largest fraction of ``wanted`` (m) whose leg passes; the advance made (0 if none)."""
+        """Advance ``name`` by the largest fraction of ``wanted`` (m) whose leg passes; the advance made (0 if none).
+
+        With a top observer, legs whose end keeps the team's spread within
+        :data:`PREFERRED_COVERAGE_FRACTION` of the coverage are tried first.
+        """
         wanted = min(wanted, self.remaining(name), self.scenario.leg_length)
-        for fraction in ADVANCE_FRACTIONS:
-            advance = wanted * fraction
-            if advance < MIN_ADVANCE_M and advance < self.remaining(name) - _DONE_M:
-                break
-            s_to = self.length[name] if advance >= self.remaining(name) - _DONE_M else self.progress[name] + advance
-            waypoints = self._leg(name, s_to)
-            if name in self.scenario.goals and s_to >= self.length[name]:
-                goal = self.scenario.goals[name]
-                waypoints = waypoints[:-1] + ((goal[0], goal[1], waypoints[-1][2]),)
-            violations = self.checker.leg_violations(name, waypoints, self.poses)
-            if not violations:
-                self.commit(name, waypoints)
-                self.progress[name] = s_to
-                return advance
-            self.last_reason = f"{name}: {violations[0]}"
+        coverage = self.checker.coverage
+        passes = (True, False) if coverage is not None else (False,)
+        for prefer_centre in passes:
+            for fraction in ADVANCE_FRACTIONS:
+                advance = wanted * fraction
+                if advance < MIN_ADVANCE_M and advance < self.remaining(name) - _DONE_M:
+                    break
+                s_to = self.length[name] if advance >= self.remaining(name) - _DONE_M else self.progress[name] + advance
+                waypoints = self._leg(name, s_to)
+                if name in self.scenario.goals and s_to >= self.length[name]:
+                    goal = self.scenario.goals[name]
+                    waypoints = waypoints[:-1] + ((goal[0], goal[1], waypoints[-1][2]),)
+                if prefer_centre:
+                    ends = dict(self.poses) | {name: waypoints[-1]}
+                    if team_spread(self.checker, ends) > PREFERRED_COVERAGE_FRACTION * coverage:
+                        continue
+                violations = self.checker.leg_violations(name, waypoints, self.poses)
+                if not violations:
+                    self.commit(name, waypoints)
+                    self.progress[name] = s_to
+                    return advance
+                self.last_reason = f"{name}: {violations[0]}"
         return 0.0
 
     def move_to(self, name: str, target: Pose2D) -> bool:
@@ -141,6 +166,12 @@ class _Team:
 
     def stall(self) -> PlanningError:
         return PlanningError(f"{self.scenario.name}: no device can advance; last rejection: {self.last_reason}")
+
+
+def team_spread(checker: RuleChecker, poses: dict[str, Pose2D]) -> float:
+    """Radius (m) of the circle enclosing every robot's centre, plus a board's half-diagonal."""
+    pts = np.array([poses[name][:2] for name in checker.radius if name in poses])
+    return enclosing_circle(pts)[2] + checker.board_half_diagonal
 
 
 def _top_observer(team: _Team) -> None:
