@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from agents.policies.base import ADVANCE, ALLOWED_INFO_KEYS, FORBIDDEN_INFO_KEYS, HOLD, REEL, Policy
 from agents.policies.caterpillar_multi import CaterpillarMulti, CaterpillarTwo
+from agents.policies.caterpillar_servo import CaterpillarServo
 from agents.policies.caterpillar_sled import CaterpillarSled
 from agents.policies.planned import PlannedPolicy
 from agents.policies.random_policy import RandomPolicy
@@ -28,6 +29,7 @@ __all__ = [
     "CaterpillarTwo",
     "CaterpillarSled",
     "CaterpillarMulti",
+    "CaterpillarServo",
     "PlannedPolicy",
     "TurnTakingPolicy",
     "Move",
