@@ -22,10 +22,10 @@ from typing import Any, Protocol, runtime_checkable
 __all__ = ["Policy", "PolicyLoadError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "load_policy", "policy_label"]
 
 #: Policy specs that name a built-in policy rather than a file.
-BUILTIN_POLICIES = ("scripted", "planned", "random")
+BUILTIN_POLICIES = ("scripted", "planned", "servo", "random")
 
 #: The action mode each built-in policy acts in.
-POLICY_ACTION_MODES = {"scripted": "switching", "planned": "velocity", "random": "switching"}
+POLICY_ACTION_MODES = {"scripted": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
 
 
 class PolicyLoadError(ValueError):
@@ -65,7 +65,9 @@ def load_policy(spec: str, configuration: str, seed: int | None = None) -> Polic
 
     Args:
         spec: ``"scripted"`` (switching mode), ``"planned"`` (follows the MOMA
-            navigation planner's plan, velocity mode), ``"random"`` or the path
+            navigation planner's plan, velocity mode), ``"servo"`` (the
+            caterpillar follower servoing to its stand-off, velocity mode),
+            ``"random"`` or the path
             of a trained policy.
         configuration: the configuration's name (``"top_observer"``, ...).
         seed: the random policy's seed (ignored by the others).
@@ -90,6 +92,14 @@ def load_policy(spec: str, configuration: str, seed: int | None = None) -> Polic
         cls = getattr(module, "PlannedPolicy", None)
         if cls is None:
             raise PolicyLoadError("agents.policies has no PlannedPolicy()")
+        policy = cls()
+    elif spec == "servo":
+        if configuration != "caterpillar":
+            raise PolicyLoadError(f"the servo policy is for the caterpillar configuration, not {configuration!r}")
+        module = _agents_policies()
+        cls = getattr(module, "CaterpillarServo", None)
+        if cls is None:
+            raise PolicyLoadError("agents.policies has no CaterpillarServo()")
         policy = cls()
     elif spec == "random":
         module = _agents_policies()
