@@ -3,36 +3,17 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
-from typing import Any
 
 import numpy as np
 import pytest
+from policy_guard import guarded
 
-from agents.policies import FORBIDDEN_INFO_KEYS, CaterpillarServo, Policy
+from agents.policies import CaterpillarServo, Policy
 from agents.policies.caterpillar_servo import standoff_target
 from moma_env.env.factory import parallel_env
 from moma_env.geometry import se2_to_se3
 
 STANDOFF_M = 0.539
-
-
-class _GuardedInfo(Mapping):
-    """One agent's info that fails the test if a truth key is read."""
-
-    def __init__(self, info: Mapping[str, Any]):
-        self._info = info
-
-    def __getitem__(self, key: str) -> Any:
-        if key in FORBIDDEN_INFO_KEYS:
-            raise AssertionError(f"policy read the truth key {key!r}")
-        return self._info[key]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._info)
-
-    def __len__(self) -> int:
-        return len(self._info)
 
 
 def _true_standoff(env, infos) -> float:
@@ -54,7 +35,7 @@ def _run(seed: int):
     steps = 0
     terminated = truncated = False
     while env.agents:
-        actions = policy.act(observations, {a: _GuardedInfo(i) for a, i in infos.items()})
+        actions = policy.act(observations, guarded(infos))
         for agent, action in actions.items():
             assert env.action_space(agent).contains(action), (agent, action)
         observations, _, terms, truncs, infos = env.step(actions)

@@ -3,35 +3,16 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
-from typing import Any
 
 import numpy as np
 import pytest
+from policy_guard import guarded
 
-from agents.policies import FORBIDDEN_INFO_KEYS, PlannedPolicy, Policy
+from agents.policies import PlannedPolicy, Policy
 from moma_env.env.factory import parallel_env
 
 #: Configuration -> bound (m) on every UGV's final localisation error.
 ERROR_BOUND_M = {"top_observer": 0.05, "caterpillar": 0.10, "caterpillar_multi": 0.10, "caterpillar_sled": 0.10}
-
-
-class _GuardedInfo(Mapping):
-    """One agent's info that fails the test if a truth key is read."""
-
-    def __init__(self, info: Mapping[str, Any]):
-        self._info = info
-
-    def __getitem__(self, key: str) -> Any:
-        if key in FORBIDDEN_INFO_KEYS:
-            raise AssertionError(f"policy read the truth key {key!r}")
-        return self._info[key]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._info)
-
-    def __len__(self) -> int:
-        return len(self._info)
 
 
 def _run(configuration: str, seed: int = 0):
@@ -44,7 +25,7 @@ def _run(configuration: str, seed: int = 0):
     steps = 0
     last_infos = infos
     while env.agents:
-        actions = policy.act(observations, {a: _GuardedInfo(i) for a, i in infos.items()})
+        actions = policy.act(observations, guarded(infos))
         for agent, action in actions.items():
             assert env.action_space(agent).contains(action), (agent, action)
         observations, _, terms, truncs, infos = env.step(actions)

@@ -3,15 +3,14 @@ and never read ground truth from infos."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
 import pytest
+from policy_guard import guarded
 
 from agents.policies import (
     ADVANCE,
-    FORBIDDEN_INFO_KEYS,
     HOLD,
     CaterpillarMulti,
     CaterpillarSled,
@@ -27,28 +26,6 @@ CONFIGURATIONS = ("top_observer", "caterpillar", "caterpillar_sled", "caterpilla
 #: Final localisation error bound (m): the top view is accurate, the caterpillars
 #: measure depth along the optical axis of a forward camera.
 ERROR_BOUND_M = {"top_observer": 0.05, "caterpillar": 0.15, "caterpillar_sled": 0.15, "caterpillar_multi": 0.15}
-
-
-class TruthGuardedInfo(Mapping):
-    """An agent's info dict that raises when a policy reads a ground-truth key."""
-
-    def __init__(self, info: Mapping[str, Any]):
-        self._info = info
-
-    def __getitem__(self, key: str) -> Any:
-        if key in FORBIDDEN_INFO_KEYS:
-            raise AssertionError(f"the policy read the ground-truth info key {key!r}")
-        return self._info[key]
-
-    def __iter__(self) -> Iterator[str]:
-        return (k for k in self._info if k not in FORBIDDEN_INFO_KEYS)
-
-    def __len__(self) -> int:
-        return sum(1 for k in self._info if k not in FORBIDDEN_INFO_KEYS)
-
-
-def guarded(infos: Mapping[str, Mapping[str, Any]]) -> dict[str, TruthGuardedInfo]:
-    return {agent: TruthGuardedInfo(info) for agent, info in infos.items()}
 
 
 def run_episode(configuration: str, seed: int, random_scenarios: bool = False) -> dict[str, Any]:

@@ -16,12 +16,37 @@ import numpy as np
 
 from moma_env.env.parallel import MomaParallelEnv
 
-__all__ = ["Policy", "ALLOWED_INFO_KEYS", "FORBIDDEN_INFO_KEYS", "FeatureIndex", "HOLD", "ADVANCE", "REEL"]
+__all__ = [
+    "Policy",
+    "ALLOWED_INFO_KEYS",
+    "FORBIDDEN_INFO_KEYS",
+    "read_info",
+    "FeatureIndex",
+    "HOLD",
+    "ADVANCE",
+    "REEL",
+    "WAIT",
+    "REQUEST",
+    "MOVE",
+    "STOP",
+]
 
 #: ``infos`` keys a policy may read (nothing here is ground truth).
 ALLOWED_INFO_KEYS = frozenset({"events", "refused", "status", "static", "estimate"})
 #: ``infos`` keys that carry ground truth (or are derived from it): never read by a policy.
 FORBIDDEN_INFO_KEYS = frozenset({"truth", "localisation_error", "sled_truth", "sled_localisation_error", "reached_goal"})
+
+
+#: Phases of a velocity-mode turn: wait for the dwell, request mobile, move, request static.
+WAIT, REQUEST, MOVE, STOP = "wait", "request", "move", "stop"
+
+
+def read_info(infos: Mapping[str, Mapping[str, Any]], agent: str, key: str) -> Any:
+    """``infos[agent][key]`` for a non-truth key only (None if the agent has no info)."""
+    if key not in ALLOWED_INFO_KEYS:
+        raise KeyError(f"a policy may not read infos[{agent!r}][{key!r}] (allowed: {sorted(ALLOWED_INFO_KEYS)})")
+    info = infos.get(agent)
+    return None if info is None else info.get(key)
 
 #: Switching-mode actions of a UGV.
 HOLD, ADVANCE, REEL = 0, 1, 2

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.policies.base import ALLOWED_INFO_KEYS, FeatureIndex
+from agents.policies.base import MOVE, REQUEST, STOP, WAIT, FeatureIndex, read_info
 from moma_env.control import WaypointFollower, WaypointFollowerConfig
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.geometry import wrap_angle
@@ -37,16 +37,6 @@ from moma_env.geometry import wrap_angle
 __all__ = ["CaterpillarServo", "standoff_target"]
 
 LEADER, FOLLOWER = "ugv_0", "ugv_1"
-#: Turn phases.
-_WAIT, _REQUEST, _MOVE, _STOP = "wait", "request", "move", "stop"
-
-
-def _read_info(infos: Mapping[str, Mapping[str, Any]], agent: str, key: str) -> Any:
-    """``infos[agent][key]`` for a non-truth key only (None if the agent has no info)."""
-    if key not in ALLOWED_INFO_KEYS:
-        raise KeyError(f"a policy may not read infos[{agent!r}][{key!r}] (allowed: {sorted(ALLOWED_INFO_KEYS)})")
-    info = infos.get(agent)
-    return None if info is None else info.get(key)
 
 
 def _planar_axis(v: np.ndarray, what: str) -> float:
@@ -166,7 +156,7 @@ class CaterpillarServo:
         self.leader_at_goal = False
         self.done = False
         self.follower_turns = 0
-        self._phase = _WAIT
+        self._phase = WAIT
         self._leg: tuple[float, float, float] | None = None
         self._ready = True
 
@@ -178,20 +168,20 @@ class CaterpillarServo:
         actions = {a: self._hold(a) for a in observations}
         if self.done or self.mover not in observations:
             return actions
-        events = _read_info(infos, self.mover, "events") or ()
-        if self._phase == _REQUEST and f"mobile:{self.mover}" in events:
-            self._phase = _MOVE
-        elif self._phase == _STOP and f"static:{self.mover}" in events:
+        events = read_info(infos, self.mover, "events") or ()
+        if self._phase == REQUEST and f"mobile:{self.mover}" in events:
+            self._phase = MOVE
+        elif self._phase == STOP and f"static:{self.mover}" in events:
             self._next_turn()
             if self.done:
                 return actions
         mover = self.mover
-        if self._phase == _WAIT and observations[mover][self._features[mover]["dwell_remaining"]] <= 0.0:
-            self._phase = _REQUEST
+        if self._phase == WAIT and observations[mover][self._features[mover]["dwell_remaining"]] <= 0.0:
+            self._phase = REQUEST
         action = actions[mover]
-        if self._phase == _REQUEST:  # retried every step until granted
+        if self._phase == REQUEST:  # retried every step until granted
             action[3] = 1.0
-        elif self._phase == _MOVE:
+        elif self._phase == MOVE:
             action[3] = 1.0
             if mover == LEADER:
                 self._drive(action, infos)
@@ -211,13 +201,13 @@ class CaterpillarServo:
             self.mover = LEADER
         else:
             self.mover = FOLLOWER
-        self._phase = _WAIT
+        self._phase = WAIT
         self._leg = None
         self._settled_s = 0.0
 
     def _localised_estimate(self, infos: Mapping[str, Mapping[str, Any]], agent: str) -> tuple[float, float, float] | None:
-        estimate = _read_info(infos, agent, "estimate")
-        if estimate is None or _read_info(infos, agent, "status") != "localised":
+        estimate = read_info(infos, agent, "estimate")
+        if estimate is None or read_info(infos, agent, "status") != "localised":
             return None
         return estimate
 
@@ -232,7 +222,7 @@ class CaterpillarServo:
             if self._leg == self._goal:
                 self.leader_at_goal = True
             action[3] = -1.0
-            self._phase = _STOP
+            self._phase = STOP
             return
         command = self.leader.command(estimate, self._leg)
         np.clip(command / self._scale[LEADER], -1.0, 1.0, out=command)
@@ -251,7 +241,7 @@ class CaterpillarServo:
     def _servo(self, action: np.ndarray, observation: np.ndarray, infos: Mapping[str, Mapping[str, Any]]) -> None:
         """Follower: proportional servo to the stand-off on the leader's relative pose; at it request static."""
         i_dx, i_dy, i_cos, i_sin, i_valid = self._rel
-        if observation[i_valid] < 0.5 or _read_info(infos, FOLLOWER, "status") != "localised":
+        if observation[i_valid] < 0.5 or read_info(infos, FOLLOWER, "status") != "localised":
             return  # hold still, mobile, until the relative pose is known again
         # T_F_L: the leader in the follower's body frame.
         lx, ly = float(observation[i_dx]) * self._two_r, float(observation[i_dy]) * self._two_r
@@ -266,7 +256,7 @@ class CaterpillarServo:
         if dist <= self.position_tolerance and abs(eyaw) <= self.yaw_tolerance:
             if self._settled_s >= self.settle_s:
                 action[3] = -1.0
-                self._phase = _STOP
+                self._phase = STOP
                 return
             self._settled_s += self._dt
             vx, vy, omega = self.position_gain * ex, self.position_gain * ey, self.yaw_gain * eyaw

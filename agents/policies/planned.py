@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from agents.policies.base import ALLOWED_INFO_KEYS, FeatureIndex
+from agents.policies.base import MOVE, REQUEST, STOP, WAIT, FeatureIndex, read_info
 from moma_env.control import BoardTrackingController, WaypointFollower, WaypointFollowerConfig
 from moma_env.env.parallel import OBSERVER, MomaParallelEnv
 from moma_env.planning import Plan, plan
@@ -43,16 +43,6 @@ __all__ = ["PlannedPolicy"]
 
 #: Scale of the observer's depth feature (m): the layout stores depth / 4 m.
 _DEPTH_SCALE_M = 4.0
-#: Turn phases.
-_WAIT, _REQUEST, _MOVE, _STOP = "wait", "request", "move", "stop"
-
-
-def _read_info(infos: Mapping[str, Mapping[str, Any]], agent: str, key: str) -> Any:
-    """``infos[agent][key]`` for a non-truth key only (None if the agent has no info)."""
-    if key not in ALLOWED_INFO_KEYS:
-        raise KeyError(f"a policy may not read infos[{agent!r}][{key!r}] (allowed: {sorted(ALLOWED_INFO_KEYS)})")
-    info = infos.get(agent)
-    return None if info is None else info.get(key)
 
 
 class PlannedPolicy:
@@ -115,7 +105,7 @@ class PlannedPolicy:
             self._observer_devices = tuple(env.layout.devices)
         self.turn_index = 0
         self.device_order: list[str] = []  # devices in the order their mobile requests were granted
-        self._phase = _WAIT
+        self._phase = WAIT
         self._waypoint = 1
         self._shortest_rope = math.inf
         self._rope_still_s = 0.0
@@ -146,22 +136,22 @@ class PlannedPolicy:
         if current is None:
             return actions
         turn, device, agent = current
-        events = _read_info(infos, agent, "events") or ()
-        if self._phase == _REQUEST and f"mobile:{device}" in events:
+        events = read_info(infos, agent, "events") or ()
+        if self._phase == REQUEST and f"mobile:{device}" in events:
             self.device_order.append(device)
-            self._phase = _MOVE
-        if self._phase == _STOP and f"static:{device}" in events:
+            self._phase = MOVE
+        if self._phase == STOP and f"static:{device}" in events:
             self._next_turn()
             current = self._current_turn(observations)
             if current is None:
                 return actions
             turn, device, agent = current
-        if self._phase == _WAIT and self._feature(agent, observations, "dwell_remaining") <= 0.0:
-            self._phase = _REQUEST
+        if self._phase == WAIT and self._feature(agent, observations, "dwell_remaining") <= 0.0:
+            self._phase = REQUEST
         action = actions[agent]
-        if self._phase == _REQUEST:  # retried every step until granted
+        if self._phase == REQUEST:  # retried every step until granted
             self._request_mobile(action, device, agent)
-        elif self._phase == _MOVE:
+        elif self._phase == MOVE:
             if device == agent:
                 self._drive(action, agent, turn.waypoints, infos)
             else:
@@ -186,7 +176,7 @@ class PlannedPolicy:
 
     def _next_turn(self) -> None:
         self.turn_index += 1
-        self._phase = _WAIT
+        self._phase = WAIT
         self._waypoint = 1
         self._shortest_rope = math.inf
         self._rope_still_s = 0.0
@@ -194,15 +184,15 @@ class PlannedPolicy:
     def _drive(self, action: np.ndarray, agent: str, waypoints: tuple, infos: Mapping[str, Mapping[str, Any]]) -> None:
         """Follow the waypoints on the estimate; at the last one request static."""
         action[3] = 1.0
-        estimate = _read_info(infos, agent, "estimate")
-        if estimate is None or _read_info(infos, agent, "status") != "localised":
+        estimate = read_info(infos, agent, "estimate")
+        if estimate is None or read_info(infos, agent, "status") != "localised":
             return  # wait in place until localised again
         while self._waypoint < len(waypoints) - 1 and self.follower.reached(estimate, waypoints[self._waypoint]):
             self._waypoint += 1
         target = waypoints[self._waypoint]
         if self._waypoint == len(waypoints) - 1 and self.follower.reached(estimate, target):
             action[3] = -1.0
-            self._phase = _STOP
+            self._phase = STOP
             return
         command = self.follower.command(estimate, target)
         np.clip(command / self._ugv_scale[agent], -1.0, 1.0, out=command)
@@ -217,7 +207,7 @@ class PlannedPolicy:
         else:
             self._rope_still_s += self._dt
         if rope <= self._rope_target[sled] or self._rope_still_s > self.reel_stall_s:
-            self._phase = _STOP  # hold: action[5] stays -1 (static request), reel 0
+            self._phase = STOP  # hold: action[5] stays -1 (static request), reel 0
             return
         action[4] = 1.0
         action[5] = 1.0
