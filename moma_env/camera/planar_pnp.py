@@ -39,8 +39,12 @@ __all__ = ["solve_planar_pnp"]
 _MAX_ITERATIONS = 100
 #: Stop when the update's largest component is below this (rad or m).
 _STEP_TOLERANCE = 1e-10
+#: A second start still this many iterations in, at a cost above ``_GIVE_UP_FACTOR`` times
+#: the first start's final cost, is abandoned (it converges to a worse minimum).
+_GIVE_UP_AFTER = 3
+_GIVE_UP_FACTOR = 4.0
 #: ... or when a step lowers the cost by less than this fraction (noisy corners: at the minimum).
-_COST_TOLERANCE = 1e-9
+_COST_TOLERANCE = 1e-7
 
 
 @numba.njit(cache=True)
@@ -284,8 +288,12 @@ def _rotation_exp(w0: float, w1: float, w2: float) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _refine(R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray) -> float:
-    """Levenberg-Marquardt from ``(R, t)``, updated in place; returns the final cost."""
+def _refine(R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray, give_up_above: float) -> float:
+    """Levenberg-Marquardt from ``(R, t)``, updated in place; returns the final cost.
+
+    Gives up (returning ``inf``) if after ``_GIVE_UP_AFTER`` iterations the cost is
+    still above ``give_up_above`` (a start that is not going to beat another).
+    """
     jtj = np.empty((6, 6))
     jtr = np.empty(6)
     jtj_new = np.empty((6, 6))
@@ -295,7 +303,9 @@ def _refine(R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray) -> f
     t_new = np.empty(3)
     cost = _cost_and_normal_equations(R, t, obj, img, jtj, jtr)
     damping = 0.0  # Gauss-Newton until a step fails
-    for _ in range(_MAX_ITERATIONS):
+    for iteration in range(_MAX_ITERATIONS):
+        if iteration == _GIVE_UP_AFTER and cost > give_up_above:
+            return np.inf
         A[:, :] = jtj
         for a in range(6):
             A[a, a] *= 1.0 + damping
@@ -375,8 +385,8 @@ def solve_planar_pnp_kernel(obj: np.ndarray, img: np.ndarray, T_out: np.ndarray)
     R, t = _pose_from_homography(H)
     R2 = _mirrored_start(R, t)
     t2 = t.copy()
-    cost = _refine(R, t, obj, img)
-    cost2 = _refine(R2, t2, obj, img)
+    cost = _refine(R, t, obj, img, np.inf)
+    cost2 = _refine(R2, t2, obj, img, _GIVE_UP_FACTOR * cost)
     if cost2 < cost and t2[2] > 0.0:
         R = R2
         t = t2
