@@ -299,7 +299,9 @@ class MomaParallelEnv(ParallelEnv):
                 self._make_static(device, t)
                 n_switch += 1
                 events[self._agent_of(device)].append(f"static:{device}")
-        references = {n for n, e in self.estimator.estimates().items() if e.phase is Phase.REFERENCE}  # live: phases just changed
+        # The references as of the last update: making a device static this step
+        # only starts its settling, so no device became a reference since.
+        references = {n for n, e in self._est.items() if e.phase is Phase.REFERENCE}
         for device, want_mobile in wants.items():
             if want_mobile and device not in self._mobile:
                 reason = self.rules.check_mobile(device, t, self._mobile, references, self._detections)
