@@ -184,12 +184,7 @@ class GeometricCamera:
         seen = [b for b, k in enumerate(counts) if k]
         starts = np.zeros(len(seen) + 1, dtype=np.int64)
         np.cumsum([4 * counts[b] for b in seen], out=starts[1:])
-        T = np.zeros((len(seen), 4, 4))
-        rms = np.empty(len(seen))
-        if self._first_solver is None:
-            solve_boards(obj, px, starts, self._parameters, T, rms)
-        else:
-            self._solve_with_opencv(obj, px, starts, T, rms)
+        T, rms = self.solve_boards(obj, px, starts)
 
         detections = []
         bounds = starts.tolist()
@@ -204,6 +199,31 @@ class GeometricCamera:
             ids = layout.marker_ids if all_seen else tuple(compress(layout.marker_ids, visible_rows[b]))
             detections.append(Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, rms_b))
         return detections
+
+    def solve_boards(self, obj: np.ndarray, px: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Board poses from measured corners, with the configured ``pnp_method``.
+
+        The PnP step of every backend (the rendered camera calls it on the corners
+        its detector found).
+
+        Args:
+            obj: (n, 3) float64 corners in their board frames M (m), board after board,
+                each board's corners in the plane ``z_M = 0``.
+            px: (n, 2) float64 their measured pixels (with lens distortion).
+            starts: (K + 1,) int64: board ``k`` owns rows ``starts[k]:starts[k + 1]``.
+
+        Returns:
+            ``(T, rms)``: (K, 4, 4) poses ``T_c_m`` and (K,) RMS reprojection
+            errors (px), NaN for a board that could not be solved.
+        """
+        n_boards = len(starts) - 1
+        T = np.zeros((n_boards, 4, 4))
+        rms = np.empty(n_boards)
+        if self._first_solver is None:
+            solve_boards(obj, px, starts, self._parameters, T, rms)
+        else:
+            self._solve_with_opencv(obj, px, starts, T, rms)
+        return T, rms
 
     def _solve_with_opencv(
         self, obj: np.ndarray, px: np.ndarray, starts: np.ndarray, T: np.ndarray, rms: np.ndarray
