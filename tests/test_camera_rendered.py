@@ -204,3 +204,49 @@ def test_configs_reject_bad_values() -> None:
         cam.measure(np.eye(4), [BoardView(0, LAYOUT_0, np.eye(4)), BoardView(1, LAYOUT_0, np.eye(4))], 0.0, np.random.default_rng(0))
     with pytest.raises(ValueError, match="uint8"):
         cam.detect(np.zeros((48, 64), dtype=float), [], 0.0)
+
+
+def test_smooth_floor_map_is_within_a_hundredth_of_a_raster_pixel() -> None:
+    from moma_env.geometry import rot_x
+
+    rays = PixelRays(RenderedCamera("c", CameraConfig()).camera)
+    floor = FloorTexture(FloorConfig(extent=(-3.0, -3.0, 4.0, 4.0), px_per_m=250.0, textured=()))
+    for tilt in (0.0, 0.3):
+        H = floor.homography(make_transform(R_BODY_CAM_DOWN @ rot_x(tilt), [0.5, 0.3, 1.6]))
+        assert np.abs(rays.smooth_map(H) - rays.sample_map(H)).max() < 0.01
+
+
+def test_floor_resamples_only_the_textured_window_and_matches_the_whole_image() -> None:
+    """Half-textured floor, camera over the boundary, turned: same pixels as resampling everything."""
+    import cv2
+
+    from moma_env.geometry import rot_x, rot_z
+
+    config = FloorConfig(extent=(-2.0, -2.0, 3.0, 2.0), textured=((-2.0, -2.0, 0.6, 2.0),), px_per_m=150.0)
+    floor = FloorTexture(config)
+    rays = PixelRays(RenderedCamera("c", CameraConfig()).camera)
+    for x, yaw in ((0.2, 0.5), (0.9, -0.3), (2.5, 0.0)):
+        T_w_c = make_transform(rot_z(yaw) @ R_BODY_CAM_DOWN @ rot_x(0.1), [x, 0.1, 1.5])
+        whole = cv2.remap(
+            floor.raster, rays.smooth_map(floor.homography(T_w_c)), None, cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT, borderValue=round(config.gray),
+        )
+        image = floor.render(rays, T_w_c)
+        assert np.array_equal(image, whole)
+    assert np.all(image == round(config.gray))  # the last view is all plain floor
+
+
+def test_blur_of_the_non_uniform_window_equals_the_whole_image_blur() -> None:
+    import cv2
+
+    from moma_env.camera.sensor import SensorModel
+
+    for sigma in (0.7, 1.1):
+        sensor = SensorModel(RenderConfig(blur_sigma_px=sigma))
+        scene = np.full((60, 80), 140, dtype=np.uint8)
+        scene[20:30, 35:50] = np.random.default_rng(0).integers(0, 255, (10, 15))
+        scene[0:5, 0:10] = 30  # touching the image border
+        ksize = int(round(6 * sigma + 1)) | 1
+        whole = cv2.GaussianBlur(scene, (ksize, ksize), sigma, borderType=cv2.BORDER_REPLICATE)
+        assert np.array_equal(sensor.blur(scene.copy(), (0, 0, 50, 30)), whole)
+        assert not np.array_equal(whole, scene)
