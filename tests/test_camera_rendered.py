@@ -250,3 +250,22 @@ def test_blur_of_the_non_uniform_window_equals_the_whole_image_blur() -> None:
         whole = cv2.GaussianBlur(scene, (ksize, ksize), sigma, borderType=cv2.BORDER_REPLICATE)
         assert np.array_equal(sensor.blur(scene.copy(), (0, 0, 50, 30)), whole)
         assert not np.array_equal(whole, scene)
+
+
+def test_nearer_boards_cover_farther_ones_and_their_occluded_markers() -> None:
+    """A forward camera: a board 0.8 m ahead hides the middle of one 1.6 m ahead, listed first."""
+    from moma_env.geometry import R_BODY_BOARD_BACK
+
+    camera = RenderedCamera("cam", CameraConfig())
+    geometric = GeometricCamera("cam", CameraConfig(noise_px=0.0))
+    T_w_c = make_transform(R_BODY_CAM_FORWARD, [0.0, 0.0, 0.3])
+    far = BoardView(0, LAYOUT_0, make_transform(R_BODY_BOARD_BACK, [1.6, 0.0, 0.3]))
+    near = BoardView(1, LAYOUT_1, make_transform(R_BODY_BOARD_BACK, [0.8, 0.0, 0.3]))
+    rng = np.random.default_rng(0)
+    blocked = lambda p_from, p_to: bool(p_to[0] > 1.0)  # noqa: E731 - everything beyond the near board
+    for occluded, order in ((None, [near, far]), (blocked, [far, near])):
+        detections = camera.measure(T_w_c, order, 0.0, rng, occluded=occluded)
+        assert [d.board_id for d in detections] == [1]  # the far board is hidden behind the near one
+        [truth] = [d for d in geometric.measure(T_w_c, [near], 0.0, rng)]
+        assert sorted(detections[0].marker_ids) == [4, 5, 6, 7]
+        assert np.linalg.norm(detections[0].T_c_m[:3, 3] - truth.T_c_m[:3, 3]) < POSITION_TOL_M

@@ -11,8 +11,9 @@ with the real pipeline a camera on the robots would run:
    :mod:`moma_env.camera.rays`) is mapped to the plane by a homography, one
    ``cv2.remap`` per plane, so perspective and lens distortion are exact up to
    the bilinear interpolation. Boards are warped only inside their image window.
-   A board seen from behind, or crossing the plane of the camera centre, is not
-   drawn; a marker whose line of sight is blocked (``occluded``) is painted over.
+   Boards are drawn far to near (painter's order). A board seen from behind, or
+   crossing the plane of the camera centre, is not drawn; a marker whose line
+   of sight is blocked (``occluded``) is painted over before nearer boards are drawn.
 2. **Optics and sensor** (:class:`~moma_env.camera.sensor.SensorModel`): blur;
    optional PAL interlacing, the odd rows drawn one field period earlier, from
    poses interpolated with the previous frame; contrast and brightness, noise.
@@ -241,16 +242,17 @@ class RenderedCamera:
         scene, window = self._floor(T_w_c, cache_floor)
         windows = [window]
         T_c_w = invert(T_w_c)
-        hidden = []
-        for board, T_w_m in zip(boards, board_poses):
-            T_c_m = T_c_w @ T_w_m
+        in_camera = [(T_c_w @ T_w_m, board, T_w_m) for board, T_w_m in zip(boards, board_poses)]
+        # Painter's order: the farthest board first, each with its occluded markers painted
+        # over, so that nearer boards cover both.
+        in_camera.sort(key=lambda item: -float(np.dot(item[0][:3, 3], item[0][:3, 3])))
+        for T_c_m, board, T_w_m in in_camera:
             roi = self._draw_board(scene, board.layout, T_c_m)
             windows.append(roi)
             if roi is not None and occluded is not None:
-                hidden += self._occluded_markers(board.layout, T_w_c, T_w_m, T_c_m, occluded)
-        for quad in hidden:
-            cv2.fillConvexPoly(scene, np.rint(quad).astype(np.int32), self.render_config.occluder_gray)
-            windows.append(self.rays.roi_of(quad))
+                for quad in self._occluded_markers(board.layout, T_w_c, T_w_m, T_c_m, occluded):
+                    cv2.fillConvexPoly(scene, np.rint(quad).astype(np.int32), self.render_config.occluder_gray)
+                    windows.append(self.rays.roi_of(quad))
         return scene, _union(windows)
 
     def _floor(self, T_w_c: np.ndarray, use_cache: bool) -> tuple[np.ndarray, tuple[int, int, int, int] | None]:
