@@ -269,3 +269,22 @@ def test_nearer_boards_cover_farther_ones_and_their_occluded_markers() -> None:
         [truth] = [d for d in geometric.measure(T_w_c, [near], 0.0, rng)]
         assert sorted(detections[0].marker_ids) == [4, 5, 6, 7]
         assert np.linalg.norm(detections[0].T_c_m[:3, 3] - truth.T_c_m[:3, 3]) < POSITION_TOL_M
+
+
+def test_floor_view_is_reused_only_within_its_tolerance(floor: FloorTexture, monkeypatch: pytest.MonkeyPatch) -> None:
+    texture = FloorTexture(floor.config)
+    cam = RenderedCamera("uav", CameraConfig(), RenderConfig(noise_std=0.0, floor_reuse_px=0.25), floor=texture)
+    exact = RenderedCamera("uav", CameraConfig(), RenderConfig(noise_std=0.0), floor=FloorTexture(floor.config))
+    draws = []
+    original = texture.draw
+    monkeypatch.setattr(texture, "draw", lambda *args: draws.append(1) or original(*args))
+    rng = np.random.default_rng(0)
+    cam.render(down_camera(0.5), [], rng)
+    # 0.2 mm at 1.6 m is ~0.05 px: reused; 5 mm is ~1.3 px: drawn again.
+    for x, drawn in ((0.5002, 1), (0.5004, 1), (0.505, 2), (0.5051, 2)):
+        image = cam.render(down_camera(x), [], rng)
+        assert len(draws) == drawn
+        truth = exact.render(down_camera(x), [], rng)
+        assert np.mean(np.abs(image.astype(int) - truth)) < 1.0
+    with pytest.raises(ConfigError, match="render.floor_reuse_px"):
+        RenderConfig(floor_reuse_px=-0.1)

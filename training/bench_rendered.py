@@ -5,7 +5,8 @@
 std ``RenderConfig.noise_std``) and runs ``cv2.aruco.ArucoDetector`` on it.
 Random actions in the ``switching`` mode (the observer's tracking controller
 flies it, so it moves and the floor is re-drawn nearly every frame). Reported
-per floor (textured all over, the env's default, and plain): joint steps per
+per floor (textured all over, the env's default, and plain; and the textured
+floor again with ``RenderConfig.floor_reuse_px = 0.25``): joint steps per
 second, and per step the mean wall-clock time of the whole step, of drawing
 the image and of the detector itself (``RenderedCamera.last_render_s`` and
 ``last_detect_s``, measured in the same run), and the ratio step / detection.
@@ -17,18 +18,23 @@ import time
 
 __all__ = ["bench_rendered", "format_rendered"]
 
-#: Floors of the benchmark: name -> EnvConfig.floor keywords (None: the default textured floor).
-FLOORS = {"textured": None, "plain": {"textured": ()}}
+#: Rows of the benchmark: (floor name, EnvConfig.floor keywords, EnvConfig.render keywords);
+#: None is the default (textured floor; RenderConfig defaults).
+VARIANTS = (
+    ("textured", None, None),
+    ("plain", {"textured": ()}, None),
+    ("textured", None, {"floor_reuse_px": 0.25}),
+)
 
 
 def bench_rendered(steps: int, seed: int = 0) -> list[dict]:
-    """One row per floor: steps/s and the mean step, render and detection times (ms)."""
+    """One row per variant: steps/s and the mean step, render and detection times (ms)."""
     from moma_env.camera import RenderConfig
     from moma_env.env.factory import parallel_env
 
     rows = []
-    for floor_name, floor in FLOORS.items():
-        env = parallel_env("top_observer", camera_backend="rendered", floor=floor)
+    for floor_name, floor, render in VARIANTS:
+        env = parallel_env("top_observer", camera_backend="rendered", floor=floor, render=render)
         env.reset(seed=seed)
         for agent in env.possible_agents:
             env.action_space(agent).seed(seed)
@@ -48,6 +54,7 @@ def bench_rendered(steps: int, seed: int = 0) -> list[dict]:
             {
                 "env": "top_observer",
                 "floor": floor_name,
+                "floor_reuse_px": env.config.render.floor_reuse_px if env.config.render else RenderConfig().floor_reuse_px,
                 "image": f"{cfg.width}x{cfg.height}",
                 "noise_std": RenderConfig().noise_std if env.config.render is None else env.config.render.noise_std,
                 "steps": steps,
@@ -64,13 +71,14 @@ def bench_rendered(steps: int, seed: int = 0) -> list[dict]:
 def format_rendered(rows: list[dict]) -> str:
     """The rendered-camera table."""
     lines = [
-        f"{'rendered camera':<16}{'floor':<10}{'image':<9}{'noise':>6}{'steps/s':>9}{'step ms':>9}"
+        f"{'rendered camera':<16}{'floor':<10}{'reuse px':>9}{'image':>9}{'noise':>6}{'steps/s':>9}{'step ms':>9}"
         f"{'render ms':>10}{'detect ms':>10}{'step/detect':>12}",
-        "-" * 91,
+        "-" * 100,
     ]
     for r in rows:
         lines.append(
-            f"{r['env']:<16}{r['floor']:<10}{r['image']:<9}{r['noise_std']:>6g}{r['steps_per_s']:>9.0f}{r['step_ms']:>9.2f}"
+            f"{r['env']:<16}{r['floor']:<10}{r['floor_reuse_px']:>9g}{r['image']:>9}{r['noise_std']:>6g}"
+            f"{r['steps_per_s']:>9.0f}{r['step_ms']:>9.2f}"
             f"{r['render_ms']:>10.2f}{r['detect_ms']:>10.2f}{r['step_over_detect']:>12.2f}"
         )
     if rows:

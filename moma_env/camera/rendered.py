@@ -110,6 +110,7 @@ class RenderedCamera:
         self._floor_key: bytes | None = None
         self._floor_view: np.ndarray | None = None
         self._floor_window: tuple[int, int, int, int] | None = None
+        self._floor_pose = np.eye(4)
         self._previous: tuple[float, np.ndarray, dict[int, np.ndarray]] | None = None
         self.last_image: np.ndarray | None = None
         self.last_render_s = math.nan
@@ -264,11 +265,39 @@ class RenderedCamera:
             image = np.empty(self.rays.shape, dtype=np.uint8)
             return image, self.floor.draw(self.rays, T_w_c, image)
         key = T_w_c.tobytes()
-        if key != self._floor_key or self._floor_view is None:
+        if self._floor_view is None or (key != self._floor_key and not self._floor_view_holds(T_w_c)):
             self._floor_view = np.empty(self.rays.shape, dtype=np.uint8)
             self._floor_window = self.floor.draw(self.rays, T_w_c, self._floor_view)
             self._floor_key = key
+            self._floor_pose = T_w_c.copy()
         return self._floor_view.copy(), self._floor_window
+
+    def _floor_view_holds(self, T_w_c: np.ndarray) -> bool:
+        """True if the cached floor view is within ``floor_reuse_px`` of the view from ``T_w_c``.
+
+        The floor points seen by the border pixels and the principal point of
+        the cached view are projected from the new pose; the view holds if none
+        moved by more than the tolerance (a small camera motion moves the floor
+        image smoothly, so these points bound the shift). Only for a view that
+        is all floor (no horizon).
+        """
+        tolerance = self.render_config.floor_reuse_px
+        if tolerance <= 0.0:
+            return False
+        T0 = self._floor_pose
+        rays = self.rays
+        d = np.column_stack([rays.border_xy, np.ones(len(rays.border_xy))]) @ T0[:3, :3].T
+        if T0[2, 3] <= 0.0 or float(d[:, 2].max()) >= 0.0:
+            return False
+        floor_w = T0[:3, 3] + (-T0[2, 3] / d[:, 2])[:, None] * d
+        p_c = (floor_w - T_w_c[:3, 3]) @ T_w_c[:3, :3]
+        if float(p_c[:, 2].min()) <= 0.0:
+            return False
+        uv, r2 = self.camera.project_with_r2(p_c)
+        if not float(r2.max()) < self.camera.fold_r2:
+            return False
+        shift_sq = np.einsum("ij,ij->i", uv - rays.border_px, uv - rays.border_px)
+        return float(shift_sq.max()) <= tolerance * tolerance
 
     def _raster(self, layout: BoardLayout) -> BoardRaster:
         raster = self._rasters.get(id(layout))
