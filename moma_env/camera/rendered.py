@@ -18,9 +18,10 @@ with the real pipeline a camera on the robots would run:
    optional PAL interlacing, the odd rows drawn one field period earlier, from
    poses interpolated with the previous frame; contrast and brightness, noise.
 3. **Detection.** ``cv2.aruco.ArucoDetector`` with the configured corner
-   refinement (markers shorter than ``CameraConfig.min_marker_px`` are
-   rejected by the detector's perimeter limit); one Detection per board with a
-   detected marker, ``T_c_m`` from solvePnP on all of its detected corners with
+   refinement. Of the camera's visibility limits, ``min_marker_px`` becomes
+   the detector's perimeter limit and ``margin_px`` its distance to the image
+   border; range, incidence and occlusion are whatever the image allows. One
+   Detection per board with a detected marker, ``T_c_m`` from solvePnP on all of its detected corners with
    the configured ``pnp_method`` (the geometric backend's solver, so both
    backends solve identically).
 
@@ -384,6 +385,7 @@ class RenderedCamera:
             params.cornerRefinementMethod = getattr(cv2.aruco, "CORNER_REFINE_" + self.render_config.corner_refinement)
             w, h = self.config.width, self.config.height
             params.minMarkerPerimeterRate = 4.0 * self.config.min_marker_px / max(w, h)
+            params.minDistanceToBorder = int(math.ceil(self.config.margin_px))
             detector = cv2.aruco.ArucoDetector(aruco_dictionary(dictionary), params)
             self._detectors[dictionary] = detector
         return detector
