@@ -4,12 +4,13 @@
 (720x576, default lens) draws every frame (floor, boards, blur, sensor noise of
 std ``RenderConfig.noise_std``) and runs ``cv2.aruco.ArucoDetector`` on it.
 Random actions in the ``switching`` mode (the observer's tracking controller
-flies it, so it moves and the floor is re-drawn nearly every frame). Reported
-per floor (textured all over, the env's default, and plain; and the textured
-floor again with ``RenderConfig.floor_reuse_px = 0.25``): joint steps per
-second, and per step the mean wall-clock time of the whole step, of drawing
-the image and of the detector itself (``RenderedCamera.last_render_s`` and
-``last_detect_s``, measured in the same run), and the ratio step / detection.
+flies it, so it moves and the floor is re-drawn nearly every frame). Rows: the
+textured floor (the env's default), a plain floor, the textured floor with
+``RenderConfig.floor_reuse_px = 0.25``, and the textured floor without noise.
+Reported per row: joint steps per second, and per step the mean wall-clock
+time of the whole step, of drawing the image and of the detector itself
+(``RenderedCamera.last_render_s`` and ``last_detect_s``, measured in the same
+run), and the ratio step / detection.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ VARIANTS = (
     ("textured", None, None),
     ("plain", {"textured": ()}, None),
     ("textured", None, {"floor_reuse_px": 0.25}),
+    ("textured", None, {"noise_std": 0.0}),
 )
 
 
@@ -54,9 +56,9 @@ def bench_rendered(steps: int, seed: int = 0) -> list[dict]:
             {
                 "env": "top_observer",
                 "floor": floor_name,
-                "floor_reuse_px": env.config.render.floor_reuse_px if env.config.render else RenderConfig().floor_reuse_px,
+                "floor_reuse_px": (env.config.render or RenderConfig()).floor_reuse_px,
                 "image": f"{cfg.width}x{cfg.height}",
-                "noise_std": RenderConfig().noise_std if env.config.render is None else env.config.render.noise_std,
+                "noise_std": (env.config.render or RenderConfig()).noise_std,
                 "steps": steps,
                 "steps_per_s": steps / elapsed,
                 "step_ms": 1e3 * elapsed / steps,
