@@ -288,3 +288,28 @@ def test_floor_view_is_reused_only_within_its_tolerance(floor: FloorTexture, mon
         assert np.mean(np.abs(image.astype(int) - truth)) < 1.0
     with pytest.raises(ConfigError, match="render.floor_reuse_px"):
         RenderConfig(floor_reuse_px=-0.1)
+
+
+def test_far_floor_is_sampled_from_a_coarser_level_without_aliasing() -> None:
+    """A 800 px/m texture seen from 1.6 m (3.8 mm/px, ~3 raster px per image px): sampled
+    from the first pyrDown level (1.5 raster px per image px), with less aliasing."""
+    import cv2
+
+    floor = FloorTexture(FloorConfig(extent=(-1.5, -1.5, 2.5, 2.5), px_per_m=800.0, feature_size_m=0.01, contrast=0.8))
+    rays = PixelRays(RenderedCamera("c", CameraConfig()).camera)
+    T_w_c = down_camera(0.5, 0.3, 1.6)
+    H = floor.homography(T_w_c)
+    image = floor.render(rays, T_w_c)
+    level_1 = cv2.remap(cv2.pyrDown(floor.raster), rays.smooth_map(np.diag([0.5, 0.5, 1.0]) @ H), None, cv2.INTER_LINEAR)
+    point_sampled = cv2.remap(floor.raster, rays.smooth_map(H), None, cv2.INTER_LINEAR)
+    assert np.array_equal(image, level_1)
+
+    def fine_energy(img: np.ndarray) -> float:
+        """Mean difference of neighbouring pixels: aliasing adds energy the camera cannot resolve."""
+        return float(np.mean(np.abs(np.diff(img.astype(float), axis=1))))
+
+    assert fine_energy(image) < 0.85 * fine_energy(point_sampled)
+    # Close up (0.3 m, ~0.6 raster px per image px) the full raster is used.
+    near = down_camera(0.5, 0.3, 0.3)
+    direct = cv2.remap(floor.raster, rays.smooth_map(floor.homography(near)), None, cv2.INTER_LINEAR)
+    assert np.array_equal(floor.render(rays, near), direct)
