@@ -22,7 +22,7 @@ with the real pipeline a camera on the robots would run:
    the detector's perimeter limit and ``margin_px`` its distance to the image
    border; range, incidence and occlusion are whatever the image allows. One
    Detection per board with a detected marker, ``T_c_m`` from solvePnP on all of its detected corners with
-   the configured ``pnp_method`` (the geometric backend's solver, so both
+   the configured ``pnp_method`` (``GeometricCamera.solve_boards``, so both
    backends solve identically).
 
 Speed: the floor view is kept while the camera does not move (the observer is
@@ -199,35 +199,22 @@ class RenderedCamera:
         self.last_detect_s = _time.perf_counter() - start
         if not found:
             return []
-        spans, objects, pixels = [], [], []
-        start_corner = 0
+        order, objects, pixels, starts = [], [], [], [0]
         for b in sorted(found):
-            seen = sorted(found[b], key=lambda item: item[0])
-            k = len(seen)
-            if len({index for index, _ in seen}) < k:
-                seen = list({index: quad for index, quad in seen}.items())  # a duplicate detection: keep one
-                k = len(seen)
-            objects.append(layouts[b].marker_corners[[index for index, _ in seen]].reshape(-1, 3))
-            pixels.append(np.concatenate([quad for _, quad in seen]).astype(float))
-            spans.append((len(spans), b, start_corner, start_corner + 4 * k, [index for index, _ in seen]))
-            start_corner += 4 * k
-        object_points = np.concatenate(objects).reshape(-1, 1, 3)
-        px = np.concatenate(pixels)
-        xy = self.camera.undistort(px).reshape(-1, 1, 2)
-        T = np.zeros((len(spans), 4, 4))
-        T[:, 2:, 3] = 1.0
-        solved = self._solver._solve(object_points, xy, spans, T)
+            seen = dict(sorted(found[b], key=lambda item: item[0]))  # marker index -> corners (a duplicate: one kept)
+            order.append((b, tuple(seen)))
+            objects.append(layouts[b].marker_corners[list(seen)].reshape(-1, 3))
+            pixels.append(np.concatenate(list(seen.values())))
+            starts.append(starts[-1] + 4 * len(seen))
+        px = np.concatenate(pixels).astype(np.float64)
+        T, rms = self._solver.solve_boards(np.concatenate(objects), px, np.array(starts, dtype=np.int64))
         detections = []
-        for (i, b, first, end, indices), ok in zip(spans, solved):
-            if not ok:
-                continue
-            pts = object_points[first:end, 0]
-            reprojected = self.camera.project(pts @ T[i, :3, :3].T + T[i, :3, 3])
-            rms = math.sqrt(float(np.mean(np.sum((reprojected - px[first:end]) ** 2, axis=1))))
-            if not math.isfinite(rms):
+        for i, (b, indices) in enumerate(order):
+            if not math.isfinite(rms[i]):
                 continue
             ids = tuple(layouts[b].marker_ids[k] for k in indices)
-            detections.append(Detection(self.camera_id, boards[b].board_id, T[i].copy(), px[first:end].copy(), ids, time, rms))
+            first, end = starts[i], starts[i + 1]
+            detections.append(Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, float(rms[i])))
         return detections
 
     # ------------------------------------------------------------------ scene
