@@ -125,7 +125,7 @@ def format_bench(result: dict) -> str:
     from training.bench_rendered import format_rendered
 
     if not result["configurations"]:
-        return format_rendered(result["rendered"])
+        return format_rendered(result.get("rendered", []))
     mpe = result["mpe2_simple_spread_steps_per_s"]
     lines = [f"{'environment':<20}{'action mode':<12}{'steps/s':>10}{'x MPE2':>9}", "-" * 51]
     for row in result["configurations"]:
@@ -140,6 +140,6 @@ def format_bench(result: dict) -> str:
             f"{last[1]:.1f} MB at the end, peak {peak:.1f} MB"
         )
     lines.append(f"({result['steps']} random-action steps per row, {result['cpu_count']} cores)")
-    if result["rendered"]:
+    if result.get("rendered"):
         lines.append("\n" + format_rendered(result["rendered"]))
     return "\n".join(lines)

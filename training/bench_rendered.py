@@ -15,8 +15,6 @@ run), and the ratio step / detection.
 
 from __future__ import annotations
 
-import time
-
 __all__ = ["bench_rendered", "format_rendered"]
 
 #: Rows of the benchmark: (floor name, EnvConfig.floor keywords, EnvConfig.render keywords);
@@ -29,42 +27,53 @@ VARIANTS = (
 )
 
 
+class _CameraTimes:
+    """A parallel env whose ``step`` adds up its camera's render and detection times (s)."""
+
+    def __init__(self, env, camera) -> None:
+        self.env, self.camera = env, camera
+        self.render_s = self.detect_s = 0.0
+
+    def step(self, actions):
+        out = self.env.step(actions)
+        self.render_s += self.camera.last_render_s
+        self.detect_s += self.camera.last_detect_s
+        return out
+
+    def __getattr__(self, name):
+        return getattr(self.env, name)
+
+
 def bench_rendered(steps: int, seed: int = 0) -> list[dict]:
-    """One row per variant: steps/s and the mean step, render and detection times (ms)."""
+    """One row per variant: steps/s and the mean step, render and detection times (ms).
+
+    Steps are timed by :func:`training.bench.steps_per_second` (random actions
+    drawn before the clock starts, episodes reset when they end).
+    """
     from moma_env.camera import RenderConfig
     from moma_env.env.factory import parallel_env
+    from training.bench import steps_per_second
 
     rows = []
     for floor_name, floor, render in VARIANTS:
         env = parallel_env("top_observer", camera_backend="rendered", floor=floor, render=render)
-        env.reset(seed=seed)
-        for agent in env.possible_agents:
-            env.action_space(agent).seed(seed)
-        camera = env._cameras[env.scenario.world.uav.camera_name]
-        render_s = detect_s = 0.0
-        start = time.perf_counter()
-        for _ in range(steps):
-            if not env.agents:
-                env.reset()
-            env.step({a: env.action_space(a).sample() for a in env.agents})
-            render_s += camera.last_render_s
-            detect_s += camera.last_detect_s
-        elapsed = time.perf_counter() - start
-        env.close()
-        cfg = camera.config
+        timed = _CameraTimes(env, env._cameras[env.scenario.world.uav.camera_name])
+        rate = steps_per_second(lambda: timed, steps, seed=seed)
+        cfg = timed.camera.config
+        render_cfg = env.config.render or RenderConfig()
         rows.append(
             {
                 "env": "top_observer",
                 "floor": floor_name,
-                "floor_reuse_px": (env.config.render or RenderConfig()).floor_reuse_px,
+                "floor_reuse_px": render_cfg.floor_reuse_px,
                 "image": f"{cfg.width}x{cfg.height}",
-                "noise_std": (env.config.render or RenderConfig()).noise_std,
+                "noise_std": render_cfg.noise_std,
                 "steps": steps,
-                "steps_per_s": steps / elapsed,
-                "step_ms": 1e3 * elapsed / steps,
-                "render_ms": 1e3 * render_s / steps,
-                "detect_ms": 1e3 * detect_s / steps,
-                "step_over_detect": elapsed / detect_s if detect_s > 0 else float("nan"),
+                "steps_per_s": rate,
+                "step_ms": 1e3 / rate,
+                "render_ms": 1e3 * timed.render_s / steps,
+                "detect_ms": 1e3 * timed.detect_s / steps,
+                "step_over_detect": steps / rate / timed.detect_s if timed.detect_s > 0 else float("nan"),
             }
         )
     return rows
