@@ -21,13 +21,16 @@ with the real pipeline a camera on the robots would run:
    refinement. Of the camera's visibility limits, ``min_marker_px`` becomes
    the detector's perimeter limit and ``margin_px`` its distance to the image
    border; range, incidence and occlusion are whatever the image allows. One
-   Detection per board with a detected marker, ``T_c_m`` from solvePnP on all of its detected corners with
-   the configured ``pnp_method`` (``GeometricCamera.solve_boards``, so both
-   backends solve identically).
+   Detection per board with a detected marker, ``T_c_m`` from PnP on all of
+   its detected corners with the configured ``pnp_method``
+   (``GeometricCamera.solve_boards``, so both backends solve identically).
 
-Speed: the floor view is kept while the camera does not move (the observer is
-static half of the time in MOMA); rays are computed once per camera; noise is
-one random byte per pixel through a lookup table. ``last_render_s`` and
+Speed: the floor view is kept while the camera does not move (or, with
+``RenderConfig.floor_reuse_px``, while it moves the view by less than that);
+the floor is resampled only inside the window of its textured rectangles and
+the blur applied only where the scene is not uniform; rays are computed once
+per camera; noise is one random byte per pixel through a lookup table.
+``last_render_s`` and
 ``last_detect_s`` hold the wall-clock time of the latest frame's stages
 (for ``moma-env bench``; nothing depends on them).
 
