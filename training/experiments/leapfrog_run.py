@@ -1,0 +1,370 @@
+"""Shared core of the paper's two-robot experiments (the square and the line).
+
+Section IV of the paper: a main robot drives a list of waypoints (x, y, theta) in
+legs; a second robot keeps it company ``separation`` metres to its left; the two
+move in turns with a dwell at every switch, and an observer above them (a UAV or a
+hand-held camera) tracks both boards with its controller from the detections
+alone. Every robot is driven on its MOMA estimate; the truth is only recorded.
+The main robot's MOMA trajectory is compared with the truth and with the odometry
+baselines (wheel odometry always; visual odometry when the camera is rendered).
+
+An experiment subclasses :class:`LeapfrogConfig` and says where the main robot
+goes (:meth:`LeapfrogConfig.waypoints`, :meth:`LeapfrogConfig.start_pose`,
+:attr:`LeapfrogConfig.path_length`); :func:`run_leapfrog` runs one seeded run of
+any of them and :func:`summarise` the statistics over runs.
+
+Frames and units: world W (x, y on the floor, z up), metres, radians, seconds;
+poses ``T_w_b`` of the robots' body frames (see :mod:`moma_env.geometry`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from agents.leapfrog import LeapfrogSchedule, Leg
+from moma_env.camera import BoardView, CameraBackend, CameraConfig, GeometricCamera
+from moma_env.config import ConfigError, check_bool, check_choice, check_non_negative, check_positive
+from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
+from moma_env.control.waypoint import WaypointFollower, WaypointFollowerConfig
+from moma_env.estimator import EstimatorConfig, MomaEstimator, Status
+from moma_env.geometry import se3_to_se2
+from moma_env.markers import BoardLayout, board_for_robot
+from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, aggregate, run_metrics
+from moma_env.odometry import WheelOdometry, WheelOdometryConfig
+from moma_env.world import ArenaConfig, UAVConfig, UGVConfig, World, WorldConfig
+from moma_env.world.mounts import board_on_top
+
+__all__ = [
+    "MAIN",
+    "BUDDY",
+    "CAMERA_BACKENDS",
+    "LeapfrogConfig",
+    "LeapfrogRun",
+    "left_of",
+    "leapfrog_legs",
+    "run_leapfrog",
+    "summarise",
+]
+
+MAIN = "ugv_0"
+BUDDY = "ugv_1"
+#: Camera backends an experiment can run with.
+CAMERA_BACKENDS = ("geometric", "rendered")
+#: Free floor around the robots' paths inside the arena walls (m).
+_ARENA_MARGIN = 1.5
+
+Waypoint = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class LeapfrogConfig:
+    """What every two-robot leapfrog experiment shares (defaults: the paper's set-up).
+
+    Attributes:
+        separation: distance of the second robot to the left of the main one (m).
+        dwell_s: time both robots are static at a switch (s).
+        start_after_s: time before the first leg, for the observer to settle (s).
+        observer: ``"quadcopter"`` or ``"handheld"``.
+        control_hz: control and camera rate (Hz); the paper's camera ran at 25.
+        max_time_s: a run that has not finished by then is stopped and flagged (s).
+        planar_ugvs: tell the estimator that the UGVs move upright on the floor
+            (see ``MomaEstimator.add_robot(planar=...)``); False estimates their
+            full 6-DoF pose as the paper's system did.
+        camera_backend: ``"geometric"`` (projected corners with pixel noise) or
+            ``"rendered"`` (synthetic images through ``cv2.aruco``).
+        altitude: fixed flying altitude of the observer's body (m); None lets the
+            tracking controller choose it from the robots' spread.
+        board: layout of the robots' boards (marker size, gap); robot k gets the
+            ids 4k..4k+3.
+        camera, estimator, odometry, follower, tracking: the parts' configurations.
+    """
+
+    #: Prefix of the field names in this experiment's configuration errors.
+    experiment: ClassVar[str] = "leapfrog"
+
+    separation: float = 0.6
+    dwell_s: float = 1.5
+    start_after_s: float = 1.0
+    observer: str = "quadcopter"
+    control_hz: float = 25.0
+    max_time_s: float = 300.0
+    planar_ugvs: bool = True
+    camera_backend: str = "geometric"
+    altitude: float | None = None
+    board: BoardLayout = field(default_factory=BoardLayout)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
+    odometry: WheelOdometryConfig = field(default_factory=WheelOdometryConfig)
+    follower: WaypointFollowerConfig = field(default_factory=WaypointFollowerConfig)
+    tracking: TrackingControllerConfig = field(default_factory=TrackingControllerConfig)
+
+    def __post_init__(self) -> None:
+        name = self.experiment
+        check_positive(f"{name}.separation", self.separation)
+        if self.separation < 0.5:
+            raise ConfigError(f"{name}.separation", f"robots of 0.45 m need >= 0.5 m between centres, got {self.separation}")
+        check_non_negative(f"{name}.dwell_s", self.dwell_s)
+        check_non_negative(f"{name}.start_after_s", self.start_after_s)
+        check_choice(f"{name}.observer", self.observer, ("quadcopter", "handheld"))
+        check_positive(f"{name}.control_hz", self.control_hz)
+        check_positive(f"{name}.max_time_s", self.max_time_s)
+        check_bool(f"{name}.planar_ugvs", self.planar_ugvs)
+        check_choice(f"{name}.camera_backend", self.camera_backend, CAMERA_BACKENDS)
+        if not isinstance(self.board, BoardLayout):
+            raise ConfigError(f"{name}.board", f"must be a BoardLayout, got {type(self.board).__name__}")
+        if self.altitude is not None:
+            check_positive(f"{name}.altitude", self.altitude)
+            uav = self._uav_config()
+            if not uav.min_altitude <= self.altitude <= uav.max_altitude:
+                raise ConfigError(
+                    f"{name}.altitude", f"must be within the observer's range [{uav.min_altitude}, {uav.max_altitude}] m, got {self.altitude}"
+                )
+            depth = self.altitude - _board_height()
+            if depth <= 0.0:
+                raise ConfigError(f"{name}.altitude", f"must be above the boards ({_board_height()} m), got {self.altitude}")
+            # Centred over the pair, the camera must hold both boards whole at every switch.
+            half_view = depth * (min(self.camera.width, self.camera.height) / 2.0) / max(self.camera.fx, self.camera.fy)
+            needed = self.max_spread() / 2.0 + math.hypot(self.board.width, self.board.height) / 2.0
+            if half_view < needed:
+                raise ConfigError(
+                    f"{name}.altitude",
+                    f"{self.altitude} m is too low to keep both boards in view (half view {half_view:.2f} m at the boards, "
+                    f"needs {needed:.2f} m for robots up to {self.max_spread():.2f} m apart)",
+                )
+
+    # -- what an experiment defines -------------------------------------------------
+    def waypoints(self) -> list[Waypoint]:
+        """The main robot's waypoints (x, y, theta), in driving order (m, rad)."""
+        raise NotImplementedError
+
+    def start_pose(self) -> Waypoint:
+        """The main robot's start pose (x, y, theta) (m, rad)."""
+        raise NotImplementedError
+
+    @property
+    def path_length(self) -> float:
+        """Nominal path of the main robot (m), the denominator of '% of path'."""
+        raise NotImplementedError
+
+    # -- derived ----------------------------------------------------------------------
+    def max_spread(self) -> float:
+        """Largest distance between the two robots' centres over the run (m).
+
+        The buddy waits beside the main robot's previous waypoint while the main
+        robot drives to its next one, so the spread peaks at the main robot's
+        arrivals.
+        """
+        main = [self.start_pose(), *self.waypoints()]
+        buddy = [left_of(wp, self.separation) for wp in main]
+        return max(self.separation, *(math.dist(main[k][:2], buddy[k - 1][:2]) for k in range(1, len(main))))
+
+    def _uav_config(self) -> UAVConfig:
+        return UAVConfig.handheld() if self.observer == "handheld" else UAVConfig()
+
+    def tracking_config(self) -> TrackingControllerConfig:
+        """The tracking controller's configuration, with the depth pinned if the altitude is fixed."""
+        if self.altitude is None:
+            return self.tracking
+        depth = self.altitude - _board_height()
+        return dataclasses.replace(self.tracking, min_depth=depth, max_depth=depth)
+
+
+def _board_height() -> float:
+    """Height of the boards above the floor (m): the default top mount of a UGV."""
+    return float(board_on_top()[2, 3])
+
+
+@dataclass(frozen=True)
+class LeapfrogRun:
+    """The record of one run.
+
+    Attributes:
+        seed: the run's seed.
+        trajectories: ``{robot: {"truth" | method: Trajectory}}``; the main robot
+            has every method of ``methods``.
+        waypoints: the main robot's waypoints (x, y, theta).
+        switch_times: times (s) at which the main robot was declared static
+            (the keypoints of the line experiment).
+        metrics: ``{method: RunMetrics}`` of the main robot.
+        lost_at: ``{method: time (s) it first lost track, or None}``.
+        completed: True if every leg was driven before ``max_time_s``.
+        duration_s: simulated time (s).
+    """
+
+    seed: int
+    trajectories: dict[str, dict[str, Trajectory]]
+    waypoints: tuple[Waypoint, ...]
+    switch_times: tuple[float, ...]
+    metrics: dict[str, RunMetrics]
+    lost_at: dict[str, float | None]
+    completed: bool
+    duration_s: float
+
+    @property
+    def methods(self) -> tuple[str, ...]:
+        """The localisation methods compared in this run, in table order."""
+        return tuple(self.metrics)
+
+
+def left_of(waypoint: Waypoint, distance: float) -> Waypoint:
+    """The pose ``distance`` m to the left of ``waypoint`` (its y axis), same heading."""
+    x, y, yaw = waypoint
+    return (x - distance * math.sin(yaw), y + distance * math.cos(yaw), yaw)
+
+
+def leapfrog_legs(config: LeapfrogConfig) -> list[Leg]:
+    """Alternating legs: the main robot to its next waypoint, then its buddy beside it."""
+    legs = []
+    for wp in config.waypoints():
+        legs.append(Leg(MAIN, wp))
+        legs.append(Leg(BUDDY, left_of(wp, config.separation)))
+    return legs
+
+
+def _arena(config: LeapfrogConfig) -> ArenaConfig:
+    """Walls ``_ARENA_MARGIN`` m beyond every pose either robot is sent to."""
+    poses = [config.start_pose(), left_of(config.start_pose(), config.separation)] + [leg.waypoint for leg in leapfrog_legs(config)]
+    xy = np.array([(x, y) for x, y, _ in poses])
+    low = xy.min(axis=0) - _ARENA_MARGIN
+    high = xy.max(axis=0) + _ARENA_MARGIN
+    return ArenaConfig(width=float(high[0] - low[0]), height=float(high[1] - low[1]), origin=(float(low[0]), float(low[1])))
+
+
+def _world_config(config: LeapfrogConfig, rng: np.random.Generator) -> WorldConfig:
+    start_main = config.start_pose()
+    start_buddy = left_of(start_main, config.separation)
+    uav = config._uav_config()
+    # The observer starts above the pair, with a small random offset.
+    offset = rng.normal(scale=0.05, size=2)
+    initial = ((start_main[0] + start_buddy[0]) / 2 + offset[0], (start_main[1] + start_buddy[1]) / 2 + offset[1], 0.0)
+    uav = dataclasses.replace(uav, initial=initial, **({} if config.altitude is None else {"altitude": config.altitude}))
+    layout = {"marker_size": config.board.marker_size, "gap": config.board.gap, "dictionary": config.board.dictionary}
+    ugvs = (
+        UGVConfig(name=MAIN, initial_pose=start_main, board=board_for_robot(0, **layout)),
+        UGVConfig(name=BUDDY, initial_pose=start_buddy, board=board_for_robot(1, **layout)),
+    )
+    return WorldConfig(arena=_arena(config), ugvs=ugvs, uav=uav, control_hz=config.control_hz)
+
+
+def _observer_camera(config: LeapfrogConfig, camera_name: str) -> CameraBackend:
+    if config.camera_backend == "geometric":
+        return GeometricCamera(camera_name, config.camera)
+    raise ConfigError(f"{config.experiment}.camera_backend", "the rendered camera is not available in this build")
+
+
+def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], None] | None = None) -> LeapfrogRun:
+    """Run the experiment once with every random draw seeded by ``seed``.
+
+    Args:
+        config: the experiment (square, line, ...).
+        seed: seed of the run's generators (world, camera, odometry).
+        progress: called with the simulated time (s) after every step, if given.
+    """
+    root = np.random.default_rng(seed)
+    rng_world, rng_camera, rng_odometry = root.spawn(3)
+    world = World(_world_config(config, rng_world))
+    world.reset(rng_world)
+    uav_cfg = world.config.uav
+    camera = _observer_camera(config, uav_cfg.camera_name)
+    tracker = BoardTrackingController(
+        uav_cfg.camera_mount[:3, :3], config.camera.fx, (config.camera.width, config.camera.height), config.tracking_config()
+    )
+
+    estimator = MomaEstimator(config.estimator)
+    boards = {}
+    for index, ugv in enumerate(world.config.ugvs):
+        estimator.add_robot(
+            ugv.name,
+            boards={index: ugv.board_mount},
+            static=True,
+            initial_pose=world.ugv_transform(ugv.name),
+            time=world.time,
+            planar=config.planar_ugvs,
+        )
+        boards[ugv.name] = (index, ugv.board)
+    estimator.add_robot(uav_cfg.name, cameras={uav_cfg.camera_name: uav_cfg.camera_mount}, static=False, time=world.time)
+
+    wheel = WheelOdometry(config.odometry, initial_pose=world.ugv_pose(MAIN))
+    schedule = LeapfrogSchedule(
+        leapfrog_legs(config), WaypointFollower(config.follower), config.dwell_s, [MAIN, BUDDY], start_after_s=config.start_after_s
+    )
+    methods = ("moma", "wheel")
+    recorders = {name: {m: TrajectoryRecorder() for m in ("truth", *methods)} for name in (MAIN, BUDDY)}
+    recorders[uav_cfg.name] = {m: TrajectoryRecorder() for m in ("truth", "moma")}
+    lost_at: dict[str, float | None] = {m: None for m in methods}
+    switch_times: list[float] = []
+
+    def record() -> None:
+        t = world.time
+        for name in (MAIN, BUDDY):
+            recorders[name]["truth"].append(t, world.ugv_transform(name))
+            recorders[name]["moma"].append(t, estimator.estimate(name).T_w_b)
+        recorders[MAIN]["wheel"].append(t, wheel.pose)
+        recorders[BUDDY]["wheel"].append(t, None)
+        recorders[uav_cfg.name]["truth"].append(t, world.uav_transform())
+        recorders[uav_cfg.name]["moma"].append(t, estimator.estimate(uav_cfg.name).T_w_b)
+        if lost_at["moma"] is None and estimator.estimate(MAIN).status is Status.LOST:
+            lost_at["moma"] = t
+
+    record()
+    uav_command = np.zeros(4)
+    ugv_commands = {MAIN: np.zeros(3), BUDDY: np.zeros(3)}
+    while not schedule.done and world.time < config.max_time_s:
+        world.step(ugv_commands, uav_command)
+        wheel.update(world.ugv_body_velocity(MAIN), world.dt, rng_odometry)
+        views = [BoardView(board_id, layout, world.board_transform(name)) for name, (board_id, layout) in boards.items()]
+        detections = camera.measure(world.camera_transform(uav_cfg.camera_name), views, world.time, rng_camera)
+        estimator.update(world.time, detections)
+        record()
+        if progress is not None:
+            progress(world.time)
+
+        uav_command = tracker.command([d.T_c_m[:3, 3] for d in detections])
+        poses = {}
+        for name in (MAIN, BUDDY):
+            est = estimator.estimate(name)
+            poses[name] = se3_to_se2(est.T_w_b) if est.status is Status.LOCALISED and est.T_w_b is not None else None
+        ugv_commands, changes = schedule.step(world.time, poses)
+        for change in changes:
+            world.set_static(change.robot, change.static)
+            estimator.set_static(change.robot, change.static, world.time)
+            if change.robot == MAIN and change.static:
+                switch_times.append(world.time)
+
+    trajectories = {name: {m: r.to_trajectory() for m, r in recs.items()} for name, recs in recorders.items()}
+    main = trajectories[MAIN]
+    metrics = {
+        method: run_metrics(main[method], main["truth"], switch_times=switch_times, path_length=config.path_length) for method in methods
+    }
+    return LeapfrogRun(
+        seed=seed,
+        trajectories=trajectories,
+        waypoints=tuple(config.waypoints()),
+        switch_times=tuple(switch_times),
+        metrics=metrics,
+        lost_at=lost_at,
+        completed=schedule.done,
+        duration_s=world.time,
+    )
+
+
+def summarise(runs: list[LeapfrogRun]) -> dict[str, dict]:
+    """Per method: the aggregate over runs (ME_f, std, ME, % of path, ...) and its track-loss rate.
+
+    ``track_loss_rate`` is the fraction of runs in which the method lost track at
+    least once (:attr:`LeapfrogRun.lost_at`), in [0, 1].
+    """
+    if not runs:
+        raise ValueError("summarise needs at least one run")
+    out = {}
+    for method in runs[0].methods:
+        summary = aggregate([run.metrics[method] for run in runs]).to_dict()
+        summary["track_loss_rate"] = sum(run.lost_at[method] is not None for run in runs) / len(runs)
+        out[method] = summary
+    return out

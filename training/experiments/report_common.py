@@ -1,0 +1,86 @@
+"""Presentation helpers shared by the experiments' reports (square, line).
+
+Formatting of distances, the methods' labels and colours, the TUM files of every
+run, the per-run JSON record and figure saving. Every file is written whole or
+not at all (:mod:`moma_env.io`).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from moma_env.io import atomic_path
+from moma_env.metrics import write_tum
+from training.experiments.leapfrog_run import LeapfrogConfig, LeapfrogRun
+
+__all__ = ["LABELS", "COLOURS", "cm", "pct", "write_run_tums", "run_record", "config_record", "save_figure"]
+
+#: Display names of the localisation methods (ours and the paper's).
+LABELS = {"moma": "MOMA", "wheel": "wheel odometry", "vo": "visual odometry", "viso2": "Viso2"}
+#: Plot colours of the methods (the paper's: MOMA blue, VO red, truth black dashed).
+COLOURS = {"moma": "tab:blue", "vo": "tab:red", "wheel": "tab:green"}
+
+
+def cm(value: float | None, width: int = 6) -> str:
+    """A distance in metres as centimetres with two decimals, ``n/a`` if unknown."""
+    if value is None or not math.isfinite(value):
+        return "n/a".rjust(width)
+    return f"{100.0 * value:{width}.2f}"
+
+
+def pct(value: float | None, width: int = 6, digits: int = 3) -> str:
+    """A percentage with ``digits`` decimals, ``n/a`` if unknown."""
+    if value is None or not math.isfinite(value):
+        return "n/a".rjust(width)
+    return f"{value:{width}.{digits}f}"
+
+
+def write_run_tums(runs: list[LeapfrogRun], out_dir: Path) -> Path:
+    """``out_dir/tum/run_XX/<robot>_<method>.tum`` for every trajectory with a valid sample."""
+    tum_dir = out_dir / "tum"
+    for k, run in enumerate(runs):
+        run_dir = tum_dir / f"run_{k:02d}"
+        run_dir.mkdir(parents=True, exist_ok=True)
+        for robot, trajs in run.trajectories.items():
+            for method, traj in trajs.items():
+                if np.any(traj.valid):
+                    write_tum(run_dir / f"{robot.replace('/', '_')}_{method}.tum", traj)
+    return tum_dir
+
+
+def config_record(config: LeapfrogConfig) -> dict:
+    """The settings a reader needs to reproduce a run, as plain JSON data."""
+    return {
+        "camera_backend": config.camera_backend,
+        "observer": config.observer,
+        "planar_ugvs": config.planar_ugvs,
+        "altitude_m": config.altitude,
+        "separation_m": config.separation,
+        "dwell_s": config.dwell_s,
+        "path_length_m": config.path_length,
+        "camera": {"width": config.camera.width, "height": config.camera.height, "fx": config.camera.fx, "noise_px": config.camera.noise_px},
+        "board": {"marker_size_m": config.board.marker_size, "gap_m": config.board.gap},
+    }
+
+
+def run_record(run: LeapfrogRun) -> dict:
+    """One run's outcome and per-method metrics, as plain JSON data."""
+    return {
+        "seed": run.seed,
+        "completed": run.completed,
+        "duration_s": run.duration_s,
+        "n_switches_main": len(run.switch_times),
+        "lost_at_s": dict(run.lost_at),
+        "metrics": {m: run.metrics[m].to_dict() for m in run.methods},
+    }
+
+
+def save_figure(fig: Figure, path: Path, dpi: int = 110) -> None:
+    """Write ``fig`` as a PNG at ``path``, whole or not at all."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format="png")
