@@ -75,9 +75,9 @@ def test_a_preset_too_low_for_the_experiment_is_rejected_when_applied():
 def test_cli_flags_override_the_preset():
     parser = build_parser()
     args = parser.parse_args(["experiment", "square", "--preset", "paper", "--noise-px", "0.2", "--camera", "geometric"])
-    config = _experiment_config(args)
+    config = _experiment_config(args, args.observer)
     assert config.camera.noise_px == 0.2 and config.camera.width == 720
     assert config.altitude == PAPER.altitude and config.planar_ugvs is False
     args = parser.parse_args(["experiment", "line", "--full-6dof"])
-    config = _experiment_config(args)
+    config = _experiment_config(args, args.observer)
     assert config.planar_ugvs is False and config.altitude is None and config.camera_backend == "geometric"

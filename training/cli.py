@@ -160,7 +160,12 @@ def _add_experiment_arguments(parser: argparse.ArgumentParser, default_runs: int
     parser.add_argument("--runs", type=_int_at_least(1, "count"), default=default_runs, help=f"number of runs (default {default_runs})")
     parser.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first run; run k uses seed+k (default 0)")
     parser.add_argument("--out", type=Path, default=default_out, help=f"output folder (default {default_out})")
-    parser.add_argument("--observer", choices=("quadcopter", "handheld"), default="quadcopter", help="the observer carrying the camera")
+    parser.add_argument(
+        "--observer",
+        choices=("quadcopter", "handheld", "both"),
+        default="quadcopter",
+        help="the observer carrying the camera; 'both' runs each and compares them (outputs in OUT/<observer>/, OUT/observers.png)",
+    )
     parser.add_argument("--preset", choices=sorted(PRESETS), default="default", help="sensing settings (camera, altitude, board; default 'default')")
     parser.add_argument(
         "--camera", choices=CAMERA_BACKENDS, default=None, help="camera backend (default: the preset's; 'rendered' adds the visual odometry baseline)"
@@ -187,16 +192,16 @@ def _positive_float(what: str):
     return parse
 
 
-def _experiment_config(args: argparse.Namespace):
+def _experiment_config(args: argparse.Namespace, observer: str):
     """The experiment's configuration from the arguments: defaults, then the preset, then the flags."""
     from training.experiments.line import LineConfig
     from training.experiments.presets import get_preset
     from training.experiments.square import SquareConfig
 
     if args.experiment == "square":
-        config = SquareConfig(observer=args.observer, side=args.side, leg=args.leg)
+        config = SquareConfig(observer=observer, side=args.side, leg=args.leg)
     else:
-        config = LineConfig(observer=args.observer, length=args.length, passes=args.passes, switches_per_pass=args.switches_per_pass)
+        config = LineConfig(observer=observer, length=args.length, passes=args.passes, switches_per_pass=args.switches_per_pass)
     config = get_preset(args.preset).apply(config, camera_backend=args.camera)
     if args.full_6dof:
         config = dataclasses.replace(config, planar_ugvs=False)
@@ -210,24 +215,38 @@ def _run_experiment(args: argparse.Namespace) -> int:
     from training.experiments import line_report, square_report
     from training.experiments.line import summarise_line
     from training.experiments.leapfrog_run import summarise
+    from training.experiments.report_common import plot_observer_errors
     from training.experiments.runner import run_many
 
-    config = _experiment_config(args)
     report, summarise_runs = (square_report, summarise) if args.experiment == "square" else (line_report, summarise_line)
+    observers = ("quadcopter", "handheld") if args.observer == "both" else (args.observer,)
+    configs = {observer: _experiment_config(args, observer) for observer in observers}  # all validated before any run
     start = time.perf_counter()
-    runs = run_many(config, args.runs, args.seed, log=lambda line: print(line, file=sys.stderr))
-    summary = summarise_runs(runs)
-    paths = report.write_outputs(runs, summary, config, args.out)
-    wall = time.perf_counter() - start
-    n_completed = sum(r.completed for r in runs)
-    if args.json:
-        print(json.dumps(to_jsonable(report.results_dict(runs, summary, config) | {"wall_time_s": wall, "files": paths}), indent=2, sort_keys=True))
-    else:
-        print(report.format_table(summary, config, n_completed, len(runs)))
+    results, tables, all_runs, files = {}, [], {}, {}
+    for observer, config in configs.items():
+        out = args.out / observer if len(observers) > 1 else args.out
+        runs = run_many(config, args.runs, args.seed, log=lambda line, o=observer: print(f"[{o}] {line}", file=sys.stderr))
+        summary = summarise_runs(runs)
+        files[observer] = report.write_outputs(runs, summary, config, out)
+        results[observer] = report.results_dict(runs, summary, config)
+        tables.append(report.format_table(summary, config, sum(r.completed for r in runs), len(runs)))
         if args.experiment == "line":
-            print("\n" + line_report.format_keypoints(runs[0]))
-        print("\n" + "\n".join(f"{kind}: {path}" for kind, path in paths.items()) + f"\nwall time: {wall:.1f} s")
-    return 0 if n_completed == len(runs) else 1
+            tables.append(line_report.format_keypoints(runs[0]))
+        all_runs[observer] = runs
+    if len(observers) > 1:
+        files["observers_figure"] = args.out / "observers.png"
+        plot_observer_errors(all_runs, files["observers_figure"])
+    wall = time.perf_counter() - start
+    completed = all(r.completed for runs in all_runs.values() for r in runs)
+    if args.json:
+        data = results[observers[0]] if len(observers) == 1 else {"observers": results}
+        print(json.dumps(to_jsonable(data | {"wall_time_s": wall, "files": files}), indent=2, sort_keys=True))
+    else:
+        print("\n\n".join(tables))
+        for name, paths in files.items():
+            print("\n" + (f"{name}: {paths}" if isinstance(paths, Path) else "\n".join(f"{kind}: {path}" for kind, path in paths.items())))
+        print(f"wall time: {wall:.1f} s")
+    return 0 if completed else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -15,9 +15,9 @@ from matplotlib.figure import Figure
 
 from moma_env.io import atomic_path
 from moma_env.metrics import write_tum
-from training.experiments.leapfrog_run import LeapfrogConfig, LeapfrogRun
+from training.experiments.leapfrog_run import MAIN, LeapfrogConfig, LeapfrogRun
 
-__all__ = ["LABELS", "COLOURS", "cm", "pct", "write_run_tums", "run_record", "config_record", "save_figure"]
+__all__ = ["LABELS", "COLOURS", "cm", "pct", "write_run_tums", "run_record", "config_record", "save_figure", "plot_observer_errors"]
 
 #: Display names of the localisation methods (ours and the paper's).
 LABELS = {"moma": "MOMA", "wheel": "wheel odometry", "vo": "visual odometry", "viso2": "Viso2"}
@@ -84,3 +84,33 @@ def save_figure(fig: Figure, path: Path, dpi: int = 110) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format="png")
+
+
+def plot_observer_errors(runs_by_observer: dict[str, list[LeapfrogRun]], path: Path) -> None:
+    """The paper's observer comparison: MOMA's E(t) of the main robot under each observer.
+
+    One line per run (thin) and the mean over runs on a common time base where
+    every run is still going (thick); time in s, error in cm.
+    """
+    from moma_env.metrics import position_errors
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    ax = fig.subplots()
+    colours = {"quadcopter": "tab:blue", "handheld": "tab:orange"}
+    for observer, runs in runs_by_observer.items():
+        colour = colours.get(observer, "tab:gray")
+        curves = []
+        for run in runs:
+            truth = run.trajectories[MAIN]["truth"]
+            err = 100.0 * position_errors(run.trajectories[MAIN]["moma"], truth)
+            ax.plot(truth.times, err, color=colour, lw=0.5, alpha=0.35)
+            curves.append((truth.times, err))
+        n = min(len(t) for t, _ in curves)
+        mean = np.nanmean(np.stack([e[:n] for _, e in curves]), axis=0)
+        ax.plot(curves[0][0][:n], mean, color=colour, lw=2.0, label=f"{observer}: mean of {len(runs)} runs")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("MOMA position error E(t) [cm]")
+    ax.set_title("Main robot's error: UAV observer vs hand-held camera")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    save_figure(fig, path)
