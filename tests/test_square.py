@@ -49,7 +49,7 @@ def test_zero_noise_run_is_exact_through_every_switch():
 
 
 def test_noisy_run_is_reproducible_and_moma_beats_wheel_odometry():
-    cfg = SquareConfig()
+    cfg = SquareConfig(side=0.5)
     a, b = run_square(cfg, seed=3), run_square(cfg, seed=3)
     assert a.completed
     np.testing.assert_array_equal(a.trajectories["ugv_0"]["moma"].poses, b.trajectories["ugv_0"]["moma"].poses)
@@ -70,7 +70,7 @@ def test_square_config_errors_name_the_field():
 
 def test_cli_writes_table_figure_tum_and_json(tmp_path, capsys):
     out = tmp_path / "square"
-    assert main(["experiment", "square", "--runs", "2", "--seed", "5", "--out", str(out), "--json"]) == 0
+    assert main(["experiment", "square", "--side", "0.5", "--runs", "2", "--seed", "5", "--out", str(out), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["n_runs"] == 2 and data["n_completed"] == 2
     assert [r["seed"] for r in data["runs"]] == [5, 6]
@@ -82,9 +82,10 @@ def test_cli_writes_table_figure_tum_and_json(tmp_path, capsys):
     assert len(truth) > 100 and len(moma) > 100
     assert not list(out.rglob("*.tmp*"))
 
-    assert main(["experiment", "square", "--runs", "1", "--out", str(tmp_path / "t")]) == 0
+    assert main(["experiment", "square", "--side", "0.5", "--runs", "1", "--out", str(tmp_path / "t")]) == 0
     table = capsys.readouterr().out
-    assert "MOMA (ours)" in table and "wheel odometry (ours)" in table and "% of 400 cm" in table
+    assert "MOMA (ours)" in table and "wheel odometry (ours)" in table and "% of 200 cm" in table
+    assert "Viso2 (paper, real robots)" in table
 
 
 @pytest.mark.parametrize("argv", [["--runs", "0"], ["--seed", "-1"], ["--runs", "x"], ["--observer", "kite"]])
@@ -93,3 +94,28 @@ def test_cli_rejects_bad_arguments(argv, capsys):
         main(["experiment", "square", *argv])
     assert exit_info.value.code == 2
     assert "error" in capsys.readouterr().err
+
+
+def test_cli_compares_the_two_observers(tmp_path, capsys):
+    out = tmp_path / "both"
+    assert main(["experiment", "square", "--side", "0.5", "--runs", "1", "--observer", "both", "--out", str(out), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert set(data["observers"]) == {"quadcopter", "handheld"}
+    for observer in ("quadcopter", "handheld"):
+        assert data["observers"][observer]["observer"] == observer
+        assert data["observers"][observer]["path_length_m"] == pytest.approx(2.0)
+        saved = json.loads((out / observer / "summary.json").read_text())
+        assert saved["summary"] == data["observers"][observer]["summary"]
+    assert (out / "observers.png").stat().st_size > 10_000
+    assert not list(out.rglob("*.tmp*"))
+
+
+def test_summary_counts_track_loss_per_method():
+    from training.experiments.leapfrog_run import summarise
+
+    run = run_square(SquareConfig(side=0.5), seed=0)
+    lost = dataclasses.replace(run, lost_at={"moma": None, "wheel": 12.0})
+    summary = summarise([run, lost])
+    assert summary["moma"]["track_loss_rate"] == 0.0
+    assert summary["wheel"]["track_loss_rate"] == 0.5
+    assert summary["moma"]["n_runs"] == 2
