@@ -47,6 +47,8 @@ __all__ = [
     "project_to_rotation",
     "mean_rotation",
     "mean_pose",
+    "interpolate_pose",
+    "fit_rigid_2d",
     "R_BODY_CAM_DOWN",
     "R_BODY_CAM_FORWARD",
     "R_BODY_BOARD_UP",
@@ -263,6 +265,44 @@ def mean_pose(poses: Sequence[np.ndarray] | np.ndarray) -> np.ndarray:
     out[:3, 3] = total[:3, 3] / len(poses)
     out[3] = _LAST_ROW
     return out
+
+
+
+def interpolate_pose(T0: np.ndarray, T1: np.ndarray, fraction: float) -> np.ndarray:
+    """The 4x4 pose a ``fraction`` of the way from ``T0`` to ``T1`` (0 gives ``T0``, 1 gives ``T1``).
+
+    Translation interpolated linearly, rotation along the geodesic (slerp):
+    ``R0 @ exp(fraction * log(R0.T @ R1))``. Fractions outside [0, 1] extrapolate.
+    """
+    T0 = np.asarray(T0, dtype=float)
+    T1 = np.asarray(T1, dtype=float)
+    out = np.eye(4)
+    out[:3, :3] = T0[:3, :3] @ rotvec_to_matrix(float(fraction) * matrix_to_rotvec(T0[:3, :3].T @ T1[:3, :3]))
+    out[:3, 3] = T0[:3, 3] + float(fraction) * (T1[:3, 3] - T0[:3, 3])
+    return out
+
+
+def fit_rigid_2d(p: np.ndarray, q: np.ndarray) -> tuple[float, float, float]:
+    """Planar rigid transform ``(x, y, yaw)`` that best maps points ``q`` onto ``p`` (least squares).
+
+    Finds ``R(yaw), t`` minimising ``sum |p_i - (R q_i + t)|^2`` over (n, 2)
+    arrays of corresponding points (n >= 2, not all coincident), in closed form
+    (2D Kabsch: the angle of the cross-covariance). If ``q`` are points in frame
+    b and ``p`` the same points in frame a, the result is the planar pose ``T_a_b``.
+    """
+    p = np.asarray(p, dtype=float)
+    q = np.asarray(q, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2 or p.shape != q.shape:
+        raise ValueError(f"p and q must both be (n, 2), got {p.shape} and {q.shape}")
+    if p.shape[0] < 2:
+        raise ValueError(f"fit_rigid_2d needs at least 2 point pairs, got {p.shape[0]}")
+    pc, qc = p.mean(axis=0), q.mean(axis=0)
+    dp, dq = p - pc, q - qc
+    s_cos = float(np.sum(dq[:, 0] * dp[:, 0] + dq[:, 1] * dp[:, 1]))
+    s_sin = float(np.sum(dq[:, 0] * dp[:, 1] - dq[:, 1] * dp[:, 0]))
+    yaw = math.atan2(s_sin, s_cos)
+    c, s = math.cos(yaw), math.sin(yaw)
+    return float(pc[0] - (c * qc[0] - s * qc[1])), float(pc[1] - (s * qc[0] + c * qc[1])), yaw
 
 
 # Fixed mount rotations (columns are the mounted frame's axes in the body frame).

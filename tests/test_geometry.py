@@ -155,3 +155,31 @@ def test_upright_projection_removes_the_lever_arm_of_a_tilt():
     assert np.linalg.norm(full[:2, 3] - T_w_b[:2, 3]) == pytest.approx(0.4 * math.sin(0.1))
     np.testing.assert_allclose(upright[:2, 3], T_w_b[:2, 3], atol=1e-12)
     assert g.yaw_of(upright) == pytest.approx(0.3)
+
+
+def test_interpolate_pose_ends_and_midpoint() -> None:
+    from moma_env.geometry import interpolate_pose, make_transform, rot_x, rot_z, rotation_angle
+
+    T0 = make_transform(rot_z(0.2), [1.0, 2.0, 3.0])
+    T1 = make_transform(rot_z(0.2) @ rot_x(0.6), [3.0, 2.0, 1.0])
+    assert np.allclose(interpolate_pose(T0, T1, 0.0), T0)
+    assert np.allclose(interpolate_pose(T0, T1, 1.0), T1)
+    mid = interpolate_pose(T0, T1, 0.5)
+    assert np.allclose(mid[:3, 3], [2.0, 2.0, 2.0])
+    assert rotation_angle(T0[:3, :3].T @ mid[:3, :3]) == pytest.approx(0.3)
+    assert rotation_angle(mid[:3, :3].T @ T1[:3, :3]) == pytest.approx(0.3)
+
+
+def test_fit_rigid_2d_recovers_a_planar_pose_and_rejects_bad_input() -> None:
+    from moma_env.geometry import fit_rigid_2d
+
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-1.0, 1.0, (10, 2))
+    x, y, yaw = 0.3, -0.7, 2.5
+    c, s = math.cos(yaw), math.sin(yaw)
+    p = q @ np.array([[c, -s], [s, c]]).T + (x, y)
+    assert np.allclose(fit_rigid_2d(p, q), (x, y, yaw))
+    with pytest.raises(ValueError, match="at least 2"):
+        fit_rigid_2d(p[:1], q[:1])
+    with pytest.raises(ValueError, match=r"\(n, 2\)"):
+        fit_rigid_2d(p, q[:5])

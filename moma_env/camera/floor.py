@@ -1,0 +1,208 @@
+"""The floor as a camera sees it: a seeded world-frame texture on the plane z = 0.
+
+:class:`FloorConfig` says where the floor is textured (rectangles in world x, y)
+and how; everything else is plain (one gray level), where a feature tracker
+finds nothing. :class:`FloorTexture` draws the raster once from a seeded
+generator and renders it as seen by a pinhole camera with lens distortion:
+every pixel's ray (see :mod:`moma_env.camera.rays`) is followed to the floor,
+one exact resampling of the raster.
+
+Frames and units: world W (x, y on the floor, z up; metres). The raster's pixel
+``(col, row)`` is centred on ``x = xmin + (col + 0.5) / px_per_m``,
+``y = ymin + (row + 0.5) / px_per_m``. Gray levels are 0-255.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from moma_env.camera.backend import as_pose
+from moma_env.camera.rays import PixelRays
+from moma_env.config import ConfigError, check_count, check_numbers, check_positive, check_range
+
+__all__ = ["FloorConfig", "FloorTexture"]
+
+_RECT = ("xmin", "ymin", "xmax", "ymax")
+#: Largest floor raster (pixels) a configuration may ask for (~64 MB of uint8).
+_MAX_RASTER_PX = 64_000_000
+#: Octaves of the texture: each halves the blob size and the amplitude.
+_OCTAVES = 3
+
+
+def _check_rect(field: str, value: object) -> tuple[float, float, float, float]:
+    rect = check_numbers(field, value, _RECT)
+    if rect[2] <= rect[0] or rect[3] <= rect[1]:
+        raise ConfigError(field, f"needs xmin < xmax and ymin < ymax, got {rect}")
+    return rect  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class FloorConfig:
+    """Where and how the floor is textured.
+
+    Attributes:
+        extent: ``(xmin, ymin, xmax, ymax)`` of the rastered floor in W (m);
+            outside it the floor is plain.
+        textured: rectangles ``(xmin, ymin, xmax, ymax)`` in W (m) that carry
+            texture; ``None`` means the whole extent, ``()`` a plain floor.
+        px_per_m: raster resolution (px/m); finer than the cameras' ground
+            resolution keeps the texture sharp.
+        feature_size_m: size of the texture's largest blobs (m); two finer
+            octaves (1/2 and 1/4 of it) are added.
+        contrast: texture amplitude as a fraction of the gray range, in (0, 1].
+        sharpness: gain of the tanh that turns the smooth noise into blobs with
+            crisp edges (> 0; larger is closer to black and white).
+        gray: gray level of the plain floor and mean of the texture (0-255).
+        background_gray: gray level drawn where a pixel's ray misses the floor
+            (above the horizon of a forward camera).
+        seed: seed of the texture's generator (same seed, same floor).
+    """
+
+    extent: tuple[float, float, float, float] = (-2.0, -2.0, 5.0, 5.0)
+    textured: tuple[tuple[float, float, float, float], ...] | None = None
+    px_per_m: float = 250.0
+    feature_size_m: float = 0.06
+    contrast: float = 0.3
+    sharpness: float = 1.0
+    gray: float = 140.0
+    background_gray: float = 90.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "extent", _check_rect("floor.extent", self.extent))
+        if self.textured is not None:
+            try:
+                rects = tuple(self.textured)
+            except TypeError:
+                raise ConfigError("floor.textured", f"must be a sequence of rectangles, got {self.textured!r}") from None
+            object.__setattr__(
+                self, "textured", tuple(_check_rect(f"floor.textured[{i}]", r) for i, r in enumerate(rects))
+            )
+        check_positive("floor.px_per_m", self.px_per_m)
+        x0, y0, x1, y1 = self.extent
+        n_px = math.ceil((x1 - x0) * self.px_per_m) * math.ceil((y1 - y0) * self.px_per_m)
+        if n_px > _MAX_RASTER_PX:
+            raise ConfigError("floor.px_per_m", f"raster of {n_px} px exceeds {_MAX_RASTER_PX}; lower it or the extent")
+        check_positive("floor.feature_size_m", self.feature_size_m)
+        check_range("floor.contrast", self.contrast, 0.0, 1.0)
+        if self.contrast == 0.0:
+            raise ConfigError("floor.contrast", "must be > 0 (use textured=() for a plain floor)")
+        check_positive("floor.sharpness", self.sharpness)
+        check_range("floor.gray", self.gray, 0.0, 255.0)
+        check_range("floor.background_gray", self.background_gray, 0.0, 255.0)
+        check_count("floor.seed", self.seed, minimum=0)
+
+    @property
+    def textured_rects(self) -> tuple[tuple[float, float, float, float], ...]:
+        """The textured rectangles, ``None`` resolved to the whole extent."""
+        return (self.extent,) if self.textured is None else self.textured  # type: ignore[return-value]
+
+
+class FloorTexture:
+    """The floor raster of a :class:`FloorConfig`, and its rendering by a camera.
+
+    Attributes:
+        config: the configuration.
+        raster: read-only uint8 array (rows along y, columns along x).
+        A_px_w: read-only 3x3 affine map from world ``(x, y, 1)`` (m) to raster
+            pixel ``(col, row, 1)``.
+    """
+
+    def __init__(self, config: FloorConfig | None = None) -> None:
+        config = FloorConfig() if config is None else config
+        if not isinstance(config, FloorConfig):
+            raise TypeError(f"config must be a FloorConfig, got {type(config).__name__}")
+        self.config = config
+        x0, y0, x1, y1 = config.extent
+        ppm = config.px_per_m
+        cols, rows = math.ceil((x1 - x0) * ppm), math.ceil((y1 - y0) * ppm)
+        self.A_px_w = np.array([[ppm, 0.0, -x0 * ppm - 0.5], [0.0, ppm, -y0 * ppm - 0.5], [0.0, 0.0, 1.0]])
+        self.A_px_w.setflags(write=False)
+        self.raster = self._make_raster(rows, cols, np.random.default_rng(config.seed))
+        self.raster.setflags(write=False)
+        self._plain = int(round(config.gray))
+        self._background = int(round(config.background_gray))
+
+    def _make_raster(self, rows: int, cols: int, rng: np.random.Generator) -> np.ndarray:
+        """Plain gray, with seeded multi-octave blob texture inside the textured rectangles."""
+        cfg = self.config
+        raster = np.full((rows, cols), round(cfg.gray), dtype=np.uint8)
+        windows = []
+        for rect in cfg.textured_rects:
+            c0, r0 = (self.A_px_w @ (rect[0], rect[1], 1.0))[:2] + 0.5
+            c1, r1 = (self.A_px_w @ (rect[2], rect[3], 1.0))[:2] + 0.5
+            c0, r0 = max(int(round(c0)), 0), max(int(round(r0)), 0)
+            c1, r1 = min(int(round(c1)), cols), min(int(round(r1)), rows)
+            if c0 < c1 and r0 < r1:
+                windows.append((r0, r1, c0, c1))
+        if not windows:
+            return raster
+        # One texture over the whole raster, so overlapping rectangles agree.
+        noise = np.zeros((rows, cols), dtype=np.float32)
+        extent_m = (rows / cfg.px_per_m, cols / cfg.px_per_m)
+        for octave in range(_OCTAVES):
+            cell = cfg.feature_size_m / 2**octave
+            grid = (max(2, math.ceil(extent_m[0] / cell) + 1), max(2, math.ceil(extent_m[1] / cell) + 1))
+            coarse = rng.standard_normal(grid, dtype=np.float32)
+            noise += 0.5**octave * cv2.resize(coarse, (cols, rows), interpolation=cv2.INTER_CUBIC)
+        noise *= cfg.sharpness / max(float(noise.std()), 1e-12)
+        texture = cfg.gray + 127.5 * cfg.contrast * np.tanh(noise)
+        texture = np.clip(np.rint(texture), 0, 255).astype(np.uint8)
+        for r0, r1, c0, c1 in windows:
+            raster[r0:r1, c0:c1] = texture[r0:r1, c0:c1]
+        return raster
+
+    def homography(self, T_w_c: np.ndarray) -> np.ndarray:
+        """3x3 map from normalised camera coordinates ``(x, y, 1)`` to raster pixels.
+
+        The ray ``d = R_w_c @ (x, y, 1)`` from the camera centre ``t`` meets the
+        floor at ``t + s d`` with ``s = -t_z / d_z``, so the floor point's ``(x, y)``
+        is ``(t_xy d_z - t_z d_xy) / d_z``: a homography of ``(x, y, 1)``. It is
+        only meaningful where ``s > 0`` (see :meth:`render`).
+        """
+        T = as_pose(T_w_c, "T_w_c")
+        R, t = T[:3, :3], T[:3, 3]
+        H_w_n = np.vstack([t[0] * R[2] - t[2] * R[0], t[1] * R[2] - t[2] * R[1], R[2]])
+        return self.A_px_w @ H_w_n
+
+    def render(self, rays: PixelRays, T_w_c: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The floor seen from ``T_w_c`` (4x4, C in W) by the camera of ``rays``: uint8 (height, width).
+
+        Pixels whose ray does not meet the floor in front of the camera (above
+        the horizon, or a camera below the floor) get ``background_gray``; the
+        floor outside the raster is plain. ``out``, if given, is filled and returned.
+        """
+        T = as_pose(T_w_c, "T_w_c")
+        h, w = rays.shape
+        if out is None:
+            out = np.empty((h, w), dtype=np.uint8)
+        height = T[2, 3]
+        if height <= 0.0:
+            out[:] = self._background
+            return out
+        Rz = T[2, :3]
+        border_dz = rays.border_xy @ Rz[:2] + Rz[2]
+        if float(border_dz.max()) >= 0.0 and float(border_dz.min()) >= 0.0:
+            out[:] = self._background  # every ray points up: no floor in view
+            return out
+        cv2.remap(
+            self.raster,
+            rays.sample_map(self.homography(T)),
+            None,
+            cv2.INTER_LINEAR,
+            dst=out,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=self._plain,
+        )
+        if float(border_dz.max()) >= 0.0:
+            # The horizon crosses the image: rays pointing up see no floor.
+            xy = rays.xy
+            dz = xy[..., 0] * np.float32(Rz[0])
+            dz += xy[..., 1] * np.float32(Rz[1])
+            dz += np.float32(Rz[2])
+            out[dz >= 0.0] = self._background
+        return out

@@ -1,0 +1,373 @@
+"""The rendered camera backend: draw the image, detect the markers with OpenCV, solve PnP.
+
+:class:`RenderedCamera` implements :class:`~moma_env.camera.backend.CameraBackend`
+with the real pipeline a camera on the robots would run:
+
+1. **Scene.** The floor (:class:`~moma_env.camera.floor.FloorTexture`, or a
+   plain gray floor) and every board facing the camera, drawn from
+   ``cv2.aruco`` marker images on white paper with a quiet zone
+   (:class:`~moma_env.camera.board_raster.BoardRaster`). Each plane is sampled
+   through the exact camera model: for every pixel its undistorted ray (see
+   :mod:`moma_env.camera.rays`) is mapped to the plane by a homography, one
+   ``cv2.remap`` per plane, so perspective and lens distortion are exact up to
+   the bilinear interpolation. Boards are warped only inside their image window.
+   A board seen from behind, or crossing the plane of the camera centre, is not
+   drawn; a marker whose line of sight is blocked (``occluded``) is painted over.
+2. **Optics and sensor** (:class:`~moma_env.camera.sensor.SensorModel`): blur;
+   optional PAL interlacing, the odd rows drawn one field period earlier, from
+   poses interpolated with the previous frame; contrast and brightness, noise.
+3. **Detection.** ``cv2.aruco.ArucoDetector`` with the configured corner
+   refinement (markers shorter than ``CameraConfig.min_marker_px`` are
+   rejected by the detector's perimeter limit); one Detection per board with a
+   detected marker, ``T_c_m`` from solvePnP on all of its detected corners with
+   the configured ``pnp_method`` (the geometric backend's solver, so both
+   backends solve identically).
+
+Speed: the floor view is kept while the camera does not move (the observer is
+static half of the time in MOMA); rays are computed once per camera; noise is
+one random byte per pixel through a lookup table. ``last_render_s`` and
+``last_detect_s`` hold the wall-clock time of the latest frame's stages
+(for ``moma-env bench``; nothing depends on them).
+
+State: the camera keeps its latest image (:attr:`last_image`, for pixel
+observations), the cached floor view and the previous frame's poses (for
+interlacing); detections depend only on the arguments and the rng, except
+through interlacing, which needs the previous frame.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from moma_env.camera.backend import BoardView, OcclusionQuery, as_pose
+from moma_env.camera.board_raster import BoardRaster, aruco_dictionary
+from moma_env.camera.config import CameraConfig
+from moma_env.camera.floor import FloorConfig, FloorTexture
+from moma_env.camera.geometric import GeometricCamera
+from moma_env.camera.pinhole import PinholeCamera
+from moma_env.camera.rays import PixelRays
+from moma_env.camera.render_config import RenderConfig
+from moma_env.camera.sensor import SensorModel
+from moma_env.estimator.detection import Detection
+from moma_env.geometry import interpolate_pose, invert
+from moma_env.markers import BoardLayout
+
+__all__ = ["RenderedCamera"]
+
+#: A board is drawn only if every point of its paper is at least this deep in front of the camera (m).
+_NEAR_M = 0.01
+#: Interlacing interpolates poses only across a gap of at most this many field periods
+#: (a longer gap, or time going back, is a new sequence: both fields show the present).
+_MAX_FIELD_GAP = 10.0
+
+
+class RenderedCamera:
+    """Rendered camera backend (implements :class:`~moma_env.camera.backend.CameraBackend`).
+
+    Args:
+        camera_id: name copied into every detection.
+        config: intrinsics, distortion, visibility limits and PnP method.
+            ``noise_px`` is not used: the noise is in the image (``render``).
+        render: image formation and detector settings (defaults if None).
+        floor: the floor texture; None draws a plain floor of
+            ``FloorConfig.gray``.
+
+    Attributes:
+        last_image: the latest output image (uint8, (height, width)), or None.
+        last_render_s, last_detect_s: wall-clock seconds the latest frame spent
+            drawing (scene and sensor) and in the ArUco detector.
+    """
+
+    def __init__(
+        self,
+        camera_id: str,
+        config: CameraConfig,
+        render: RenderConfig | None = None,
+        floor: FloorTexture | None = None,
+    ) -> None:
+        self._solver = GeometricCamera(camera_id, config)  # validates camera_id and config
+        self.camera_id = camera_id
+        self.camera: PinholeCamera = self._solver.camera
+        self.config = config
+        self.render_config = RenderConfig() if render is None else render
+        if not isinstance(self.render_config, RenderConfig):
+            raise TypeError(f"render must be a RenderConfig, got {type(self.render_config).__name__}")
+        if floor is not None and not isinstance(floor, FloorTexture):
+            raise TypeError(f"floor must be a FloorTexture or None, got {type(floor).__name__}")
+        self.floor = floor
+        self.rays = PixelRays(self.camera)
+        self._sensor = SensorModel(self.render_config)
+        self._plain_gray = int(round(FloorConfig.gray))
+        self._rasters: dict[int, BoardRaster] = {}
+        self._lookups: dict[tuple[int, ...], tuple[tuple[BoardLayout, ...], dict[str, dict[int, tuple[int, int]]]]] = {}
+        self._detectors: dict[str, cv2.aruco.ArucoDetector] = {}
+        self._floor_key: bytes | None = None
+        self._floor_view: np.ndarray | None = None
+        self._previous: tuple[float, np.ndarray, dict[int, np.ndarray]] | None = None
+        self.last_image: np.ndarray | None = None
+        self.last_render_s = math.nan
+        self.last_detect_s = math.nan
+
+    # ------------------------------------------------------------------ public
+    def measure(
+        self,
+        T_w_c: np.ndarray,
+        boards: Sequence[BoardView],
+        time: float,
+        rng: np.random.Generator,
+        occluded: OcclusionQuery | None = None,
+    ) -> list[Detection]:
+        """Detections of ``boards`` in the image rendered from ``T_w_c`` (4x4, C in W) at ``time`` (s).
+
+        Same contract as :meth:`GeometricCamera.measure`; the image is kept in
+        :attr:`last_image`.
+        """
+        image = self.render(T_w_c, boards, rng, time=time, occluded=occluded)
+        return self.detect(image, boards, time)
+
+    def render(
+        self,
+        T_w_c: np.ndarray,
+        boards: Sequence[BoardView],
+        rng: np.random.Generator,
+        time: float | None = None,
+        occluded: OcclusionQuery | None = None,
+    ) -> np.ndarray:
+        """The camera image (uint8, (height, width)) of the scene seen from ``T_w_c``.
+
+        Args:
+            T_w_c: 4x4 camera pose in W.
+            boards: the boards in the scene.
+            rng: source of the sensor noise (one byte per pixel per frame).
+            time: acquisition time (s); needed only for interlacing, which
+                draws the odd rows at ``time - field_period_s``.
+            occluded: optional line-of-sight query (see :data:`OcclusionQuery`).
+        """
+        start = _time.perf_counter()
+        T_w_c = as_pose(T_w_c, "T_w_c")
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        poses = {b.board_id: b.T_w_m for b in boards}
+        scene = self._sensor.blur(self._scene(T_w_c, boards, [b.T_w_m for b in boards], occluded, cache_floor=True))
+        if time is not None:
+            time = float(time)
+            if not math.isfinite(time):
+                raise ValueError(f"time must be finite, got {time!r}")
+            if self.render_config.interlaced:
+                self._draw_odd_field(scene, T_w_c, boards, time, occluded)
+            self._previous = (time, T_w_c.copy(), {k: v.copy() for k, v in poses.items()})
+        image = self._sensor.read_out(scene, rng)
+        self.last_image = image
+        self.last_render_s = _time.perf_counter() - start
+        return image
+
+    def detect(self, image: np.ndarray, boards: Sequence[BoardView], time: float) -> list[Detection]:
+        """Board detections in a grayscale ``image`` (uint8, this camera's size): ArUco, then PnP.
+
+        Works on any image of this camera (rendered or real). Markers whose ids
+        belong to no board are ignored.
+        """
+        time = float(time)
+        if not math.isfinite(time):
+            raise ValueError(f"time must be finite, got {time!r}")
+        image = np.asarray(image)
+        if image.dtype != np.uint8 or image.shape != self.rays.shape:
+            raise ValueError(f"image must be uint8 of shape {self.rays.shape}, got {image.dtype} {image.shape}")
+        if not boards:
+            self.last_detect_s = 0.0
+            return []
+        layouts, lookup = self._marker_lookup(boards)
+        found: dict[int, list[tuple[int, np.ndarray]]] = {}
+        start = _time.perf_counter()
+        for dictionary, markers in lookup.items():
+            corners, ids, _ = self._detector(dictionary).detectMarkers(image)
+            if ids is None:
+                continue
+            for marker_id, quad in zip(ids.ravel().tolist(), corners):
+                owner = markers.get(marker_id)
+                if owner is not None:
+                    found.setdefault(owner[0], []).append((owner[1], quad.reshape(4, 2)))
+        self.last_detect_s = _time.perf_counter() - start
+        if not found:
+            return []
+        spans, objects, pixels = [], [], []
+        start_corner = 0
+        for b in sorted(found):
+            seen = sorted(found[b], key=lambda item: item[0])
+            k = len(seen)
+            if len({index for index, _ in seen}) < k:
+                seen = list({index: quad for index, quad in seen}.items())  # a duplicate detection: keep one
+                k = len(seen)
+            objects.append(layouts[b].marker_corners[[index for index, _ in seen]].reshape(-1, 3))
+            pixels.append(np.concatenate([quad for _, quad in seen]).astype(float))
+            spans.append((len(spans), b, start_corner, start_corner + 4 * k, [index for index, _ in seen]))
+            start_corner += 4 * k
+        object_points = np.concatenate(objects).reshape(-1, 1, 3)
+        px = np.concatenate(pixels)
+        xy = self.camera.undistort(px).reshape(-1, 1, 2)
+        T = np.zeros((len(spans), 4, 4))
+        T[:, 2:, 3] = 1.0
+        solved = self._solver._solve(object_points, xy, spans, T)
+        detections = []
+        for (i, b, first, end, indices), ok in zip(spans, solved):
+            if not ok:
+                continue
+            pts = object_points[first:end, 0]
+            reprojected = self.camera.project(pts @ T[i, :3, :3].T + T[i, :3, 3])
+            rms = math.sqrt(float(np.mean(np.sum((reprojected - px[first:end]) ** 2, axis=1))))
+            if not math.isfinite(rms):
+                continue
+            ids = tuple(layouts[b].marker_ids[k] for k in indices)
+            detections.append(Detection(self.camera_id, boards[b].board_id, T[i].copy(), px[first:end].copy(), ids, time, rms))
+        return detections
+
+    # ------------------------------------------------------------------ scene
+    def _scene(
+        self,
+        T_w_c: np.ndarray,
+        boards: Sequence[BoardView],
+        board_poses: Sequence[np.ndarray],
+        occluded: OcclusionQuery | None,
+        cache_floor: bool,
+    ) -> np.ndarray:
+        """Floor and boards (uint8, before the sensor), boards at ``board_poses`` (T_w_m)."""
+        scene = self._floor(T_w_c, cache_floor)
+        T_c_w = invert(T_w_c)
+        hidden = []
+        for board, T_w_m in zip(boards, board_poses):
+            T_c_m = T_c_w @ T_w_m
+            if self._draw_board(scene, board.layout, T_c_m) and occluded is not None:
+                hidden += self._occluded_markers(board.layout, T_w_c, T_w_m, T_c_m, occluded)
+        for quad in hidden:
+            cv2.fillConvexPoly(scene, np.rint(quad).astype(np.int32), self.render_config.occluder_gray)
+        return scene
+
+    def _floor(self, T_w_c: np.ndarray, use_cache: bool) -> np.ndarray:
+        """A fresh copy of the floor view from ``T_w_c`` (cached while the camera does not move)."""
+        if self.floor is None:
+            return np.full(self.rays.shape, self._plain_gray, dtype=np.uint8)
+        if not use_cache:
+            return self.floor.render(self.rays, T_w_c)
+        key = T_w_c.tobytes()
+        if key != self._floor_key or self._floor_view is None:
+            self._floor_view = self.floor.render(self.rays, T_w_c)
+            self._floor_key = key
+        return self._floor_view.copy()
+
+    def _raster(self, layout: BoardLayout) -> BoardRaster:
+        raster = self._rasters.get(id(layout))
+        if raster is None or raster.layout is not layout:
+            cfg = self.render_config
+            raster = BoardRaster(layout, cfg.quiet_zone_m, cfg.bit_px, cfg.paper_gray, cfg.ink_gray)
+            self._rasters[id(layout)] = raster
+        return raster
+
+    def _draw_board(self, scene: np.ndarray, layout: BoardLayout, T_c_m: np.ndarray) -> bool:
+        """Warp the board into ``scene`` inside its image window; False if it is not drawn."""
+        R, t = T_c_m[:3, :3], T_c_m[:3, 3]
+        if float(t @ R[:, 2]) >= 0.0:
+            return False  # seen from behind (or edge-on)
+        raster = self._raster(layout)
+        outline = raster.outline_m @ R.T + t
+        if float(outline[:, 2].min()) <= _NEAR_M:
+            return False
+        uv, r2 = self.camera.project_with_r2(outline)
+        if float(r2.max()) >= self.camera.fold_r2:
+            roi = (0, 0, self.rays.shape[1], self.rays.shape[0])  # beyond the lens model's fold: bound by the image
+        else:
+            roi = self.rays.roi_of(uv)
+        if roi is None:
+            return False
+        x, y = uv[:, 0], uv[:, 1]
+        area_px = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        extent = raster.outline_m[:, :2].max(axis=0) - raster.outline_m[:, :2].min(axis=0)
+        image, A = raster.level_for(math.sqrt(area_px / float(extent[0] * extent[1])))
+        H_n_m = np.column_stack([R[:, 0], R[:, 1], t])
+        x0, y0, x1, y1 = roi
+        window = np.ascontiguousarray(scene[y0:y1, x0:x1])
+        cv2.remap(
+            image,
+            self.rays.sample_map(A @ np.linalg.inv(H_n_m), roi),
+            None,
+            cv2.INTER_LINEAR,
+            dst=window,
+            borderMode=cv2.BORDER_TRANSPARENT,
+        )
+        scene[y0:y1, x0:x1] = window
+        return True
+
+    def _occluded_markers(
+        self, layout: BoardLayout, T_w_c: np.ndarray, T_w_m: np.ndarray, T_c_m: np.ndarray, occluded: OcclusionQuery
+    ) -> list[np.ndarray]:
+        """Image quads (4, 2) of the markers whose line of sight from the camera is blocked."""
+        quads = []
+        centres_m = layout.marker_corners.mean(axis=1)
+        centres_w = centres_m @ T_w_m[:3, :3].T + T_w_m[:3, 3]
+        p_from = T_w_c[:3, 3].copy()
+        for corners, centre in zip(layout.marker_corners, centres_w):
+            if occluded(p_from, centre):
+                quads.append(self.camera.project(corners @ T_c_m[:3, :3].T + T_c_m[:3, 3]))
+        return quads
+
+    def _draw_odd_field(
+        self, scene: np.ndarray, T_w_c: np.ndarray, boards: Sequence[BoardView], time: float, occluded: OcclusionQuery | None
+    ) -> None:
+        """Replace the odd rows of ``scene`` by the scene one field period earlier."""
+        if self._previous is None:
+            return
+        t0, T0, boards0 = self._previous
+        gap = time - t0
+        period = self.render_config.field_period_s
+        if not 0.0 < gap <= _MAX_FIELD_GAP * period:
+            return
+        f = max(0.0, (gap - period) / gap)  # fraction of the way from the previous frame to this one
+        moved = not np.array_equal(T0, T_w_c) or any(
+            not np.array_equal(boards0.get(b.board_id, b.T_w_m), b.T_w_m) for b in boards
+        )
+        if not moved:
+            return
+        camera_then = interpolate_pose(T0, T_w_c, f)
+        boards_then = [interpolate_pose(boards0.get(b.board_id, b.T_w_m), b.T_w_m, f) for b in boards]
+        earlier = self._sensor.blur(self._scene(camera_then, boards, boards_then, occluded, cache_floor=False))
+        scene[1::2] = earlier[1::2]
+
+    # ------------------------------------------------------------------ detection set-up
+    def _detector(self, dictionary: str) -> cv2.aruco.ArucoDetector:
+        detector = self._detectors.get(dictionary)
+        if detector is None:
+            params = cv2.aruco.DetectorParameters()
+            params.cornerRefinementMethod = getattr(cv2.aruco, "CORNER_REFINE_" + self.render_config.corner_refinement)
+            w, h = self.config.width, self.config.height
+            params.minMarkerPerimeterRate = 4.0 * self.config.min_marker_px / max(w, h)
+            detector = cv2.aruco.ArucoDetector(aruco_dictionary(dictionary), params)
+            self._detectors[dictionary] = detector
+        return detector
+
+    def _marker_lookup(
+        self, boards: Sequence[BoardView]
+    ) -> tuple[tuple[BoardLayout, ...], dict[str, dict[int, tuple[int, int]]]]:
+        """Per dictionary, marker id -> (board index, marker index); cached per sequence of layouts."""
+        key = tuple(id(b.layout) for b in boards)
+        entry = self._lookups.get(key)
+        if entry is None:
+            layouts = tuple(b.layout for b in boards)
+            lookup: dict[str, dict[int, tuple[int, int]]] = {}
+            for b, layout in enumerate(layouts):
+                markers = lookup.setdefault(layout.dictionary, {})
+                for k, marker_id in enumerate(layout.marker_ids):
+                    if marker_id in markers:
+                        raise ValueError(
+                            f"marker id {marker_id} of {layout.dictionary} is on boards {markers[marker_id][0]} and {b}; "
+                            "the rendered camera needs unique marker ids"
+                        )
+                    markers[marker_id] = (b, k)
+            if len(self._lookups) >= 16:
+                self._lookups.clear()
+            entry = (layouts, lookup)
+            self._lookups[key] = entry
+        return entry

@@ -1,0 +1,59 @@
+"""Image formation after the optics: blur, contrast and brightness, sensor noise.
+
+Every random draw comes from the caller's numpy Generator (never cv2's global
+RNG). Noise is drawn as one random byte per pixel (``Generator.bytes``, the
+cheapest draw numpy offers) mapped through a table of the 256 quantiles of a
+Gaussian, ``noise_std * Phi^-1((k + 0.5) / 256)``: exact inverse-CDF sampling
+of a Gaussian quantised to 256 levels (truncated at about +-2.66 sigma), five
+times cheaper than ``standard_normal`` on a PAL frame.
+"""
+
+from __future__ import annotations
+
+from statistics import NormalDist
+
+import cv2
+import numpy as np
+
+from moma_env.camera.render_config import RenderConfig
+
+__all__ = ["SensorModel"]
+
+
+class SensorModel:
+    """Turns a rendered scene (uint8) into the camera's output image (uint8).
+
+    Args:
+        config: blur, contrast, brightness and noise of the camera.
+    """
+
+    def __init__(self, config: RenderConfig) -> None:
+        self.config = config
+        levels = np.arange(256, dtype=float)
+        gain = config.contrast * (levels - 128.0) + 128.0 + config.brightness
+        self._gain_lut = np.clip(np.rint(gain), 0, 255).astype(np.uint8)
+        self._identity_gain = bool(np.array_equal(self._gain_lut, levels.astype(np.uint8)))
+        unit = NormalDist()
+        quantiles = [unit.inv_cdf((k + 0.5) / 256.0) for k in range(256)]
+        self._noise_lut = (config.noise_std * np.array(quantiles)).astype(np.float32)
+
+    def apply(self, scene: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The output image of ``scene`` (uint8, (height, width); modified in place and returned):
+        :meth:`blur`, then :meth:`read_out`."""
+        return self.read_out(self.blur(scene), rng)
+
+    def blur(self, scene: np.ndarray) -> np.ndarray:
+        """The optics' blur of ``scene`` (in place; returned). Comes before interlacing:
+        each field is an image of the (blurred) scene at its own time."""
+        if self.config.blur_sigma_px > 0.0:
+            cv2.GaussianBlur(scene, (0, 0), self.config.blur_sigma_px, dst=scene, borderType=cv2.BORDER_REPLICATE)
+        return scene
+
+    def read_out(self, image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Contrast, brightness and sensor noise applied to ``image`` (in place; returned)."""
+        if not self._identity_gain:
+            cv2.LUT(image, self._gain_lut, dst=image)
+        if self.config.noise_std > 0.0:
+            draws = np.frombuffer(rng.bytes(image.size), dtype=np.uint8).reshape(image.shape)
+            cv2.add(image, cv2.LUT(draws, self._noise_lut), dst=image, dtype=cv2.CV_8U)
+        return image
