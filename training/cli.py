@@ -154,7 +154,7 @@ def _run_bench(args: argparse.Namespace) -> int:
 
 def _add_experiment_arguments(parser: argparse.ArgumentParser, default_runs: int, default_out: Path) -> None:
     """The arguments every leapfrog experiment takes."""
-    from training.experiments.leapfrog_run import CAMERA_BACKENDS
+    from moma_env.camera import CAMERA_BACKENDS
     from training.experiments.presets import PRESETS
 
     parser.add_argument("--runs", type=_int_at_least(1, "count"), default=default_runs, help=f"number of runs (default {default_runs})")

@@ -28,7 +28,7 @@ from typing import ClassVar
 import numpy as np
 
 from agents.leapfrog import LeapfrogSchedule, Leg
-from moma_env.camera import BoardView, CameraBackend, CameraConfig, GeometricCamera
+from moma_env.camera import CAMERA_BACKENDS, BoardView, CameraBackend, CameraConfig, FloorConfig, FloorTexture, RenderConfig, make_camera
 from moma_env.config import ConfigError, check_bool, check_choice, check_non_negative, check_positive
 from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
 from moma_env.control.waypoint import WaypointFollower, WaypointFollowerConfig
@@ -43,7 +43,7 @@ from moma_env.world.mounts import board_on_top
 __all__ = [
     "MAIN",
     "BUDDY",
-    "CAMERA_BACKENDS",
+    "floor_texture",
     "LeapfrogConfig",
     "LeapfrogRun",
     "left_of",
@@ -54,8 +54,6 @@ __all__ = [
 
 MAIN = "ugv_0"
 BUDDY = "ugv_1"
-#: Camera backends an experiment can run with.
-CAMERA_BACKENDS = ("geometric", "rendered")
 #: Free floor around the robots' paths inside the arena walls (m).
 _ARENA_MARGIN = 1.5
 
@@ -82,6 +80,10 @@ class LeapfrogConfig:
             tracking controller choose it from the robots' spread.
         board: layout of the robots' boards (marker size, gap); robot k gets the
             ids 4k..4k+3.
+        render: image formation of the rendered backend (blur, noise, interlacing).
+        floor: texture of the floor as the rendered cameras see it; its
+            ``extent`` and ``textured`` regions are set per run from the
+            arena and :meth:`textured_regions`.
         camera, estimator, odometry, follower, tracking: the parts' configurations.
     """
 
@@ -103,6 +105,8 @@ class LeapfrogConfig:
     odometry: WheelOdometryConfig = field(default_factory=WheelOdometryConfig)
     follower: WaypointFollowerConfig = field(default_factory=WaypointFollowerConfig)
     tracking: TrackingControllerConfig = field(default_factory=TrackingControllerConfig)
+    render: RenderConfig = field(default_factory=RenderConfig)
+    floor: FloorConfig = field(default_factory=FloorConfig)
 
     def __post_init__(self) -> None:
         name = self.experiment
@@ -116,6 +120,10 @@ class LeapfrogConfig:
         check_positive(f"{name}.max_time_s", self.max_time_s)
         check_bool(f"{name}.planar_ugvs", self.planar_ugvs)
         check_choice(f"{name}.camera_backend", self.camera_backend, CAMERA_BACKENDS)
+        if not isinstance(self.render, RenderConfig):
+            raise ConfigError(f"{name}.render", f"must be a RenderConfig, got {type(self.render).__name__}")
+        if not isinstance(self.floor, FloorConfig):
+            raise ConfigError(f"{name}.floor", f"must be a FloorConfig, got {type(self.floor).__name__}")
         if not isinstance(self.board, BoardLayout):
             raise ConfigError(f"{name}.board", f"must be a BoardLayout, got {type(self.board).__name__}")
         if self.altitude is not None:
@@ -150,6 +158,10 @@ class LeapfrogConfig:
     @property
     def path_length(self) -> float:
         """Nominal path of the main robot (m), the denominator of '% of path'."""
+        raise NotImplementedError
+
+    def textured_regions(self) -> tuple[tuple[float, float, float, float], ...]:
+        """Rectangles ``(xmin, ymin, xmax, ymax)`` of textured floor in W (m); the rest is plain."""
         raise NotImplementedError
 
     # -- derived ----------------------------------------------------------------------
@@ -252,10 +264,15 @@ def _world_config(config: LeapfrogConfig, rng: np.random.Generator) -> WorldConf
     return WorldConfig(arena=_arena(config), ugvs=ugvs, uav=uav, control_hz=config.control_hz)
 
 
-def _observer_camera(config: LeapfrogConfig, camera_name: str) -> CameraBackend:
+def floor_texture(config: LeapfrogConfig, arena: ArenaConfig) -> FloorTexture:
+    """The floor of a run: ``config.floor`` over the arena, textured in :meth:`LeapfrogConfig.textured_regions`."""
+    return FloorTexture(dataclasses.replace(config.floor, extent=arena.bounds, textured=config.textured_regions()))
+
+
+def _observer_camera(config: LeapfrogConfig, camera_name: str, floor: FloorTexture | None) -> CameraBackend:
     if config.camera_backend == "geometric":
-        return GeometricCamera(camera_name, config.camera)
-    raise ConfigError(f"{config.experiment}.camera_backend", "the rendered camera is not available in this build")
+        return make_camera(camera_name, config.camera)
+    return make_camera(camera_name, config.camera, backend="rendered", render=config.render, floor=floor)
 
 
 def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], None] | None = None) -> LeapfrogRun:
@@ -271,7 +288,8 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
     world = World(_world_config(config, rng_world))
     world.reset(rng_world)
     uav_cfg = world.config.uav
-    camera = _observer_camera(config, uav_cfg.camera_name)
+    floor = floor_texture(config, world.config.arena) if config.camera_backend == "rendered" else None
+    camera = _observer_camera(config, uav_cfg.camera_name, floor)
     tracker = BoardTrackingController(
         uav_cfg.camera_mount[:3, :3], config.camera.fx, (config.camera.width, config.camera.height), config.tracking_config()
     )

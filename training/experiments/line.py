@@ -38,6 +38,9 @@ class LineConfig(LeapfrogConfig):
         length: length of the line (m); 13.785 m / 3 passes in the paper.
         passes: times the line is driven, alternately forward and backward.
         switches_per_pass: legs (and keypoints) of the main robot per pass.
+        texture_half_width: half-width of the textured floor along the line (m);
+            the paper did not run VO here, so the floor is textured throughout
+            (the VO's best case).
     """
 
     experiment = "line"
@@ -45,10 +48,12 @@ class LineConfig(LeapfrogConfig):
     length: float = 4.595
     passes: int = 3
     switches_per_pass: int = 6
+    texture_half_width: float = 0.5
     max_time_s: float = 900.0
 
     def __post_init__(self) -> None:
         check_positive("line.length", self.length)
+        check_positive("line.texture_half_width", self.texture_half_width)
         check_count("line.passes", self.passes)
         check_count("line.switches_per_pass", self.switches_per_pass)
         super().__post_init__()
@@ -75,6 +80,11 @@ class LineConfig(LeapfrogConfig):
     def path_length(self) -> float:
         """Nominal path of the main robot (m): 13.785 m in the paper."""
         return self.passes * self.length
+
+    def textured_regions(self) -> tuple[tuple[float, float, float, float], ...]:
+        """Texture along the whole line, ``texture_half_width`` m either side and beyond its ends."""
+        w = self.texture_half_width
+        return ((-w, -w, self.length + w, w),)
 
 
 def line_waypoints(length: float, passes: int, switches_per_pass: int) -> list[tuple[float, float, float]]:

@@ -26,10 +26,10 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import TypeVar
 
-from moma_env.camera import CameraConfig
+from moma_env.camera import CAMERA_BACKENDS, CameraConfig
 from moma_env.config import ConfigError, check_bool, check_choice, check_positive
 from moma_env.markers import BoardLayout
-from training.experiments.leapfrog_run import CAMERA_BACKENDS, LeapfrogConfig
+from training.experiments.leapfrog_run import LeapfrogConfig
 
 __all__ = ["ExperimentPreset", "DEFAULT", "PAPER", "PRESETS", "get_preset"]
 

@@ -31,15 +31,19 @@ class SquareConfig(LeapfrogConfig):
     Attributes:
         side: side of the square (m); the main robot's path is ``4 * side``.
         leg: length of one leg of the main robot between switches (m).
+        texture_half_width: half-width of the textured floor along the first
+            half of the path (m), see :meth:`textured_regions`.
     """
 
     experiment = "square"
 
     side: float = 1.0
     leg: float = 0.5
+    texture_half_width: float = 0.5
 
     def __post_init__(self) -> None:
         check_positive("square.side", self.side)
+        check_positive("square.texture_half_width", self.texture_half_width)
         check_positive("square.leg", self.leg)
         if self.leg > self.side:
             raise ConfigError("square.leg", f"must be <= side ({self.side}), got {self.leg}")
@@ -57,6 +61,15 @@ class SquareConfig(LeapfrogConfig):
     def path_length(self) -> float:
         """Nominal path of the main robot (m): the paper's 400 cm for a 1 m side."""
         return 4.0 * self.side
+
+    def textured_regions(self) -> tuple[tuple[float, float, float, float], ...]:
+        """The paper's lab: texture along the first half of the path only, (0, 0) -> (0, s) -> (s, s).
+
+        Strips ``texture_half_width`` m either side of the first two sides; the
+        second half, (s, s) -> (s, 0) -> (0, 0), is plain floor.
+        """
+        w, s = self.texture_half_width, self.side
+        return ((-w, 0.0, w, s + w), (-w, s - w, s, s + w))
 
 
 def square_waypoints(side: float, leg: float) -> list[tuple[float, float, float]]:
