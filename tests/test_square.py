@@ -11,6 +11,7 @@ from moma_env.config import ConfigError
 from moma_env.metrics import read_tum
 from training.cli import main
 from training.experiments.square import SquareConfig, run_square, square_legs, square_waypoints
+from training.experiments.square_report import format_table
 
 
 def test_waypoints_form_the_papers_square():
@@ -118,4 +119,11 @@ def test_summary_counts_track_loss_per_method():
     summary = summarise([run, lost])
     assert summary["moma"]["track_loss_rate"] == 0.0
     assert summary["wheel"]["track_loss_rate"] == 0.5
-    assert summary["moma"]["n_runs"] == 2
+    assert summary["moma"]["n_runs"] == 2 and summary["moma"]["kept_track"]["n_runs"] == 2
+    # The paper's convention: statistics over the runs that kept track, here the first only.
+    assert summary["wheel"]["kept_track"]["n_runs"] == 1
+    assert summary["wheel"]["kept_track"]["mean_final_error"] == run.metrics["wheel"].final_error
+    assert summarise([lost])["wheel"]["kept_track"] is None
+    config = SquareConfig(side=0.5)
+    table = format_table(summary, config, 2, 2)
+    assert "wheel odometry, kept track" in table and "MOMA, kept track" not in table

@@ -373,16 +373,23 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
 
 
 def summarise(runs: list[LeapfrogRun]) -> dict[str, dict]:
-    """Per method: the aggregate over runs (ME_f, std, ME, % of path, ...) and its track-loss rate.
+    """Per method: the aggregate over runs (ME_f, std, ME, % of path, ...) and its track loss.
 
     ``track_loss_rate`` is the fraction of runs in which the method lost track at
-    least once (:attr:`LeapfrogRun.lost_at`), in [0, 1].
+    least once (:attr:`LeapfrogRun.lost_at`), in [0, 1]. The aggregate covers
+    every run with a known final error (a visual odometry holds its last pose
+    while lost, so its error keeps counting); ``kept_track`` is the aggregate over
+    the runs where the method never lost track, the paper's convention for Viso2
+    ("this only includes the cases where Viso2 didn't lose track"), or None if
+    there is no such run.
     """
     if not runs:
         raise ValueError("summarise needs at least one run")
     out = {}
     for method in runs[0].methods:
         summary = aggregate([run.metrics[method] for run in runs]).to_dict()
-        summary["track_loss_rate"] = sum(run.lost_at[method] is not None for run in runs) / len(runs)
+        kept = [run.metrics[method] for run in runs if run.lost_at[method] is None]
+        summary["track_loss_rate"] = 1.0 - len(kept) / len(runs)
+        summary["kept_track"] = aggregate(kept).to_dict() if kept else None
         out[method] = summary
     return out

@@ -32,8 +32,9 @@ PAPER_SQUARE = {
 def format_table(summary: dict[str, dict], config: SquareConfig, n_completed: int, n_runs: int) -> str:
     """The paper-style table: ME_f, std, ME, std, % of path, track loss per method, and the paper's rows.
 
-    Statistics of a method cover the runs where its final error is known (a
-    method that lost track and never recovered has none), as in the paper.
+    Statistics of a method cover every run with a known final error; a method
+    that lost track in some runs gets a second row over the runs where it kept
+    track (the paper's convention for Viso2).
     """
     path_cm = 100.0 * config.path_length
     head = (
@@ -43,17 +44,24 @@ def format_table(summary: dict[str, dict], config: SquareConfig, n_completed: in
     title = f"Square {config.side:g} m, {n_runs} runs ({n_completed} completed), observer: {config.observer}, camera: {config.camera_backend}"
     lines = [title, head, "-" * len(head)]
     for method, s in summary.items():
-        lines.append(
-            f"{LABELS[method] + ' (ours)':<32}{cm(s['mean_final_error']):>9}{cm(s['std_final_error']):>8}"
-            f"{cm(s['mean_mean_error']):>9}{cm(s['std_mean_error']):>8}{pct(s['mean_final_error_pct_path']):>14}"
-            f"{pct(s['best_final_error_pct_path'], digits=2):>8}{cm(s['worst_final_error']):>10}{100 * s['track_loss_rate']:>6.0f}%"
-        )
+        lines.append(_row(f"{LABELS[method]} (ours)", s, s["track_loss_rate"]))
+        if s["track_loss_rate"] > 0.0:
+            kept = s["kept_track"]
+            lines.append(_row(f"  {LABELS[method]}, kept track", kept, 0.0) if kept else f"  {LABELS[method]}, kept track: no run")
     for method, p in PAPER_SQUARE.items():
         lines.append(
             f"{LABELS[method] + ' (paper, real robots)':<32}{p['ME_f_cm']:>9.2f}{p['ME_f_std_cm']:>8.2f}"
             f"{p['ME_cm']:>9.2f}{p['ME_std_cm']:>8.2f}{p['pct_path']:>14.3f}{p['best_pct_path']:>8.2f}{'':>10}{100 * p['track_loss_rate']:>6.0f}%"
         )
     return "\n".join(lines)
+
+
+def _row(label: str, s: dict, track_loss_rate: float) -> str:
+    return (
+        f"{label:<32}{cm(s['mean_final_error']):>9}{cm(s['std_final_error']):>8}"
+        f"{cm(s['mean_mean_error']):>9}{cm(s['std_mean_error']):>8}{pct(s['mean_final_error_pct_path']):>14}"
+        f"{pct(s['best_final_error_pct_path'], digits=2):>8}{cm(s['worst_final_error']):>10}{100 * track_loss_rate:>6.0f}%"
+    )
 
 
 def plot_run(run: LeapfrogRun, path: Path) -> None:
