@@ -32,6 +32,8 @@ class CentralisedTeamEnv(gym.Env):
         self.render_mode = parallel_env.render_mode
         self._agents = list(parallel_env.possible_agents)
         obs_spaces = [parallel_env.observation_space(a) for a in self._agents]
+        if not all(isinstance(s, spaces.Box) for s in obs_spaces):
+            raise ValueError("the centralised env concatenates vector observations; it cannot take observer_image (a Dict)")
         self.observation_space = spaces.Box(
             low=np.concatenate([s.low for s in obs_spaces]),
             high=np.concatenate([s.high for s in obs_spaces]),

@@ -10,7 +10,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-from moma_env.config import ConfigError, check_bool, check_choice, check_finite, check_non_negative
+from moma_env.camera.factory import CAMERA_BACKENDS
+from moma_env.camera.floor import FloorConfig
+from moma_env.camera.render_config import RenderConfig
+from moma_env.config import ConfigError, check_bool, check_choice, check_count, check_finite, check_non_negative
 
 __all__ = ["ACTION_MODES", "RewardConfig", "EnvConfig"]
 
@@ -64,12 +67,27 @@ class EnvConfig:
             tracking controller flies it).
         max_cycles: episode length in steps; ``None`` takes the scenario's.
         rewards: reward weights.
+        camera_backend: ``"geometric"`` (projected corners; fast, the default)
+            or ``"rendered"`` (synthetic images through the ArUco detector).
+        render: image formation of the rendered backend (its defaults if None).
+        floor: floor texture of the rendered backend; None textures the whole
+            arena plus a 1 m margin with :class:`FloorConfig`'s defaults.
+        observer_image: ``(width, height)`` (px) of the observer's camera image
+            added to its observation, or None (the default: vector only). The
+            observer's observation is then a ``Dict`` with ``"features"`` (the
+            usual vector) and ``"image"`` (``Box(0, 255, (height, width, 1),
+            uint8)``, the latest rendered frame downscaled). Needs the rendered
+            backend and the observer as an agent.
     """
 
     action_mode: str = "switching"
     observer_agent: bool | None = None
     max_cycles: int | None = None
     rewards: RewardConfig = field(default_factory=RewardConfig)
+    camera_backend: str = "geometric"
+    render: RenderConfig | None = None
+    floor: FloorConfig | None = None
+    observer_image: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         check_choice("env.action_mode", self.action_mode, ACTION_MODES)
@@ -81,6 +99,30 @@ class EnvConfig:
             raise ConfigError("env.max_cycles", f"must be an integer >= 1 or None, got {self.max_cycles!r}")
         if not isinstance(self.rewards, RewardConfig):
             raise ConfigError("env.rewards", f"must be a RewardConfig, got {type(self.rewards).__name__}")
+        check_choice("env.camera_backend", self.camera_backend, CAMERA_BACKENDS)
+        rendered = self.camera_backend == "rendered"
+        for name, cls in (("render", RenderConfig), ("floor", FloorConfig)):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            if not isinstance(value, cls):
+                raise ConfigError(f"env.{name}", f"must be a {cls.__name__} or None, got {type(value).__name__}")
+            if not rendered:
+                raise ConfigError(f"env.{name}", "is used only by camera_backend='rendered'")
+        if self.observer_image is not None:
+            try:
+                size = tuple(self.observer_image)
+            except TypeError:
+                raise ConfigError("env.observer_image", f"must be (width, height), got {self.observer_image!r}") from None
+            if len(size) != 2:
+                raise ConfigError("env.observer_image", f"must be (width, height), got {len(size)} values")
+            check_count("env.observer_image.width", size[0])
+            check_count("env.observer_image.height", size[1])
+            object.__setattr__(self, "observer_image", (int(size[0]), int(size[1])))
+            if not rendered:
+                raise ConfigError("env.observer_image", "needs camera_backend='rendered' (the geometric camera has no image)")
+            if not self.observer_is_agent:
+                raise ConfigError("env.observer_image", "needs the observer to be an agent (observer_agent=True)")
 
     @property
     def observer_is_agent(self) -> bool:

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from pettingzoo.utils.conversions import parallel_to_aec
 
+from moma_env.camera import FloorConfig, RenderConfig
 from moma_env.config import ConfigError, from_mapping
 from moma_env.env.centralised import CentralisedTeamEnv
 from moma_env.env.config import EnvConfig, RewardConfig
@@ -64,14 +65,36 @@ def parallel_env(
     observer_agent: bool | None = None,
     rewards: RewardConfig | Mapping[str, float] | None = None,
     random_scenarios: bool = False,
+    camera_backend: str = "geometric",
+    render: RenderConfig | Mapping[str, Any] | None = None,
+    floor: FloorConfig | Mapping[str, Any] | None = None,
+    observer_image: tuple[int, int] | None = None,
     **overrides: Any,
 ) -> MomaParallelEnv:
-    """The PettingZoo parallel env of ``configuration`` (see the module docstring)."""
+    """The PettingZoo parallel env of ``configuration`` (see the module docstring).
+
+    ``camera_backend``, ``render``, ``floor`` and ``observer_image`` are the
+    :class:`EnvConfig` fields of the same names (``render`` and ``floor`` may be
+    mappings of their fields).
+    """
     if rewards is None:
         rewards = RewardConfig()
     elif isinstance(rewards, Mapping):
         rewards = from_mapping(RewardConfig, rewards, name="rewards")
-    config = EnvConfig(action_mode=action_mode, observer_agent=observer_agent, max_cycles=max_cycles, rewards=rewards)
+    if isinstance(render, Mapping):
+        render = from_mapping(RenderConfig, render, name="render")
+    if isinstance(floor, Mapping):
+        floor = from_mapping(FloorConfig, floor, name="floor")
+    config = EnvConfig(
+        action_mode=action_mode,
+        observer_agent=observer_agent,
+        max_cycles=max_cycles,
+        rewards=rewards,
+        camera_backend=camera_backend,
+        render=render,
+        floor=floor,
+        observer_image=observer_image,
+    )
     return MomaParallelEnv(
         scenario_factory(configuration, random_scenarios, **overrides),
         config,

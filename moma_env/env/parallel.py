@@ -37,10 +37,12 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from moma_env.camera import BoardView, GeometricCamera
+from moma_env.camera import BoardView
 from moma_env.control import BoardTrackingController, WaypointFollower, WaypointFollowerConfig
+from moma_env.env.cameras import build_cameras, floor_for
 from moma_env.env.config import EnvConfig
 from moma_env.env.observations import DeviceSnapshot, ObservationLayout
+from moma_env.env.pixels import observation_spaces, observer_observation
 from moma_env.env.rules import MotionRules
 from moma_env.estimator import MomaEstimator, Phase, Status
 from moma_env.geometry import se3_to_se2, wrap_angle
@@ -150,7 +152,8 @@ class MomaParallelEnv(ParallelEnv):
             camera_owner[wc.uav.camera_name] = wc.uav.name
         self._camera_owner = camera_owner
         self._board_owner = board_owner
-        self._cameras = {name: GeometricCamera(name, scenario.camera) for name in camera_owner}
+        self._floor = floor_for(self.config, wc.arena.bounds, getattr(self, "_floor", None))
+        self._cameras = build_cameras(camera_owner, scenario.camera, self.config, self._floor)
         # Ground cameras look across the floor: robots and obstacles can hide boards.
         # The UAV looks down over everything.
         uav_camera = wc.uav.camera_name if self._has_uav else None
@@ -165,6 +168,7 @@ class MomaParallelEnv(ParallelEnv):
         self.layout = ObservationLayout(
             self._devices, self._ugvs, self._tows, self._observer_agent, centre, self._half_diag, scenario.dwell_s
         )
+        self._observation_spaces = observation_spaces(self.layout.spaces, OBSERVER, self.config.observer_image)
         self._action_spaces = {a: self._make_action_space(a) for a in self.possible_agents}
         self._follower = WaypointFollower(WaypointFollowerConfig(max_speed=0.3, position_tolerance=0.02, yaw_tolerance=0.04))
         if self._has_uav:
@@ -194,7 +198,7 @@ class MomaParallelEnv(ParallelEnv):
     # ------------------------------------------------------------------ spaces
     @functools.lru_cache(maxsize=None)  # noqa: B019 - spaces are fixed per instance
     def observation_space(self, agent: str) -> spaces.Space:
-        return self.layout.spaces[self._checked_agent(agent)]
+        return self._observation_spaces[self._checked_agent(agent)]
 
     @functools.lru_cache(maxsize=None)  # noqa: B019
     def action_space(self, agent: str) -> spaces.Space:
@@ -616,6 +620,9 @@ class MomaParallelEnv(ParallelEnv):
             altitude = None if pose is None else float(e.T_w_b[2, 3])
             in_cam = {self._board_owner[d.board_id]: d.T_c_m[:3, 3] for d in self._detections if d.camera_id == uav.camera_name}
             obs[OBSERVER] = self.layout.observer(pose, altitude, e.status, in_cam, since, dwell_left)
+            if self.config.observer_image is not None:
+                image = self._cameras[uav.camera_name].last_image
+                obs[OBSERVER] = observer_observation(obs[OBSERVER], image, self.config.observer_image)
         return obs
 
     def _info(self, agent: str, events: list[str], reward: float, collisions: int = 0) -> dict:
