@@ -28,7 +28,17 @@ from typing import ClassVar
 import numpy as np
 
 from agents.leapfrog import LeapfrogSchedule, Leg
-from moma_env.camera import CAMERA_BACKENDS, BoardView, CameraBackend, CameraConfig, FloorConfig, FloorTexture, RenderConfig, make_camera
+from moma_env.camera import (
+    CAMERA_BACKENDS,
+    BoardView,
+    CameraBackend,
+    CameraConfig,
+    FloorCamera,
+    FloorConfig,
+    FloorTexture,
+    RenderConfig,
+    make_camera,
+)
 from moma_env.config import ConfigError, check_bool, check_choice, check_non_negative, check_positive
 from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
 from moma_env.control.waypoint import WaypointFollower, WaypointFollowerConfig
@@ -37,13 +47,15 @@ from moma_env.geometry import se3_to_se2
 from moma_env.markers import BoardLayout, board_for_robot
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, aggregate, run_metrics
 from moma_env.odometry import WheelOdometry, WheelOdometryConfig
+from moma_env.odometry.visual import VisualOdometry, VisualOdometryConfig
 from moma_env.world import ArenaConfig, UAVConfig, UGVConfig, World, WorldConfig
-from moma_env.world.mounts import board_on_top
+from moma_env.world.mounts import board_on_top, camera_down
 
 __all__ = [
     "MAIN",
     "BUDDY",
     "floor_texture",
+    "FloorVOSetup",
     "LeapfrogConfig",
     "LeapfrogRun",
     "left_of",
@@ -58,6 +70,51 @@ BUDDY = "ugv_1"
 _ARENA_MARGIN = 1.5
 
 Waypoint = tuple[float, float, float]
+
+
+def _vo_camera() -> CameraConfig:
+    return CameraConfig(width=160, height=120, fx=120.0, dist=(), noise_px=0.0)
+
+
+def _floor() -> FloorConfig:
+    # Fine enough for the robot's floor camera (2.5 mm/px at 0.3 m): 2 cm blobs at 400 px/m.
+    return FloorConfig(px_per_m=400.0, feature_size_m=0.02, contrast=0.5)
+
+
+@dataclass(frozen=True)
+class FloorVOSetup:
+    """The visual odometry baseline: a camera on the main robot looking down at the floor.
+
+    Attributes:
+        camera: its intrinsics (default 160x120 px, f = 120 px: at 0.3 m it sees
+            0.40 x 0.30 m of floor, 2.5 mm per pixel).
+        height: height of its optical centre above the floor (m).
+        offset: distance of its optical centre ahead of the body origin (m).
+        render: its image formation (a digital robot camera: the rendered
+            backend's defaults, not the observer's analogue link).
+        tracking: the VO's feature tracking and motion settings.
+    """
+
+    camera: CameraConfig = field(default_factory=_vo_camera)
+    height: float = 0.30
+    offset: float = 0.20
+    render: RenderConfig = field(default_factory=RenderConfig)
+    tracking: VisualOdometryConfig = field(default_factory=VisualOdometryConfig)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.camera, CameraConfig):
+            raise ConfigError("vo.camera", f"must be a CameraConfig, got {type(self.camera).__name__}")
+        check_positive("vo.height", self.height)
+        check_non_negative("vo.offset", self.offset)
+        if not isinstance(self.render, RenderConfig):
+            raise ConfigError("vo.render", f"must be a RenderConfig, got {type(self.render).__name__}")
+        if not isinstance(self.tracking, VisualOdometryConfig):
+            raise ConfigError("vo.tracking", f"must be a VisualOdometryConfig, got {type(self.tracking).__name__}")
+
+    @property
+    def T_b_c(self) -> np.ndarray:
+        """4x4 pose of the camera in the robot's body frame (looking down, image top forward)."""
+        return camera_down(height=self.height, offset=self.offset)
 
 
 @dataclass(frozen=True)
@@ -80,10 +137,12 @@ class LeapfrogConfig:
             tracking controller choose it from the robots' spread.
         board: layout of the robots' boards (marker size, gap); robot k gets the
             ids 4k..4k+3.
-        render: image formation of the rendered backend (blur, noise, interlacing).
-        floor: texture of the floor as the rendered cameras see it; its
-            ``extent`` and ``textured`` regions are set per run from the
-            arena and :meth:`textured_regions`.
+        render: image formation of the observer's rendered camera (blur, noise, interlacing).
+        vo: the visual odometry baseline on the main robot (rendered backend only).
+        floor: texture of the floor as the rendered cameras see it (default:
+            2 cm blobs at 400 px/m, for the robot's floor camera); its
+            ``extent`` and ``textured`` regions are set per run from
+            :meth:`textured_regions`.
         camera, estimator, odometry, follower, tracking: the parts' configurations.
     """
 
@@ -106,7 +165,8 @@ class LeapfrogConfig:
     follower: WaypointFollowerConfig = field(default_factory=WaypointFollowerConfig)
     tracking: TrackingControllerConfig = field(default_factory=TrackingControllerConfig)
     render: RenderConfig = field(default_factory=RenderConfig)
-    floor: FloorConfig = field(default_factory=FloorConfig)
+    floor: FloorConfig = field(default_factory=_floor)
+    vo: FloorVOSetup = field(default_factory=FloorVOSetup)
 
     def __post_init__(self) -> None:
         name = self.experiment
@@ -124,6 +184,8 @@ class LeapfrogConfig:
             raise ConfigError(f"{name}.render", f"must be a RenderConfig, got {type(self.render).__name__}")
         if not isinstance(self.floor, FloorConfig):
             raise ConfigError(f"{name}.floor", f"must be a FloorConfig, got {type(self.floor).__name__}")
+        if not isinstance(self.vo, FloorVOSetup):
+            raise ConfigError(f"{name}.vo", f"must be a FloorVOSetup, got {type(self.vo).__name__}")
         if not isinstance(self.board, BoardLayout):
             raise ConfigError(f"{name}.board", f"must be a BoardLayout, got {type(self.board).__name__}")
         if self.altitude is not None:
@@ -224,6 +286,11 @@ class LeapfrogRun:
         return tuple(self.metrics)
 
 
+def methods_of(config: LeapfrogConfig) -> tuple[str, ...]:
+    """The localisation methods a run of ``config`` compares: MOMA, wheel odometry, and VO when rendered."""
+    return ("moma", "wheel", "vo") if config.camera_backend == "rendered" else ("moma", "wheel")
+
+
 def left_of(waypoint: Waypoint, distance: float) -> Waypoint:
     """The pose ``distance`` m to the left of ``waypoint`` (its y axis), same heading."""
     x, y, yaw = waypoint
@@ -264,9 +331,17 @@ def _world_config(config: LeapfrogConfig, rng: np.random.Generator) -> WorldConf
     return WorldConfig(arena=_arena(config), ugvs=ugvs, uav=uav, control_hz=config.control_hz)
 
 
-def floor_texture(config: LeapfrogConfig, arena: ArenaConfig) -> FloorTexture:
-    """The floor of a run: ``config.floor`` over the arena, textured in :meth:`LeapfrogConfig.textured_regions`."""
-    return FloorTexture(dataclasses.replace(config.floor, extent=arena.bounds, textured=config.textured_regions()))
+def floor_texture(config: LeapfrogConfig) -> FloorTexture:
+    """The floor of a run: ``config.floor`` textured in :meth:`LeapfrogConfig.textured_regions`, plain elsewhere.
+
+    The raster spans the textured regions only (the floor outside it is plain
+    anyway), which keeps a fine raster small.
+    """
+    regions = np.array(config.textured_regions(), dtype=float).reshape(-1, 4)
+    if regions.shape[0] == 0:
+        return FloorTexture(dataclasses.replace(config.floor, textured=()))
+    extent = (*regions[:, :2].min(axis=0), *regions[:, 2:].max(axis=0))
+    return FloorTexture(dataclasses.replace(config.floor, extent=tuple(float(v) for v in extent), textured=config.textured_regions()))
 
 
 def _observer_camera(config: LeapfrogConfig, camera_name: str, floor: FloorTexture | None) -> CameraBackend:
@@ -284,11 +359,12 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
         progress: called with the simulated time (s) after every step, if given.
     """
     root = np.random.default_rng(seed)
-    rng_world, rng_camera, rng_odometry = root.spawn(3)
+    # Children 0-2 do not depend on how many are spawned: geometric runs are unchanged by the VO's.
+    rng_world, rng_camera, rng_odometry, rng_vo_frames, rng_vo = root.spawn(5)
     world = World(_world_config(config, rng_world))
     world.reset(rng_world)
     uav_cfg = world.config.uav
-    floor = floor_texture(config, world.config.arena) if config.camera_backend == "rendered" else None
+    floor = floor_texture(config) if config.camera_backend == "rendered" else None
     camera = _observer_camera(config, uav_cfg.camera_name, floor)
     tracker = BoardTrackingController(
         uav_cfg.camera_mount[:3, :3], config.camera.fx, (config.camera.width, config.camera.height), config.tracking_config()
@@ -312,7 +388,12 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
     schedule = LeapfrogSchedule(
         leapfrog_legs(config), WaypointFollower(config.follower), config.dwell_s, [MAIN, BUDDY], start_after_s=config.start_after_s
     )
-    methods = ("moma", "wheel")
+    methods = methods_of(config)
+    vo = vo_camera = None
+    if "vo" in methods:
+        vo_camera = FloorCamera(config.vo.camera, config.vo.T_b_c, floor, config.vo.render)
+        vo = VisualOdometry(config.vo.camera, config.vo.T_b_c, config.vo.tracking, initial_pose=world.ugv_pose(MAIN), rng=rng_vo)
+        vo.update(vo_camera.frame(world.ugv_transform(MAIN), rng_vo_frames, time=world.time))
     recorders = {name: {m: TrajectoryRecorder() for m in ("truth", *methods)} for name in (MAIN, BUDDY)}
     recorders[uav_cfg.name] = {m: TrajectoryRecorder() for m in ("truth", "moma")}
     lost_at: dict[str, float | None] = {m: None for m in methods}
@@ -325,6 +406,11 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
             recorders[name]["moma"].append(t, estimator.estimate(name).T_w_b)
         recorders[MAIN]["wheel"].append(t, wheel.pose)
         recorders[BUDDY]["wheel"].append(t, None)
+        if vo is not None:
+            recorders[MAIN]["vo"].append(t, vo.T_w_b)
+            recorders[BUDDY]["vo"].append(t, None)
+            if lost_at["vo"] is None and vo.lost:
+                lost_at["vo"] = t
         recorders[uav_cfg.name]["truth"].append(t, world.uav_transform())
         recorders[uav_cfg.name]["moma"].append(t, estimator.estimate(uav_cfg.name).T_w_b)
         if lost_at["moma"] is None and estimator.estimate(MAIN).status is Status.LOST:
@@ -336,6 +422,8 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
     while not schedule.done and world.time < config.max_time_s:
         world.step(ugv_commands, uav_command)
         wheel.update(world.ugv_body_velocity(MAIN), world.dt, rng_odometry)
+        if vo is not None:
+            vo.update(vo_camera.frame(world.ugv_transform(MAIN), rng_vo_frames, time=world.time))
         views = [BoardView(board_id, layout, world.board_transform(name)) for name, (board_id, layout) in boards.items()]
         detections = camera.measure(world.camera_transform(uav_cfg.camera_name), views, world.time, rng_camera)
         estimator.update(world.time, detections)

@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass
 
 from agents.leapfrog import Leg
-from moma_env.config import ConfigError, check_positive
+from moma_env.config import ConfigError, check_non_negative, check_positive
 from training.experiments.leapfrog_run import LeapfrogConfig, LeapfrogRun, leapfrog_legs, run_leapfrog
 
 __all__ = ["SquareConfig", "square_waypoints", "square_legs", "run_square"]
@@ -33,17 +33,23 @@ class SquareConfig(LeapfrogConfig):
         leg: length of one leg of the main robot between switches (m).
         texture_half_width: half-width of the textured floor along the first
             half of the path (m), see :meth:`textured_regions`.
+        texture_clearance: distance kept between the texture and the second
+            half of the path (m).
     """
 
     experiment = "square"
 
     side: float = 1.0
     leg: float = 0.5
-    texture_half_width: float = 0.5
+    texture_half_width: float = 0.3
+    texture_clearance: float = 0.25
 
     def __post_init__(self) -> None:
         check_positive("square.side", self.side)
         check_positive("square.texture_half_width", self.texture_half_width)
+        check_non_negative("square.texture_clearance", self.texture_clearance)
+        if 2 * self.texture_clearance >= self.side:
+            raise ConfigError("square.texture_clearance", f"leaves no textured floor on a side of {self.side} m, got {self.texture_clearance}")
         check_positive("square.leg", self.leg)
         if self.leg > self.side:
             raise ConfigError("square.leg", f"must be <= side ({self.side}), got {self.leg}")
@@ -65,11 +71,13 @@ class SquareConfig(LeapfrogConfig):
     def textured_regions(self) -> tuple[tuple[float, float, float, float], ...]:
         """The paper's lab: texture along the first half of the path only, (0, 0) -> (0, s) -> (s, s).
 
-        Strips ``texture_half_width`` m either side of the first two sides; the
-        second half, (s, s) -> (s, 0) -> (0, 0), is plain floor.
+        Strips ``texture_half_width`` m either side of the first two sides, kept
+        ``texture_clearance`` m away from the second half, (s, s) -> (s, 0) ->
+        (0, 0), so that the robot's floor camera (20 cm ahead, 40 x 30 cm of
+        floor) sees only plain floor there.
         """
-        w, s = self.texture_half_width, self.side
-        return ((-w, 0.0, w, s + w), (-w, s - w, s, s + w))
+        w, c, s = self.texture_half_width, self.texture_clearance, self.side
+        return ((-w, c, w, s + w), (-w, s - w, s - c, s + w))
 
 
 def square_waypoints(side: float, leg: float) -> list[tuple[float, float, float]]:
