@@ -188,3 +188,17 @@ def test_cli_reports_an_altitude_too_low_for_the_line(capsys, monkeypatch):
     monkeypatch.setitem(presets.PRESETS, "paper", low)
     assert main(["experiment", "line", "--preset", "paper", "--runs", "1"]) == 2
     assert "line.altitude" in capsys.readouterr().err
+
+
+def test_runs_in_worker_processes_are_the_same_bit_for_bit():
+    from training.experiments.runner import run_many
+
+    cfg = LineConfig(length=0.4, passes=1, switches_per_pass=1)
+    serial = run_many(cfg, 2, seed=5)
+    parallel = run_many(cfg, 2, seed=5, jobs=2)
+    assert [r.seed for r in parallel] == [5, 6]
+    for a, b in zip(serial, parallel):
+        for method in ("truth", "moma", "wheel"):
+            np.testing.assert_array_equal(a.trajectories[MAIN][method].poses, b.trajectories[MAIN][method].poses)
+    with pytest.raises(ValueError, match="jobs"):
+        run_many(cfg, 1, seed=0, jobs=0)

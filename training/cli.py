@@ -159,6 +159,9 @@ def _add_experiment_arguments(parser: argparse.ArgumentParser, default_runs: int
 
     parser.add_argument("--runs", type=_int_at_least(1, "count"), default=default_runs, help=f"number of runs (default {default_runs})")
     parser.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first run; run k uses seed+k (default 0)")
+    parser.add_argument(
+        "--jobs", type=_int_at_least(1, "job count"), default=1, help="worker processes for the runs (default 1; same results for any value)"
+    )
     parser.add_argument("--out", type=Path, default=default_out, help=f"output folder (default {default_out})")
     parser.add_argument(
         "--observer",
@@ -230,7 +233,7 @@ def _run_experiment(args: argparse.Namespace) -> int:
     results, tables, all_runs, files = {}, [], {}, {}
     for observer, config in configs.items():
         out = args.out / observer if len(observers) > 1 else args.out
-        runs = run_many(config, args.runs, args.seed, log=lambda line, o=observer: print(f"[{o}] {line}", file=sys.stderr))
+        runs = run_many(config, args.runs, args.seed, log=lambda line, o=observer: print(f"[{o}] {line}", file=sys.stderr), jobs=args.jobs)
         summary = summarise_runs(runs)
         files[observer] = report.write_outputs(runs, summary, config, out)
         results[observer] = report.results_dict(runs, summary, config)
