@@ -204,3 +204,68 @@ def test_configs_reject_bad_values() -> None:
         cam.measure(np.eye(4), [BoardView(0, LAYOUT_0, np.eye(4)), BoardView(1, LAYOUT_0, np.eye(4))], 0.0, np.random.default_rng(0))
     with pytest.raises(ValueError, match="uint8"):
         cam.detect(np.zeros((48, 64), dtype=float), [], 0.0)
+
+
+def test_smooth_floor_map_is_within_a_hundredth_of_a_raster_pixel() -> None:
+    from moma_env.geometry import rot_x
+
+    rays = PixelRays(RenderedCamera("c", CameraConfig()).camera)
+    floor = FloorTexture(FloorConfig(extent=(-3.0, -3.0, 4.0, 4.0), px_per_m=250.0, textured=()))
+    for tilt in (0.0, 0.3):
+        H = floor.homography(make_transform(R_BODY_CAM_DOWN @ rot_x(tilt), [0.5, 0.3, 1.6]))
+        assert np.abs(rays.smooth_map(H) - rays.sample_map(H)).max() < 0.01
+
+
+def test_floor_resamples_only_the_textured_window_and_matches_the_whole_image() -> None:
+    """Half-textured floor, camera over the boundary, turned: same pixels as resampling everything."""
+    import cv2
+
+    from moma_env.geometry import rot_x, rot_z
+
+    config = FloorConfig(extent=(-2.0, -2.0, 3.0, 2.0), textured=((-2.0, -2.0, 0.6, 2.0),), px_per_m=150.0)
+    floor = FloorTexture(config)
+    rays = PixelRays(RenderedCamera("c", CameraConfig()).camera)
+    for x, yaw in ((0.2, 0.5), (0.9, -0.3), (2.5, 0.0)):
+        T_w_c = make_transform(rot_z(yaw) @ R_BODY_CAM_DOWN @ rot_x(0.1), [x, 0.1, 1.5])
+        whole = cv2.remap(
+            floor.raster, rays.smooth_map(floor.homography(T_w_c)), None, cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT, borderValue=round(config.gray),
+        )
+        image = floor.render(rays, T_w_c)
+        assert np.array_equal(image, whole)
+    assert np.all(image == round(config.gray))  # the last view is all plain floor
+
+
+def test_blur_of_the_non_uniform_window_equals_the_whole_image_blur() -> None:
+    import cv2
+
+    from moma_env.camera.sensor import SensorModel
+
+    for sigma in (0.7, 1.1):
+        sensor = SensorModel(RenderConfig(blur_sigma_px=sigma))
+        scene = np.full((60, 80), 140, dtype=np.uint8)
+        scene[20:30, 35:50] = np.random.default_rng(0).integers(0, 255, (10, 15))
+        scene[0:5, 0:10] = 30  # touching the image border
+        ksize = int(round(6 * sigma + 1)) | 1
+        whole = cv2.GaussianBlur(scene, (ksize, ksize), sigma, borderType=cv2.BORDER_REPLICATE)
+        assert np.array_equal(sensor.blur(scene.copy(), (0, 0, 50, 30)), whole)
+        assert not np.array_equal(whole, scene)
+
+
+def test_nearer_boards_cover_farther_ones_and_their_occluded_markers() -> None:
+    """A forward camera: a board 0.8 m ahead hides the middle of one 1.6 m ahead, listed first."""
+    from moma_env.geometry import R_BODY_BOARD_BACK
+
+    camera = RenderedCamera("cam", CameraConfig())
+    geometric = GeometricCamera("cam", CameraConfig(noise_px=0.0))
+    T_w_c = make_transform(R_BODY_CAM_FORWARD, [0.0, 0.0, 0.3])
+    far = BoardView(0, LAYOUT_0, make_transform(R_BODY_BOARD_BACK, [1.6, 0.0, 0.3]))
+    near = BoardView(1, LAYOUT_1, make_transform(R_BODY_BOARD_BACK, [0.8, 0.0, 0.3]))
+    rng = np.random.default_rng(0)
+    blocked = lambda p_from, p_to: bool(p_to[0] > 1.0)  # noqa: E731 - everything beyond the near board
+    for occluded, order in ((None, [near, far]), (blocked, [far, near])):
+        detections = camera.measure(T_w_c, order, 0.0, rng, occluded=occluded)
+        assert [d.board_id for d in detections] == [1]  # the far board is hidden behind the near one
+        [truth] = [d for d in geometric.measure(T_w_c, [near], 0.0, rng)]
+        assert sorted(detections[0].marker_ids) == [4, 5, 6, 7]
+        assert np.linalg.norm(detections[0].T_c_m[:3, 3] - truth.T_c_m[:3, 3]) < POSITION_TOL_M

@@ -6,7 +6,10 @@
   action spaces, episodes reset when they end, geometric camera), in both action
   modes;
 * MPE2 ``simple_spread`` (N=3, parallel API, random actions) as the reference;
-* the resident memory of ``top_observer`` sampled over a long run (``--memory-steps``).
+* the resident memory of ``top_observer`` sampled over a long run (``--memory-steps``);
+* the rendered camera in ``top_observer`` (``--rendered-steps``, see
+  :mod:`training.bench_rendered`): steps per second at 720x576 with noise and
+  the detector's own time per frame, measured in the same run.
 
 The numbers are measurements, not assertions: tests never time anything.
 """
@@ -89,14 +92,17 @@ def memory_profile(steps: int, samples: int = 10) -> list[tuple[int, float]]:
     return points
 
 
-def run_bench(steps: int, memory_steps: int) -> dict:
-    """Everything ``moma-env bench`` reports, as a dict."""
-    mpe = bench_mpe2(steps)
-    rows = bench_configurations(steps)
+def run_bench(steps: int, memory_steps: int, rendered_steps: int = 0, rendered_only: bool = False) -> dict:
+    """Everything ``moma-env bench`` reports, as a dict (``rendered_only``: just the rendered camera)."""
+    from training.bench_rendered import bench_rendered
+
+    mpe = None if rendered_only else bench_mpe2(steps)
+    rows = [] if rendered_only else bench_configurations(steps)
     for row in rows:
         row["x_mpe2"] = None if mpe is None else row["steps_per_s"] / mpe
-    memory = memory_profile(memory_steps) if memory_steps > 0 else []
+    memory = memory_profile(memory_steps) if memory_steps > 0 and not rendered_only else []
     return {
+        "rendered": bench_rendered(rendered_steps) if rendered_steps > 0 else [],
         "steps": steps,
         "mpe2_simple_spread_steps_per_s": mpe,
         "configurations": rows,
@@ -108,6 +114,10 @@ def run_bench(steps: int, memory_steps: int) -> dict:
 
 def format_bench(result: dict) -> str:
     """The benchmark table."""
+    from training.bench_rendered import format_rendered
+
+    if not result["configurations"]:
+        return format_rendered(result["rendered"])
     mpe = result["mpe2_simple_spread_steps_per_s"]
     lines = [f"{'environment':<20}{'action mode':<12}{'steps/s':>10}{'x MPE2':>9}", "-" * 51]
     for row in result["configurations"]:
@@ -122,4 +132,6 @@ def format_bench(result: dict) -> str:
             f"{last[1]:.1f} MB at the end, peak {peak:.1f} MB"
         )
     lines.append(f"({result['steps']} random-action steps per row, {result['cpu_count']} cores)")
+    if result["rendered"]:
+        lines.append("\n" + format_rendered(result["rendered"]))
     return "\n".join(lines)

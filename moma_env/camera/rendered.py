@@ -11,8 +11,9 @@ with the real pipeline a camera on the robots would run:
    :mod:`moma_env.camera.rays`) is mapped to the plane by a homography, one
    ``cv2.remap`` per plane, so perspective and lens distortion are exact up to
    the bilinear interpolation. Boards are warped only inside their image window.
-   A board seen from behind, or crossing the plane of the camera centre, is not
-   drawn; a marker whose line of sight is blocked (``occluded``) is painted over.
+   Boards are drawn far to near (painter's order). A board seen from behind, or
+   crossing the plane of the camera centre, is not drawn; a marker whose line
+   of sight is blocked (``occluded``) is painted over before nearer boards are drawn.
 2. **Optics and sensor** (:class:`~moma_env.camera.sensor.SensorModel`): blur;
    optional PAL interlacing, the odd rows drawn one field period earlier, from
    poses interpolated with the previous frame; contrast and brightness, noise.
@@ -108,6 +109,7 @@ class RenderedCamera:
         self._detectors: dict[str, cv2.aruco.ArucoDetector] = {}
         self._floor_key: bytes | None = None
         self._floor_view: np.ndarray | None = None
+        self._floor_window: tuple[int, int, int, int] | None = None
         self._previous: tuple[float, np.ndarray, dict[int, np.ndarray]] | None = None
         self.last_image: np.ndarray | None = None
         self.last_render_s = math.nan
@@ -153,7 +155,7 @@ class RenderedCamera:
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         poses = {b.board_id: b.T_w_m for b in boards}
-        scene = self._sensor.blur(self._scene(T_w_c, boards, [b.T_w_m for b in boards], occluded, cache_floor=True))
+        scene = self._sensor.blur(*self._scene(T_w_c, boards, [b.T_w_m for b in boards], occluded, cache_floor=True))
         if time is not None:
             time = float(time)
             if not math.isfinite(time):
@@ -234,30 +236,39 @@ class RenderedCamera:
         board_poses: Sequence[np.ndarray],
         occluded: OcclusionQuery | None,
         cache_floor: bool,
-    ) -> np.ndarray:
-        """Floor and boards (uint8, before the sensor), boards at ``board_poses`` (T_w_m)."""
-        scene = self._floor(T_w_c, cache_floor)
+    ) -> tuple[np.ndarray, tuple[int, int, int, int] | None]:
+        """Floor and boards (uint8, before the sensor), boards at ``board_poses`` (T_w_m),
+        and the image window outside which the scene is one gray level (None: everywhere)."""
+        scene, window = self._floor(T_w_c, cache_floor)
+        windows = [window]
         T_c_w = invert(T_w_c)
-        hidden = []
-        for board, T_w_m in zip(boards, board_poses):
-            T_c_m = T_c_w @ T_w_m
-            if self._draw_board(scene, board.layout, T_c_m) and occluded is not None:
-                hidden += self._occluded_markers(board.layout, T_w_c, T_w_m, T_c_m, occluded)
-        for quad in hidden:
-            cv2.fillConvexPoly(scene, np.rint(quad).astype(np.int32), self.render_config.occluder_gray)
-        return scene
+        in_camera = [(T_c_w @ T_w_m, board, T_w_m) for board, T_w_m in zip(boards, board_poses)]
+        # Painter's order: the farthest board first, each with its occluded markers painted
+        # over, so that nearer boards cover both.
+        in_camera.sort(key=lambda item: -float(np.dot(item[0][:3, 3], item[0][:3, 3])))
+        for T_c_m, board, T_w_m in in_camera:
+            roi = self._draw_board(scene, board.layout, T_c_m)
+            windows.append(roi)
+            if roi is not None and occluded is not None:
+                for quad in self._occluded_markers(board.layout, T_w_c, T_w_m, T_c_m, occluded):
+                    cv2.fillConvexPoly(scene, np.rint(quad).astype(np.int32), self.render_config.occluder_gray)
+                    windows.append(self.rays.roi_of(quad))
+        return scene, _union(windows)
 
-    def _floor(self, T_w_c: np.ndarray, use_cache: bool) -> np.ndarray:
-        """A fresh copy of the floor view from ``T_w_c`` (cached while the camera does not move)."""
+    def _floor(self, T_w_c: np.ndarray, use_cache: bool) -> tuple[np.ndarray, tuple[int, int, int, int] | None]:
+        """A fresh copy of the floor view from ``T_w_c`` (cached while the camera does not move),
+        and its non-uniform window (see :meth:`FloorTexture.draw`)."""
         if self.floor is None:
-            return np.full(self.rays.shape, self._plain_gray, dtype=np.uint8)
+            return np.full(self.rays.shape, self._plain_gray, dtype=np.uint8), None
         if not use_cache:
-            return self.floor.render(self.rays, T_w_c)
+            image = np.empty(self.rays.shape, dtype=np.uint8)
+            return image, self.floor.draw(self.rays, T_w_c, image)
         key = T_w_c.tobytes()
         if key != self._floor_key or self._floor_view is None:
-            self._floor_view = self.floor.render(self.rays, T_w_c)
+            self._floor_view = np.empty(self.rays.shape, dtype=np.uint8)
+            self._floor_window = self.floor.draw(self.rays, T_w_c, self._floor_view)
             self._floor_key = key
-        return self._floor_view.copy()
+        return self._floor_view.copy(), self._floor_window
 
     def _raster(self, layout: BoardLayout) -> BoardRaster:
         raster = self._rasters.get(id(layout))
@@ -267,22 +278,22 @@ class RenderedCamera:
             self._rasters[id(layout)] = raster
         return raster
 
-    def _draw_board(self, scene: np.ndarray, layout: BoardLayout, T_c_m: np.ndarray) -> bool:
-        """Warp the board into ``scene`` inside its image window; False if it is not drawn."""
+    def _draw_board(self, scene: np.ndarray, layout: BoardLayout, T_c_m: np.ndarray) -> tuple[int, int, int, int] | None:
+        """Warp the board into ``scene`` inside its image window, returned; None if it is not drawn."""
         R, t = T_c_m[:3, :3], T_c_m[:3, 3]
         if float(t @ R[:, 2]) >= 0.0:
-            return False  # seen from behind (or edge-on)
+            return None  # seen from behind (or edge-on)
         raster = self._raster(layout)
         outline = raster.outline_m @ R.T + t
         if float(outline[:, 2].min()) <= _NEAR_M:
-            return False
+            return None
         uv, r2 = self.camera.project_with_r2(outline)
         if float(r2.max()) >= self.camera.fold_r2:
             roi = (0, 0, self.rays.shape[1], self.rays.shape[0])  # beyond the lens model's fold: bound by the image
         else:
             roi = self.rays.roi_of(uv)
         if roi is None:
-            return False
+            return None
         x, y = uv[:, 0], uv[:, 1]
         area_px = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
         extent = raster.outline_m[:, :2].max(axis=0) - raster.outline_m[:, :2].min(axis=0)
@@ -299,7 +310,7 @@ class RenderedCamera:
             borderMode=cv2.BORDER_TRANSPARENT,
         )
         scene[y0:y1, x0:x1] = window
-        return True
+        return roi
 
     def _occluded_markers(
         self, layout: BoardLayout, T_w_c: np.ndarray, T_w_m: np.ndarray, T_c_m: np.ndarray, occluded: OcclusionQuery
@@ -333,7 +344,7 @@ class RenderedCamera:
             return
         camera_then = interpolate_pose(T0, T_w_c, f)
         boards_then = [interpolate_pose(boards0.get(b.board_id, b.T_w_m), b.T_w_m, f) for b in boards]
-        earlier = self._sensor.blur(self._scene(camera_then, boards, boards_then, occluded, cache_floor=False))
+        earlier = self._sensor.blur(*self._scene(camera_then, boards, boards_then, occluded, cache_floor=False))
         scene[1::2] = earlier[1::2]
 
     # ------------------------------------------------------------------ detection set-up
@@ -371,3 +382,11 @@ class RenderedCamera:
             entry = (layouts, lookup)
             self._lookups[key] = entry
         return entry
+
+
+def _union(windows: list[tuple[int, int, int, int] | None]) -> tuple[int, int, int, int] | None:
+    """Bounding box of the windows ``(x0, y0, x1, y1)`` that are not None (None if all are)."""
+    real = [w for w in windows if w is not None]
+    if not real:
+        return None
+    return min(w[0] for w in real), min(w[1] for w in real), max(w[2] for w in real), max(w[3] for w in real)

@@ -33,6 +33,9 @@ class SensorModel:
         gain = config.contrast * (levels - 128.0) + 128.0 + config.brightness
         self._gain_lut = np.clip(np.rint(gain), 0, 255).astype(np.uint8)
         self._identity_gain = bool(np.array_equal(self._gain_lut, levels.astype(np.uint8)))
+        # OpenCV's own kernel size for a sigma on 8-bit images: round(6 sigma + 1), made odd.
+        self._ksize = int(round(6.0 * config.blur_sigma_px + 1.0)) | 1
+        self._kernel_radius = self._ksize // 2
         unit = NormalDist()
         quantiles = [unit.inv_cdf((k + 0.5) / 256.0) for k in range(256)]
         self._noise_lut = (config.noise_std * np.array(quantiles)).astype(np.float32)
@@ -42,11 +45,29 @@ class SensorModel:
         :meth:`blur`, then :meth:`read_out`."""
         return self.read_out(self.blur(scene), rng)
 
-    def blur(self, scene: np.ndarray) -> np.ndarray:
+    def blur(self, scene: np.ndarray, window: tuple[int, int, int, int] | None = (0, 0, 1 << 30, 1 << 30)) -> np.ndarray:
         """The optics' blur of ``scene`` (in place; returned). Comes before interlacing:
-        each field is an image of the (blurred) scene at its own time."""
-        if self.config.blur_sigma_px > 0.0:
-            cv2.GaussianBlur(scene, (0, 0), self.config.blur_sigma_px, dst=scene, borderType=cv2.BORDER_REPLICATE)
+        each field is an image of the (blurred) scene at its own time.
+
+        ``window`` ``(x0, y0, x1, y1)`` (px, end exclusive): the scene is one
+        gray level outside it (None: everywhere), where the blur changes
+        nothing; only the window grown by the kernel's radius is filtered,
+        with the same result as filtering the whole image.
+        """
+        sigma = self.config.blur_sigma_px
+        if sigma <= 0.0 or window is None:
+            return scene
+        h, w = scene.shape
+        r = self._kernel_radius
+        x0, y0 = max(window[0] - r, 0), max(window[1] - r, 0)
+        x1, y1 = min(window[2] + r, w), min(window[3] + r, h)
+        if x0 >= x1 or y0 >= y1:
+            return scene
+        if (x0, y0, x1, y1) == (0, 0, w, h):
+            cv2.GaussianBlur(scene, (self._ksize, self._ksize), sigma, dst=scene, borderType=cv2.BORDER_REPLICATE)
+        else:
+            part = scene[y0:y1, x0:x1]
+            part[...] = cv2.GaussianBlur(part, (self._ksize, self._ksize), sigma, borderType=cv2.BORDER_REPLICATE)
         return scene
 
     def read_out(self, image: np.ndarray, rng: np.random.Generator) -> np.ndarray:

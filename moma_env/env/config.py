@@ -13,7 +13,15 @@ from dataclasses import dataclass, field, fields
 from moma_env.camera.factory import CAMERA_BACKENDS
 from moma_env.camera.floor import FloorConfig
 from moma_env.camera.render_config import RenderConfig
-from moma_env.config import ConfigError, check_bool, check_choice, check_count, check_finite, check_non_negative
+from moma_env.config import (
+    ConfigError,
+    check_bool,
+    check_choice,
+    check_count,
+    check_finite,
+    check_non_negative,
+    check_numbers,
+)
 
 __all__ = ["ACTION_MODES", "RewardConfig", "EnvConfig"]
 
@@ -110,12 +118,8 @@ class EnvConfig:
             if not rendered:
                 raise ConfigError(f"env.{name}", "is used only by camera_backend='rendered'")
         if self.observer_image is not None:
-            try:
-                size = tuple(self.observer_image)
-            except TypeError:
-                raise ConfigError("env.observer_image", f"must be (width, height), got {self.observer_image!r}") from None
-            if len(size) != 2:
-                raise ConfigError("env.observer_image", f"must be (width, height), got {len(size)} values")
+            check_numbers("env.observer_image", self.observer_image, ("width", "height"), positive=True)
+            size = tuple(self.observer_image)
             check_count("env.observer_image.width", size[0])
             check_count("env.observer_image.height", size[1])
             object.__setattr__(self, "observer_image", (int(size[0]), int(size[1])))
