@@ -27,12 +27,16 @@ def test_paper_preset_models_the_authors_hardware():
     assert PAPER.board.width == pytest.approx(0.34)
     assert PAPER.planar_ugvs is False  # the paper's system estimated full 6-DoF poses
     assert PAPER.altitude is not None
+    # The analogue link: rendered images, interlaced PAL fields 20 ms apart, blur and noise.
+    assert PAPER.camera_backend == "rendered"
+    assert PAPER.render.interlaced and PAPER.render.field_period_s == 0.02
+    assert PAPER.render.blur_sigma_px > 0 and PAPER.render.noise_std > 0
 
 
 def test_apply_sets_the_sensing_and_keeps_the_experiment():
     square = PAPER.apply(SquareConfig(observer="handheld", side=0.8, leg=0.4))
     assert (square.observer, square.side, square.leg) == ("handheld", 0.8, 0.4)
-    assert square.camera == PAPER.camera and square.altitude == PAPER.altitude
+    assert square.camera == PAPER.camera and square.altitude == PAPER.altitude and square.render == PAPER.render
     assert square.board == PAPER.board and square.planar_ugvs == PAPER.planar_ugvs
     assert square.camera_backend == PAPER.camera_backend
     assert PAPER.apply(SquareConfig(), camera_backend="geometric").camera_backend == "geometric"
@@ -50,6 +54,7 @@ def test_apply_sets_the_sensing_and_keeps_the_experiment():
         ({"description": ""}, "preset.description"),
         ({"camera_backend": "pinhole"}, "preset.camera_backend"),
         ({"camera": {"width": 720}}, "preset.camera"),
+        ({"render": {"interlaced": True}}, "preset.render"),
         ({"altitude": -2.0}, "preset.altitude"),
         ({"board": "aruco"}, "preset.board"),
         ({"planar_ugvs": 1}, "preset.planar_ugvs"),

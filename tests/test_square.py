@@ -67,6 +67,12 @@ def test_square_config_errors_name_the_field():
         SquareConfig(separation=0.3)
     with pytest.raises(ConfigError, match="square.leg"):
         SquareConfig(leg=-1.0)
+    # The texture is kept clear of the second half: a small rendered square has no room for it.
+    SquareConfig(side=0.5)
+    with pytest.raises(ConfigError, match="square.texture_clearance"):
+        SquareConfig(side=0.5, camera_backend="rendered")
+    with pytest.raises(ConfigError, match="square.camera_backend"):
+        SquareConfig(camera_backend="pinhole")
 
 
 def test_cli_writes_table_figure_tum_and_json(tmp_path, capsys):

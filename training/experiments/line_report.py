@@ -11,10 +11,9 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from moma_env.io import write_csv, write_json
 from training.experiments.leapfrog_run import MAIN, LeapfrogRun
 from training.experiments.line import LineConfig, line_metrics
-from training.experiments.report_common import COLOURS, LABELS, cm, config_record, pct, run_record, save_figure, write_run_tums
+from training.experiments.report_common import COLOURS, LABELS, cm, pct, results_base, save_figure, write_experiment_files
 
 __all__ = ["PAPER_LINE", "format_table", "format_keypoints", "plot_run", "write_outputs", "results_dict"]
 
@@ -138,27 +137,18 @@ def _keypoint_rows(runs: list[LeapfrogRun]) -> list[dict[str, object]]:
 
 def write_outputs(runs: list[LeapfrogRun], summary: dict[str, dict], config: LineConfig, out_dir: Path) -> dict[str, Path]:
     """Write the TUM trajectories, ``keypoints.csv``, ``summary.json`` and ``line.png`` into ``out_dir``."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = {"figure": out_dir / "line.png", "summary": out_dir / "summary.json", "keypoints": out_dir / "keypoints.csv"}
-    paths["tum"] = write_run_tums(runs, out_dir)
-    plot_run(runs[0], config, paths["figure"])
-    write_csv(paths["keypoints"], _keypoint_rows(runs))
-    write_json(paths["summary"], results_dict(runs, summary, config))
-    return paths
+    return write_experiment_files(
+        out_dir,
+        runs,
+        ("line.png", lambda path: plot_run(runs[0], config, path)),
+        ("keypoints.csv", _keypoint_rows(runs)),
+        results_dict(runs, summary, config),
+    )
 
 
 def results_dict(runs: list[LeapfrogRun], summary: dict[str, dict], config: LineConfig) -> dict:
-    """Everything a reader needs to reproduce the table, as plain JSON data."""
-    return {
-        "experiment": "line",
-        "length_m": config.length,
-        "passes": config.passes,
-        "switches_per_pass": config.switches_per_pass,
-        "path_length_m": config.path_length,
-        "config": config_record(config),
-        "n_runs": len(runs),
-        "n_completed": sum(r.completed for r in runs),
-        "summary": summary,
-        "runs": [run_record(r) | {"keypoints": {m: line_metrics(r, m).to_dict() for m in r.methods}} for r in runs],
-        "paper": PAPER_LINE,
-    }
+    """Everything a reader needs to reproduce the table, as plain JSON data (with every run's keypoint errors)."""
+    data = results_base("line", runs, summary, config)
+    for record, run in zip(data["runs"], runs):
+        record["keypoints"] = {m: line_metrics(run, m).to_dict() for m in run.methods}
+    return data | {"length_m": config.length, "passes": config.passes, "switches_per_pass": config.switches_per_pass, "paper": PAPER_LINE}

@@ -8,16 +8,18 @@ not at all (:mod:`moma_env.io`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from moma_env.io import atomic_path
+from moma_env.io import atomic_path, write_csv, write_json
 from moma_env.metrics import write_tum
 from training.experiments.leapfrog_run import MAIN, LeapfrogConfig, LeapfrogRun
 
-__all__ = ["LABELS", "COLOURS", "cm", "pct", "write_run_tums", "run_record", "config_record", "save_figure", "plot_observer_errors"]
+__all__ = ["LABELS", "COLOURS", "cm", "pct", "write_run_tums", "run_record", "config_record", "results_base",
+           "write_experiment_files", "save_figure", "plot_observer_errors"]
 
 #: Display names of the localisation methods (ours and the paper's).
 LABELS = {"moma": "MOMA", "wheel": "wheel odometry", "vo": "visual odometry", "viso2": "Viso2"}
@@ -77,6 +79,45 @@ def run_record(run: LeapfrogRun) -> dict:
         "lost_at_s": dict(run.lost_at),
         "metrics": {m: run.metrics[m].to_dict() for m in run.methods},
     }
+
+
+def results_base(experiment: str, runs: list[LeapfrogRun], summary: dict[str, dict], config: LeapfrogConfig) -> dict:
+    """What every experiment's JSON holds: its name, settings, summary and runs."""
+    return {
+        "experiment": experiment,
+        "path_length_m": config.path_length,
+        "observer": config.observer,
+        "config": config_record(config),
+        "n_runs": len(runs),
+        "n_completed": sum(r.completed for r in runs),
+        "summary": summary,
+        "runs": [run_record(r) for r in runs],
+    }
+
+
+def write_experiment_files(
+    out_dir: Path,
+    runs: list[LeapfrogRun],
+    figure: tuple[str, Callable[[Path], None]],
+    table: tuple[str, list[dict[str, object]]],
+    results: dict,
+) -> dict[str, Path]:
+    """Write an experiment's files into ``out_dir``, each whole or not at all; return their paths.
+
+    Args:
+        out_dir: the output folder (created).
+        runs: the runs (their TUM trajectories go to ``tum/run_XX/``).
+        figure: ``(file name, draw(path))``.
+        table: ``(file name, rows)`` of the CSV table.
+        results: the JSON summary, written last (``summary.json``).
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = {"figure": out_dir / figure[0], "summary": out_dir / "summary.json", "table": out_dir / table[0]}
+    paths["tum"] = write_run_tums(runs, out_dir)
+    figure[1](paths["figure"])
+    write_csv(paths["table"], table[1])
+    write_json(paths["summary"], results)
+    return paths
 
 
 def save_figure(fig: Figure, path: Path, dpi: int = 110) -> None:

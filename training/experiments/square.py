@@ -48,7 +48,7 @@ class SquareConfig(LeapfrogConfig):
         check_positive("square.side", self.side)
         check_positive("square.texture_half_width", self.texture_half_width)
         check_non_negative("square.texture_clearance", self.texture_clearance)
-        if 2 * self.texture_clearance >= self.side:
+        if self.camera_backend == "rendered" and 2 * self.texture_clearance >= self.side:
             raise ConfigError("square.texture_clearance", f"leaves no textured floor on a side of {self.side} m, got {self.texture_clearance}")
         check_positive("square.leg", self.leg)
         if self.leg > self.side:

@@ -12,10 +12,9 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from moma_env.io import write_csv, write_json
 from moma_env.metrics import position_errors
 from training.experiments.leapfrog_run import BUDDY, MAIN, LeapfrogRun
-from training.experiments.report_common import COLOURS, LABELS, cm, config_record, pct, run_record, save_figure, write_run_tums
+from training.experiments.report_common import COLOURS, LABELS, cm, pct, results_base, save_figure, write_experiment_files
 from training.experiments.square import SquareConfig
 
 __all__ = ["PAPER_SQUARE", "format_table", "write_outputs", "plot_run", "results_dict"]
@@ -119,27 +118,12 @@ def _runs_rows(runs: list[LeapfrogRun]) -> list[dict[str, object]]:
 
 
 def write_outputs(runs: list[LeapfrogRun], summary: dict[str, dict], config: SquareConfig, out_dir: Path) -> dict[str, Path]:
-    """Write the TUM trajectories, the per-run CSV, the summary JSON and the figure into ``out_dir``."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = {"figure": out_dir / "square.png", "summary": out_dir / "summary.json", "runs": out_dir / "runs.csv"}
-    paths["tum"] = write_run_tums(runs, out_dir)
-    plot_run(runs[0], paths["figure"])
-    write_csv(paths["runs"], _runs_rows(runs))
-    write_json(paths["summary"], results_dict(runs, summary, config))
-    return paths
+    """Write the TUM trajectories, ``runs.csv``, ``summary.json`` and ``square.png`` into ``out_dir``."""
+    return write_experiment_files(
+        out_dir, runs, ("square.png", lambda path: plot_run(runs[0], path)), ("runs.csv", _runs_rows(runs)), results_dict(runs, summary, config)
+    )
 
 
 def results_dict(runs: list[LeapfrogRun], summary: dict[str, dict], config: SquareConfig) -> dict:
     """Everything a reader needs to reproduce the table, as plain JSON data."""
-    return {
-        "experiment": "square",
-        "side_m": config.side,
-        "path_length_m": config.path_length,
-        "observer": config.observer,
-        "config": config_record(config),
-        "n_runs": len(runs),
-        "n_completed": sum(r.completed for r in runs),
-        "summary": summary,
-        "runs": [run_record(r) for r in runs],
-        "paper": PAPER_SQUARE,
-    }
+    return results_base("square", runs, summary, config) | {"side_m": config.side, "paper": PAPER_SQUARE}
