@@ -86,3 +86,17 @@ def test_cli_flags_override_the_preset():
     args = parser.parse_args(["experiment", "line", "--full-6dof"])
     config = _experiment_config(args, args.observer)
     assert config.planar_ugvs is False and config.altitude is None and config.camera_backend == "geometric"
+
+
+def test_the_preset_study_derives_its_candidates_from_the_preset():
+    from training.experiments.preset_study import CANDIDATES, candidate_config
+
+    final = list(CANDIDATES)[-1]
+    assert CANDIDATES[final] is PAPER
+    assert candidate_config(final) == PAPER.apply(SquareConfig())
+    # Each earlier step differs from the preset in the one thing it studies.
+    changed = {name: {f.name for f in dataclasses.fields(PAPER) if getattr(p, f.name) != getattr(PAPER, f.name)} for name, p in CANDIDATES.items()}
+    assert changed[final] == set()
+    assert all(fields and fields <= {"camera_backend", "render", "altitude", "planar_ugvs"} for name, fields in changed.items() if name != final)
+    with pytest.raises(KeyError, match="unknown candidate"):
+        candidate_config("lab floor")
