@@ -1,9 +1,10 @@
-"""The camera's batched hot path agrees with plain per-marker definitions.
+"""The camera's compiled hot path agrees with plain per-marker definitions.
 
-Covers the row-wise projection, the visibility checks on corner rows, the
-conservative whole-board screening, and ``GeometricCamera.measure`` on board sets
-that exercise every branch (hidden, partly visible and padded boards, failed
-solves, occlusion), plus the micro-benchmark's interface.
+Covers the kernels' projection and undistortion against the camera model, the
+visibility checks against per-marker definitions (limits included), and
+``GeometricCamera.measure`` on board sets that exercise every branch (hidden,
+partly visible and padded boards, failed solves, occlusion), plus the
+micro-benchmark's interface.
 """
 
 import math
@@ -15,14 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from moma_env.camera import BoardView, CameraConfig, GeometricCamera, PinholeCamera, marker_visibility
-from moma_env.camera.visibility import (
-    BOARD_CLEAR,
-    BOARD_HIDDEN,
-    BOARD_UNSURE,
-    centre_visibility,
-    corner_visibility_rows,
-    screen_board,
-)
+from moma_env.camera.kernels import camera_parameters, project_boards, reprojection_sq, undistort_points
 from moma_env.geometry import (
     R_BODY_BOARD_BACK,
     R_BODY_BOARD_UP,
@@ -79,7 +73,20 @@ def random_pose_c(rng):
     return make_transform(R, t)
 
 
-# ---------------------------------------------------------------- projection rows
+# ---------------------------------------------------------------- kernels vs the camera model
+
+
+def kernel_pixels(cam, pts):
+    """Pixels of camera-frame points (n, 3) through project_boards (one "marker" per 4 points)."""
+    n = len(pts) // 4
+    poses = np.zeros((n, 3, 4))
+    poses[:, 0, 0] = poses[:, 1, 1] = poses[:, 2, 2] = 1.0
+    uv = np.empty((n, 1, 4, 2))
+    project_boards(
+        poses, pts[: 4 * n].reshape(n, 1, 4, 3), np.ones((n, 1), bool), np.tile([0.0, 0.0, -1.0], (n, 1)),
+        camera_parameters(cam), uv, np.empty((n, 1), bool), np.empty((n, 1, 3)),
+    )
+    return uv.reshape(-1, 2)
 
 
 @settings(max_examples=60, deadline=None)
@@ -91,20 +98,27 @@ def random_pose_c(rng):
     fy=st.sampled_from([None, 433.0]),
     seed=st.integers(0, 2**32 - 1),
 )
-def test_project_rows_matches_project(k1, k2, p1, k3, fy, seed):
+def test_kernel_projection_and_undistortion_match_the_camera_model(k1, k2, p1, k3, fy, seed):
     cam = PinholeCamera(CameraConfig(fy=fy, dist=(k1, k2, p1, -p1, k3)))
     rng = np.random.default_rng(seed)
-    pts = np.column_stack([rng.uniform(-1.0, 1.0, (40, 2)), np.ones(40)]) * rng.uniform(0.2, 9.0, (40, 1))
-    uv, r2 = cam.project_rows(pts.T)
-    expected, expected_r2 = cam.project_with_r2(pts)
-    np.testing.assert_allclose(uv.T, expected, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(r2, expected_r2, rtol=1e-14, atol=0)
+    pts = np.column_stack([rng.uniform(-0.6, 0.6, (40, 2)), np.ones(40)]) * rng.uniform(0.2, 9.0, (40, 1))
+    uv = kernel_pixels(cam, pts)
+    np.testing.assert_allclose(uv, cam.project(pts), rtol=0, atol=1e-9)
+    xy = np.empty_like(uv)
+    undistort_points(uv, camera_parameters(cam), xy)
+    np.testing.assert_allclose(xy, pts[:, :2] / pts[:, 2:], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(xy, cam.undistort(uv), rtol=0, atol=1e-12)
 
 
-def test_project_rows_without_distortion_is_the_pinhole_model():
-    cam = PinholeCamera(CameraConfig(dist=(), fy=400.0))
-    uv, _ = cam.project_rows(np.array([[0.5, -0.2], [0.25, 0.1], [2.0, 0.5]]))
-    np.testing.assert_allclose(uv, [[359.5 + 105.0, 359.5 - 168.0], [287.5 + 50.0, 287.5 + 80.0]], atol=1e-12)
+def test_kernel_reprojection_error_is_zero_at_the_true_pose_and_grows_with_offsets():
+    cam = PinholeCamera(CameraConfig())
+    obj = board_for_robot(0).marker_corners.reshape(-1, 3)
+    T = make_transform(np.diag([1.0, -1.0, -1.0]), [0.1, 0.05, 2.0])
+    px = cam.project(obj @ T[:3, :3].T + T[:3, 3])
+    p = camera_parameters(cam)
+    assert reprojection_sq(T, obj, px, p) < 1e-18
+    shifted = px + [0.5, 0.0]
+    assert reprojection_sq(T, obj, shifted, p) == pytest.approx(len(obj) * 0.25, rel=1e-9)
 
 
 # ---------------------------------------------------------------- visibility on rows
@@ -125,22 +139,6 @@ def test_marker_visibility_matches_the_reference_definitions():
         assert seen > 60  # the sample reaches visible markers, not only hidden ones
 
 
-def test_corner_rows_with_depth_checked_agree_when_the_depth_is_fine():
-    cam = PinholeCamera(CameraConfig())
-    rng = np.random.default_rng(3)
-    for _ in range(100):
-        T = random_pose_c(rng)
-        T[2, 3] = abs(T[2, 3]) + 1.0
-        corners = BoardLayout().marker_corners @ T[:3, :3].T + T[:3, 3]
-        if not (corners[..., 2] > cam.config.min_range_m).all():
-            continue
-        rows = corners.reshape(-1, 3).T
-        a, uv_a = corner_visibility_rows(cam, rows)
-        b, uv_b = corner_visibility_rows(cam, rows, depth_checked=True)
-        np.testing.assert_array_equal(a, b)
-        np.testing.assert_array_equal(uv_a, uv_b)
-
-
 def test_visibility_limits_are_inclusive_or_strict_as_documented():
     # fx = 512 and z = 1 make the projection exact in floats, so the limits are
     # tested exactly: a corner on the margin is inside, a side of exactly
@@ -148,62 +146,28 @@ def test_visibility_limits_are_inclusive_or_strict_as_documented():
     cfg = CameraConfig(dist=(), fx=512.0, min_marker_px=20.0, margin_px=5.0)
     cam = PinholeCamera(cfg)
 
-    def rows(u, v):
+    def visible(u, v, z=1.0):
+        """Visibility of one marker facing the camera, corners at pixels (u, v) and depth z."""
         u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
-        return np.stack([(u - cfg.cx) / cfg.fx, (v - cfg.cy) / cfg.fy, np.ones(4)])
+        corners = np.stack([(u - cfg.cx) / cfg.fx * z, (v - cfg.cy) / cfg.fy * z, np.full(4, z)], axis=1)
+        ok, px = marker_visibility(cam, corners[None], np.array([0.0, 0.0, -1.0]))
+        return ok.tolist(), px[0]
 
     lo = cfg.margin_px - 0.5
     square_u, square_v = [lo, lo + 20.0, lo + 20.0, lo], [100.0, 100.0, 120.0, 120.0]
-    ok, uv = corner_visibility_rows(cam, rows(square_u, square_v))
-    np.testing.assert_array_equal(uv, [square_u, square_v])
-    assert ok.tolist() == [True]
+    ok, px = visible(square_u, square_v)
+    np.testing.assert_array_equal(px, np.column_stack([square_u, square_v]))
+    assert ok == [True]
     outside = lo - 2.0**-20  # a millionth of a pixel outside (exact in floats)
-    assert corner_visibility_rows(cam, rows([outside, lo + 20.0, lo + 20.0, outside], square_v))[0].tolist() == [False]
+    assert visible([outside, lo + 20.0, lo + 20.0, outside], square_v)[0] == [False]
     short = [lo, lo + 19.75, lo + 19.75, lo]
-    assert corner_visibility_rows(cam, rows(short, square_v))[0].tolist() == [False]
+    assert visible(short, square_v)[0] == [False]
+    # A marker centred on the optical axis at exactly max_range_m is in range; beyond, not.
     r = cfg.max_range_m
-    in_range = centre_visibility(cam, np.array([r * r, np.nextafter(r * r, np.inf)]), np.array([-r, -r]))
-    assert in_range.tolist() == [True, False]
-
-
-# ---------------------------------------------------------------- whole-board screening
-
-
-def test_screening_is_conservative():
-    cfg = CameraConfig(max_range_m=3.0, min_range_m=0.3)
-    cam = PinholeCamera(cfg)
-    layout = board_for_robot(0)
-    radius_corner = float(np.linalg.norm(layout.marker_corners, axis=-1).max())
-    radius_centre = float(np.linalg.norm(layout.marker_corners.mean(axis=1), axis=-1).max())
-    rng = np.random.default_rng(99)
-    outcomes = []
-    for k in range(1500):
-        T = random_pose_c(rng)
-        if k % 2:  # land close to the range, depth and incidence limits
-            T[:3, 3] *= rng.uniform(0.05, 0.7)
-        corners = layout.marker_corners @ T[:3, :3].T + T[:3, 3]
-        screen = screen_board(cam, T[:3].tolist(), radius_corner, radius_centre)
-        checks = reference_checks(cam, corners)[:, [0, 4, 5]]  # depth, incidence, range
-        if screen == BOARD_CLEAR:
-            assert checks.all()
-        elif screen == BOARD_HIDDEN:
-            assert not checks.all(axis=1).any()
-        outcomes.append(screen)
-    # Every outcome occurs, so the assertions above were exercised.
-    assert min(outcomes.count(s) for s in (BOARD_CLEAR, BOARD_HIDDEN, BOARD_UNSURE)) > 50
-
-
-def test_screening_decides_the_common_views():
-    cam = PinholeCamera(CameraConfig())
-    layout = BoardLayout()
-    rc = float(np.linalg.norm(layout.marker_corners, axis=-1).max())
-    rm = float(np.linalg.norm(layout.marker_corners.mean(axis=1), axis=-1).max())
-    facing = make_transform(np.diag([1.0, -1.0, -1.0]), [0.2, 0.1, 1.4])
-    behind = make_transform(np.diag([1.0, -1.0, -1.0]), [0.0, 0.0, -1.4])
-    away = make_transform(np.diag([1.0, 1.0, 1.0]), [0.0, 0.0, 1.4])
-    assert screen_board(cam, facing[:3].tolist(), rc, rm) == BOARD_CLEAR
-    assert screen_board(cam, behind[:3].tolist(), rc, rm) == BOARD_HIDDEN
-    assert screen_board(cam, away[:3].tolist(), rc, rm) == BOARD_HIDDEN
+    centred_u = [cfg.cx - 64.0, cfg.cx + 64.0, cfg.cx + 64.0, cfg.cx - 64.0]
+    centred_v = [cfg.cy - 64.0, cfg.cy - 64.0, cfg.cy + 64.0, cfg.cy + 64.0]
+    assert visible(centred_u, centred_v, z=r)[0] == [True]
+    assert visible(centred_u, centred_v, z=np.nextafter(r, np.inf))[0] == [False]
 
 
 # ---------------------------------------------------------------- measure on awkward board sets
@@ -279,7 +243,7 @@ def test_noisy_mixed_boards_are_reproducible_and_match_single_draws():
 
 @pytest.mark.parametrize("failure", ["reported", "raised"])
 def test_a_failed_solve_drops_only_its_board(monkeypatch, failure):
-    cam = GeometricCamera("uav", CameraConfig(noise_px=0.5))
+    cam = GeometricCamera("uav", CameraConfig(noise_px=0.5, pnp_method="SQPNP"))
     T_w_c = uav_camera(0.0, 0.0, 0.0, 1.8)
     boards = [floor_board(i, board_for_robot(i), x, 0.1 * i, i) for i, x in enumerate((-0.4, 0.0, 0.4))]
     reference = cam.measure(T_w_c, boards, 0.0, np.random.default_rng(3))
@@ -365,10 +329,36 @@ def test_non_planar_layout_data_is_rejected():
 def test_bench_camera_reports_timings_for_visible_boards():
     result = bench_camera(2, 5)
     assert set(result) == {"n_boards", "iters", "pnp_method", "median_us", "mean_us", "min_us", "detections_per_call"}
-    assert result["n_boards"] == 2 and result["iters"] == 5 and result["pnp_method"] == "SQPNP"
+    assert result["n_boards"] == 2 and result["iters"] == 5 and result["pnp_method"] == "PLANAR_LM"
     assert result["detections_per_call"] == 2.0
     assert 0.0 < result["min_us"] <= result["median_us"]
     with pytest.raises(ValueError, match="n_boards"):
         bench_camera(0, 5)
     with pytest.raises(ValueError, match="iters"):
         bench_camera(1, 0)
+
+
+def test_a_failed_planar_lm_solve_drops_only_its_board(monkeypatch):
+    import moma_env.camera.geometric as geometric
+
+    cam = GeometricCamera("uav", CameraConfig(noise_px=0.5))
+    assert cam.config.pnp_method == "PLANAR_LM"
+    T_w_c = uav_camera(0.0, 0.0, 0.0, 1.8)
+    boards = [floor_board(i, board_for_robot(i), x, 0.1 * i, i) for i, x in enumerate((-0.4, 0.0, 0.4))]
+    reference = cam.measure(T_w_c, boards, 0.0, np.random.default_rng(3))
+    solve = geometric.solve_boards
+    calls = []
+
+    def fail_the_middle_board(obj, px, starts, parameters, T, rms):
+        # solve_boards reports a failed board with a NaN error.
+        calls.append(len(starts) - 1)
+        solve(obj, px, starts, parameters, T, rms)
+        rms[1] = np.nan
+
+    monkeypatch.setattr(geometric, "solve_boards", fail_the_middle_board)
+    dets = cam.measure(T_w_c, boards, 0.0, np.random.default_rng(3))
+    assert calls == [3]
+    assert [d.board_id for d in dets] == [0, 2]
+    for d, r in zip(dets, (reference[0], reference[2])):
+        np.testing.assert_array_equal(d.T_c_m, r.T_c_m)
+        assert d.reprojection_error_px == pytest.approx(r.reprojection_error_px, rel=1e-12)

@@ -22,7 +22,7 @@ def test_defaults_model_the_pal_camera():
     assert cfg.fx == cfg.fy == 420.0
     assert (cfg.cx, cfg.cy) == (359.5, 287.5)
     assert len(cfg.dist) == 5 and cfg.dist[0] < 0.0  # mild barrel
-    assert cfg.pnp_method == "SQPNP"
+    assert cfg.pnp_method == "PLANAR_LM"
 
 
 def test_fy_and_principal_point_follow_fx_and_size():

@@ -269,3 +269,47 @@ def test_nearer_boards_cover_farther_ones_and_their_occluded_markers() -> None:
         [truth] = [d for d in geometric.measure(T_w_c, [near], 0.0, rng)]
         assert sorted(detections[0].marker_ids) == [4, 5, 6, 7]
         assert np.linalg.norm(detections[0].T_c_m[:3, 3] - truth.T_c_m[:3, 3]) < POSITION_TOL_M
+
+
+def test_floor_view_is_reused_only_within_its_tolerance(floor: FloorTexture, monkeypatch: pytest.MonkeyPatch) -> None:
+    texture = FloorTexture(floor.config)
+    cam = RenderedCamera("uav", CameraConfig(), RenderConfig(noise_std=0.0, floor_reuse_px=0.25), floor=texture)
+    exact = RenderedCamera("uav", CameraConfig(), RenderConfig(noise_std=0.0), floor=FloorTexture(floor.config))
+    draws = []
+    original = texture.draw
+    monkeypatch.setattr(texture, "draw", lambda *args: draws.append(1) or original(*args))
+    rng = np.random.default_rng(0)
+    cam.render(down_camera(0.5), [], rng)
+    # 0.2 mm at 1.6 m is ~0.05 px: reused; 5 mm is ~1.3 px: drawn again.
+    for x, drawn in ((0.5002, 1), (0.5004, 1), (0.505, 2), (0.5051, 2)):
+        image = cam.render(down_camera(x), [], rng)
+        assert len(draws) == drawn
+        truth = exact.render(down_camera(x), [], rng)
+        assert np.mean(np.abs(image.astype(int) - truth)) < 1.0
+    with pytest.raises(ConfigError, match="render.floor_reuse_px"):
+        RenderConfig(floor_reuse_px=-0.1)
+
+
+def test_far_floor_is_sampled_from_a_coarser_level_without_aliasing() -> None:
+    """A 800 px/m texture seen from 1.6 m (3.8 mm/px, ~3 raster px per image px): sampled
+    from the first pyrDown level (1.5 raster px per image px), with less aliasing."""
+    import cv2
+
+    floor = FloorTexture(FloorConfig(extent=(-1.5, -1.5, 2.5, 2.5), px_per_m=800.0, feature_size_m=0.01, contrast=0.8))
+    rays = PixelRays(RenderedCamera("c", CameraConfig()).camera)
+    T_w_c = down_camera(0.5, 0.3, 1.6)
+    H = floor.homography(T_w_c)
+    image = floor.render(rays, T_w_c)
+    level_1 = cv2.remap(cv2.pyrDown(floor.raster), rays.smooth_map(np.diag([0.5, 0.5, 1.0]) @ H), None, cv2.INTER_LINEAR)
+    point_sampled = cv2.remap(floor.raster, rays.smooth_map(H), None, cv2.INTER_LINEAR)
+    assert np.array_equal(image, level_1)
+
+    def fine_energy(img: np.ndarray) -> float:
+        """Mean difference of neighbouring pixels: aliasing adds energy the camera cannot resolve."""
+        return float(np.mean(np.abs(np.diff(img.astype(float), axis=1))))
+
+    assert fine_energy(image) < 0.85 * fine_energy(point_sampled)
+    # Close up (0.3 m, ~0.6 raster px per image px) the full raster is used.
+    near = down_camera(0.5, 0.3, 0.3)
+    direct = cv2.remap(floor.raster, rays.smooth_map(floor.homography(near)), None, cv2.INTER_LINEAR)
+    assert np.array_equal(floor.render(rays, near), direct)

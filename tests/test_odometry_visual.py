@@ -83,3 +83,24 @@ def test_vo_rejects_bad_input() -> None:
         vo.update(np.zeros((120, 160), dtype=np.float32))
     with pytest.raises(ValueError, match="shape"):
         vo.update(np.zeros((100, 160), dtype=np.uint8))
+
+
+def test_corner_response_threshold_separates_noise_from_texture(floor: FloorTexture) -> None:
+    """The default min_corner_response (20) lies between a plain floor with noise and the texture's features."""
+    import cv2
+
+    from moma_env.odometry.visual import _RESPONSE_SCALE
+
+    camera = FloorCamera(CAMERA, T_B_C, floor)
+    rng = np.random.default_rng(0)
+    cfg = VisualOdometryConfig()
+
+    def responses(image: np.ndarray) -> np.ndarray:
+        corners = cv2.goodFeaturesToTrack(image, cfg.max_features, cfg.quality_level, cfg.min_distance_px, blockSize=cfg.block_size)
+        uv = np.rint(corners.reshape(-1, 2)).astype(int)
+        return cv2.cornerMinEigenVal(image, cfg.block_size)[uv[:, 1], uv[:, 0]] * _RESPONSE_SCALE
+
+    plain = responses(camera.frame(se2_to_se3(2.0, 0.0, 0.0), rng))  # sensor noise of std 3 only
+    textured = responses(camera.frame(se2_to_se3(0.3, 0.0, 0.0), rng))
+    assert plain.max() < 5.0 < cfg.min_corner_response
+    assert np.median(textured) > 30.0 > cfg.min_corner_response

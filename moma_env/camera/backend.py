@@ -5,8 +5,9 @@ objects through the same call:
 
 * :class:`~moma_env.camera.geometric.GeometricCamera` projects the board corners,
   adds pixel noise and runs solvePnP (fast; for training).
-* a rendered backend (later) draws a synthetic image of the floor and the boards
-  and runs ``cv2.aruco.ArucoDetector`` and solvePnP on it (the real pipeline).
+* :class:`~moma_env.camera.rendered.RenderedCamera` draws a synthetic image of
+  the floor and the boards and runs ``cv2.aruco.ArucoDetector`` and solvePnP on
+  it (the real pipeline).
 
 The simulator hands a backend the camera pose and a :class:`BoardView` per board
 in the scene; it never tells the backend which boards are visible.

@@ -140,6 +140,7 @@ class FloorTexture:
         self.A_px_w.setflags(write=False)
         self.raster = self._make_raster(rows, cols, np.random.default_rng(config.seed))
         self.raster.setflags(write=False)
+        self._pyramid = [self.raster]  # halved copies, built when a camera first needs them
         self._plain = int(round(config.gray))
         self._background = int(round(config.background_gray))
 
@@ -185,6 +186,32 @@ class FloorTexture:
         H_w_n = np.vstack([t[0] * R[2] - t[2] * R[0], t[1] * R[2] - t[2] * R[1], R[2]])
         return self.A_px_w @ H_w_n
 
+    def _level_for(self, rays: PixelRays, H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pyramid level to sample and its homography: the coarsest level with at
+        least one raster pixel per image pixel at the principal point (no aliasing of
+        a texture finer than the camera resolves; level 0 when the camera is close).
+        For a camera looking steeply down, where the scale varies little over the image.
+
+        Level k is ``cv2.pyrDown`` applied k times; its pixel ``c`` sits on ``2**k c``
+        of the full raster, so its homography is ``diag(2**-k, 2**-k, 1) @ H``.
+        """
+        camera = rays.camera
+        x, y = rays.border_xy[-1]  # the principal point's ray
+        step = 1.0 / camera.config.fx, 1.0 / camera.config.fy
+        centre, right, down = (H @ np.array([[x, x + step[0], x], [y, y, y + step[1]], [1.0, 1.0, 1.0]])).T
+        c = centre[:2] / centre[2]
+        scale = max(np.hypot(*(right[:2] / right[2] - c)), np.hypot(*(down[:2] / down[2] - c)))
+        if not math.isfinite(scale) or scale < 2.0:
+            return self.raster, H
+        level = int(math.floor(math.log2(scale)))
+        while len(self._pyramid) <= level and min(self._pyramid[-1].shape) >= 2:
+            smaller = cv2.pyrDown(self._pyramid[-1])
+            smaller.setflags(write=False)
+            self._pyramid.append(smaller)
+        level = min(level, len(self._pyramid) - 1)
+        factor = 0.5**level
+        return self._pyramid[level], np.diag([factor, factor, 1.0]) @ H
+
     def _textured_window(
         self, rays: PixelRays, T: np.ndarray, border_dz: np.ndarray
     ) -> tuple[int, int, int, int] | None:
@@ -220,8 +247,10 @@ class FloorTexture:
         Looking steeply down (every border ray 20 degrees or more below the
         horizontal) the sampling map is interpolated from a 4 px grid (error
         below 0.01 raster px for a downward camera tilted by up to 17 degrees,
-        see the tests), and only the image window of the textured rectangles
-        is resampled; otherwise the map is exact at every pixel.
+        see the tests), only the image window of the textured rectangles is
+        resampled, and from the pyramid level that matches the camera's ground
+        resolution (no aliasing of a raster finer than the camera resolves);
+        otherwise the full raster is sampled with a map exact at every pixel.
 
         Pixels whose ray does not meet the floor in front of the camera (above
         the horizon, or a camera below the floor) get ``background_gray``; the
@@ -266,5 +295,6 @@ class FloorTexture:
         x0, y0, x1, y1 = roi
         if roi != full:
             out[:] = self._plain
-        remap_into(self.raster, rays.smooth_map(H)[y0:y1, x0:x1], out[y0:y1, x0:x1], self._plain)
+        raster, H = self._level_for(rays, H)
+        remap_into(raster, rays.smooth_map(H)[y0:y1, x0:x1], out[y0:y1, x0:x1], self._plain)
         return roi

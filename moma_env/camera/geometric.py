@@ -47,20 +47,19 @@ import numpy as np
 from moma_env.camera.backend import BoardView, OcclusionQuery, as_pose
 from moma_env.camera.config import CameraConfig
 from moma_env.camera.pinhole import PinholeCamera
-from moma_env.camera.visibility import (
-    BOARD_HIDDEN,
-    BOARD_UNSURE,
-    apply_occlusion,
-    centre_visibility,
-    corner_visibility_rows,
-    screen_board,
-)
+from moma_env.camera.kernels import camera_parameters, project_boards, reprojection_sq, solve_boards, undistort_points
+from moma_env.camera.visibility import apply_occlusion
 from moma_env.estimator.detection import Detection
 from moma_env.markers import BoardLayout
 
 __all__ = ["GeometricCamera"]
 
-_FIRST_SOLVER = {"IPPE": cv2.SOLVEPNP_IPPE, "ITERATIVE": cv2.SOLVEPNP_IPPE, "SQPNP": cv2.SOLVEPNP_SQPNP}
+_FIRST_SOLVER = {
+    "IPPE": cv2.SOLVEPNP_IPPE,
+    "ITERATIVE": cv2.SOLVEPNP_IPPE,
+    "SQPNP": cv2.SOLVEPNP_SQPNP,
+    "PLANAR_LM": None,  # moma_env.camera.planar_pnp, not OpenCV
+}
 _IDENTITY_K = np.eye(3)
 _IDENTITY_K.setflags(write=False)
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
@@ -72,7 +71,7 @@ _GEOMETRY_CACHE_SIZE = 16
 
 
 class _BoardSetGeometry:
-    """Marker geometry of one sequence of board layouts, arranged for batched projection.
+    """Marker geometry of one sequence of board layouts, arranged for the kernels.
 
     Every board is padded to ``n_markers`` markers (the most of any layout);
     padded markers are never visible. Arrays are read-only.
@@ -81,26 +80,11 @@ class _BoardSetGeometry:
         layouts: the layouts, in board order (holding them keeps their ids, the
             cache key, from being reused).
         n_markers: markers per board after padding, ``m``.
-        corners_h: (B, 4, 4m) homogeneous corners in M, as columns, marker after marker.
-        centres_h: (B, 4, m) homogeneous marker centres in M, as columns.
-        object_points: (B * 4m, 1, 3) corners in M, in solvePnP's layout.
-        object_h: (4, B * 4m) homogeneous corners in M as columns, board after board.
-        real: (B * m,) True for markers that exist, or None when no board is padded.
-        corner_radius, centre_radius: per board, the largest distance (m) of a
-            marker corner and of a marker centre from the origin of M.
+        corners_m: (B, m, 4, 3) marker corners in M (m), ArUco order.
+        real: (B, m) True for markers that exist.
     """
 
-    __slots__ = (
-        "layouts",
-        "n_markers",
-        "corners_h",
-        "centres_h",
-        "object_points",
-        "object_h",
-        "real",
-        "corner_radius",
-        "centre_radius",
-    )
+    __slots__ = ("layouts", "n_markers", "corners_m", "real")
 
     def __init__(self, layouts: tuple[BoardLayout, ...]) -> None:
         counts = [lay.marker_corners.shape[0] for lay in layouts]
@@ -113,19 +97,9 @@ class _BoardSetGeometry:
             corners[b, counts[b] :] = lay.marker_corners[0]  # padding: a copy of the first marker
         self.layouts = layouts
         self.n_markers = m
-        homogeneous = np.concatenate([corners, np.ones(corners.shape[:-1] + (1,))], axis=-1)  # (B, m, 4, 4)
-        self.corners_h = np.ascontiguousarray(homogeneous.reshape(len(layouts), 4 * m, 4).transpose(0, 2, 1))
-        centres = homogeneous.mean(axis=2)  # (B, m, 4)
-        self.centres_h = np.ascontiguousarray(centres.transpose(0, 2, 1))
-        self.object_points = corners.reshape(-1, 1, 3).copy()
-        self.object_h = np.ascontiguousarray(homogeneous.reshape(-1, 4).T)
-        self.corner_radius = np.linalg.norm(corners, axis=-1).max(axis=(1, 2)).tolist()
-        self.centre_radius = np.linalg.norm(centres[..., :3], axis=-1).max(axis=1).tolist()
-        self.real = None
-        if min(counts) < m:
-            self.real = np.array([[k < c for k in range(m)] for c in counts]).ravel()
-            self.real.setflags(write=False)
-        for a in (self.corners_h, self.centres_h, self.object_points, self.object_h):
+        self.corners_m = corners
+        self.real = np.array([[k < c for k in range(m)] for c in counts], dtype=bool).reshape(len(layouts), m)
+        for a in (self.corners_m, self.real):
             a.setflags(write=False)
 
 
@@ -150,6 +124,7 @@ class GeometricCamera:
         self._first_solver = _FIRST_SOLVER[config.pnp_method]
         self._refine_lm = config.pnp_method == "ITERATIVE"
         self._geometries: dict[tuple[int, ...], _BoardSetGeometry] = {}
+        self._parameters = camera_parameters(self.camera)
 
     def measure(
         self,
@@ -182,111 +157,98 @@ class GeometricCamera:
         if not boards:
             return []
         geo = self._geometry(boards)
-        camera = self.camera
-        m = geo.n_markers
+        n_boards, m = len(boards), geo.n_markers
 
         # Board poses in C, top three rows of T_c_m = inv(T_w_c) @ T_w_m: (B, 3, 4).
         relative = np.array([b.T_w_m[:3] for b in boards])
         relative[:, :, 3] -= T_w_c[:3, 3]
         poses = np.matmul(T_w_c[:3, :3].T, relative)
-        # Whole-board screening of checks 1, 5 and 6; only unsure boards are checked marker by marker.
-        pose_lists = poses.tolist()
-        screens = [
-            screen_board(camera, pose, geo.corner_radius[b], geo.centre_radius[b]) for b, pose in enumerate(pose_lists)
-        ]
-        kept = [b for b, screen in enumerate(screens) if screen != BOARD_HIDDEN]
-        if not kept:
+        uv = np.empty((n_boards, m, 4, 2))
+        visible = np.empty((n_boards, m), dtype=bool)
+        centres = np.empty((n_boards, m, 3))
+        if not project_boards(poses, geo.corners_m, geo.real, poses[:, :, 2], self._parameters, uv, visible, centres):
             return []
-        corners_h, centres_h, real = geo.corners_h, geo.centres_h, geo.real
-        object_points, object_h = geo.object_points, geo.object_h
-        if len(kept) < len(boards):
-            poses = poses[kept]
-            corners_h, centres_h = corners_h[kept], centres_h[kept]
-            object_points = object_points.reshape(len(boards), -1, 1, 3)[kept].reshape(-1, 1, 3)
-            object_h = object_h.reshape(4, len(boards), -1)[:, kept].reshape(4, -1)
-            if real is not None:
-                real = real.reshape(len(boards), m)[kept].ravel()
-        unsure = BOARD_UNSURE in screens
-
-        # Corners of all kept boards in C as rows x, y, z: (3, K, 4m).
-        corners = np.empty((3, len(kept), 4 * m))
-        np.matmul(poses, corners_h, out=corners.transpose(1, 0, 2))
-        visible, uv = corner_visibility_rows(camera, corners.reshape(3, -1), depth_checked=not unsure)
-        if unsure or occluded is not None:
-            centres = np.matmul(poses, centres_h)  # (K, 3, m)
-            if unsure:
-                range_sq = np.add.reduce(centres * centres, axis=1).ravel()
-                facing = np.matmul(poses[:, None, :, 2], centres).ravel()
-                visible &= centre_visibility(camera, range_sq, facing)
-        if real is not None:
-            visible &= real
         if occluded is not None:
-            apply_occlusion(visible, T_w_c, centres.transpose(0, 2, 1).reshape(-1, 3), occluded)
+            apply_occlusion(visible.reshape(-1), T_w_c, centres.reshape(-1, 3), occluded)
+        counts = np.add.reduce(visible, axis=1).tolist()
+        if not any(counts):
+            return []
 
         # Measured corners of the visible markers, board after board: (n, 2) pixels.
-        visible_list = visible.tolist()
-        corner_mask = None
-        if False in visible_list:
-            if True not in visible_list:
-                return []
-            corner_mask = np.repeat(visible, 4)
-            uv = uv.compress(corner_mask, axis=1)
-            object_points = object_points.compress(corner_mask, axis=0)
-            object_h = object_h.compress(corner_mask, axis=1)
+        px = uv[visible].reshape(-1, 2)
+        obj = geo.corners_m[visible].reshape(-1, 3)
         if self.config.noise_px > 0.0:
-            px = rng.standard_normal((uv.shape[1], 2))
-            px *= self.config.noise_px
-            px += uv.T
-            xy = camera.undistort(px).reshape(-1, 1, 2)
-        else:
-            # Without noise the measured corners are the projections: their
-            # normalised coordinates are known exactly, no undistortion needed.
-            px = np.ascontiguousarray(uv.T)
-            corners = corners.reshape(3, -1)
-            if corner_mask is not None:
-                corners = corners.compress(corner_mask, axis=1)
-            xy = (corners[:2] / corners[2]).T.reshape(-1, 1, 2)
-
-        # One PnP solve per board with a visible marker, into the rows of T: (K, 4, 4).
-        spans = []  # (row of T, board index, first corner, end corner, marker mask)
-        start = 0
-        for i, b in enumerate(kept):
-            mask = visible_list[i * m : (i + 1) * m]
-            k = mask.count(True)
-            if k:
-                spans.append((i, b, start, start + 4 * k, mask))
-                start += 4 * k
-        T = np.zeros((len(kept), 4, 4))
-        T[:, 2:, 3] = 1.0  # a board whose solve fails stays at R = 0, t = (0, 0, 1): finite reprojections
-        solved = self._solve(object_points, xy, spans, T)
-
-        # Squared reprojection errors of every board, in one pass over all corners.
-        xyz = np.empty((3, start))
-        for i, _, first, end, _ in spans:
-            np.matmul(T[i, :3], object_h[:, first:end], out=xyz[:, first:end])
-        err = camera.project_rows(xyz)[0]
-        err -= px.T
-        err *= err
-        if len(spans) == 1:
-            sum_sq = [float(np.add.reduce(err, axis=None))]
-        else:
-            sum_sq = np.add.reduceat(err[0] + err[1], [first for _, _, first, _, _ in spans]).tolist()
+            noise = rng.standard_normal(px.shape)
+            noise *= self.config.noise_px
+            px += noise
+        seen = [b for b, k in enumerate(counts) if k]
+        starts = np.zeros(len(seen) + 1, dtype=np.int64)
+        np.cumsum([4 * counts[b] for b in seen], out=starts[1:])
+        T, rms = self.solve_boards(obj, px, starts)
 
         detections = []
-        for (i, b, first, end, mask), ok, board_sq in zip(spans, solved, sum_sq):
-            rms = math.sqrt(board_sq / (end - first))
-            if not (ok and math.isfinite(rms)):
+        bounds = starts.tolist()
+        visible_rows = visible.tolist()
+        for i, b in enumerate(seen):
+            rms_b = float(rms[i])
+            if not math.isfinite(rms_b):
                 continue
             layout = geo.layouts[b]
-            all_seen = 4 * len(layout.marker_ids) == end - first
-            ids = layout.marker_ids if all_seen else tuple(compress(layout.marker_ids, mask))
-            detections.append(Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, rms))
+            first, end = bounds[i], bounds[i + 1]
+            all_seen = counts[b] == len(layout.marker_ids)
+            ids = layout.marker_ids if all_seen else tuple(compress(layout.marker_ids, visible_rows[b]))
+            detections.append(Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, rms_b))
         return detections
+
+    def solve_boards(self, obj: np.ndarray, px: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Board poses from measured corners, with the configured ``pnp_method``.
+
+        The PnP step of every backend (the rendered camera calls it on the corners
+        its detector found).
+
+        Args:
+            obj: (n, 3) float64 corners in their board frames M (m), board after board,
+                each board's corners in the plane ``z_M = 0``.
+            px: (n, 2) float64 their measured pixels (with lens distortion).
+            starts: (K + 1,) int64: board ``k`` owns rows ``starts[k]:starts[k + 1]``.
+
+        Returns:
+            ``(T, rms)``: (K, 4, 4) poses ``T_c_m`` and (K,) RMS reprojection
+            errors (px), NaN for a board that could not be solved.
+        """
+        n_boards = len(starts) - 1
+        T = np.zeros((n_boards, 4, 4))
+        rms = np.empty(n_boards)
+        if self._first_solver is None:
+            solve_boards(obj, px, starts, self._parameters, T, rms)
+        else:
+            self._solve_with_opencv(obj, px, starts, T, rms)
+        return T, rms
+
+    def _solve_with_opencv(
+        self, obj: np.ndarray, px: np.ndarray, starts: np.ndarray, T: np.ndarray, rms: np.ndarray
+    ) -> None:
+        """Like :func:`~moma_env.camera.kernels.solve_boards`, with OpenCV's solvePnP
+        (methods IPPE, ITERATIVE, SQPNP): poses into ``T``, RMS errors (NaN: failed) into ``rms``."""
+        xy = np.empty_like(px)
+        undistort_points(px, self._parameters, xy)
+        bounds = starts.tolist()
+        spans = [(i, i, bounds[i], bounds[i + 1], None) for i in range(len(bounds) - 1)]
+        T[:, 2:, 3] = 1.0  # a board whose solve fails stays at R = 0, t = (0, 0, 1)
+        solved = self._solve(obj.reshape(-1, 1, 3), xy.reshape(-1, 1, 2), spans, T)
+        for i, ok in enumerate(solved):
+            first, end = bounds[i], bounds[i + 1]
+            if ok:
+                rms[i] = math.sqrt(reprojection_sq(T[i], obj[first:end], px[first:end], self._parameters) / (end - first))
+            else:
+                rms[i] = math.nan
 
     def _solve(
         self, object_points: np.ndarray, image_xy: np.ndarray, spans: list[tuple], T: np.ndarray
     ) -> list[bool]:
-        """Board poses by OpenCV's solvePnP, written into the rows of ``T``.
+        """Board poses, written into the rows of ``T``.
+
+        OpenCV's solvePnP (``PLANAR_LM`` runs in :func:`~moma_env.camera.kernels.solve_boards`).
 
         Args:
             object_points: (n, 1, 3) corners in the board frames M (m), ArUco corner

@@ -36,8 +36,6 @@ class PinholeCamera:
             (``inf`` if it never does); points beyond it are not imaged.
         sensor_corners_px: read-only (4, 2) sensor corners (px): top-left,
             top-right, bottom-right, bottom-left.
-        image_limits_rows: read-only (2, 2, 1): lowest and highest pixel (rows u,
-            v) a marker corner may have, ``config.margin_px`` inside the sensor.
     """
 
     def __init__(self, config: CameraConfig) -> None:
@@ -54,19 +52,8 @@ class PinholeCamera:
         self._distorted = any(c != 0.0 for c in self._dist)
         self._focal = np.array([config.fx, config.fy])
         self._centre = np.array([config.cx, config.cy])
-        self._focal_col = self._focal.reshape(2, 1)
-        # Coefficients of f * (1 + k1 r2 + k2 r2^2 + k3 r2^3), highest degree first,
-        # trailing zero terms dropped (f = fx = fy when pixels are square, else 1).
-        self._square_pixels = config.fx == config.fy
-        k1, k2, _, _, k3 = self._dist
-        degree = 3 if k3 != 0.0 else 2 if k2 != 0.0 else 1 if k1 != 0.0 else 0
-        scale = config.fx if self._square_pixels else 1.0
-        self._radial_px = tuple(scale * c for c in (k3, k2, k1)[3 - degree :]) + (scale,)
-        self._centre_col = self._centre.reshape(2, 1)
         self._lo = config.margin_px - 0.5
         self._hi = np.array([config.width - 0.5 - config.margin_px, config.height - 0.5 - config.margin_px])
-        self.image_limits_rows = np.array([[self._lo, self._lo], self._hi]).reshape(2, 2, 1)
-        self.image_limits_rows.setflags(write=False)
         w, h = config.width, config.height
         self.sensor_corners_px = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
         self.sensor_corners_px.setflags(write=False)
@@ -114,52 +101,6 @@ class PinholeCamera:
         px *= self._focal
         px += self._centre
         return px, r2
-
-    def project_rows(self, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pixels of camera-frame points stored as rows: the hot-path form of :meth:`project`.
-
-        Args:
-            xyz: (3, n) array whose rows are the x, y and z coordinates in C (m),
-                all with ``z > 0``.
-
-        Returns:
-            ``(uv, r2)``: (2, n) pixels (rows u and v) with distortion, and the (n,)
-            squared undistorted normalised radius (see :meth:`distort_rows`).
-        """
-        return self.distort_rows(xyz[:2] / xyz[2])
-
-    def distort_rows(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pixels of normalised undistorted coordinates stored as rows.
-
-        Args:
-            xy: (2, n) rows ``x = X_c / Z_c`` and ``y = Y_c / Z_c``.
-
-        Returns:
-            ``(uv, r2)``: (2, n) pixels with distortion (a new array) and the (n,)
-            squared radius ``x**2 + y**2``.
-        """
-        sq = xy * xy
-        r2 = sq[0] + sq[1]
-        if self._tangential:
-            xd, yd, _ = distort(xy[0], xy[1], self._dist)
-            uv = np.stack((xd, yd))
-            uv *= self._focal_col
-        else:
-            # Radial factor times the focal length(s), by Horner's rule in r2.
-            coeffs = self._radial_px
-            if len(coeffs) == 1:
-                uv = xy * coeffs[0]
-            else:
-                factor = r2 * coeffs[0]
-                for c in coeffs[1:-1]:
-                    factor += c
-                    factor *= r2
-                factor += coeffs[-1]
-                uv = xy * factor
-            if not self._square_pixels:
-                uv *= self._focal_col
-        uv += self._centre_col
-        return uv, r2
 
     def undistort(self, px: np.ndarray) -> np.ndarray:
         """Normalised undistorted coordinates ``(x/z, y/z)`` of pixels ``(n, 2)``.

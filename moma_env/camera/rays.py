@@ -42,7 +42,9 @@ class PixelRays:
         camera: the intrinsic model.
         xy: read-only float32 array (height, width, 2): ``(x, y)`` of the ray
             ``(x, y, 1)`` in C of each pixel centre (``xy[v, u]``).
-        border_xy: read-only float64 (n, 2): rays of points along the sensor
+        border_px: read-only float64 (n, 2): pixels along the sensor border
+            (corners included) and, last, the principal point.
+        border_xy: read-only float64 (n, 2): their rays (``(x, y)`` of ``(x, y, 1)``),
             border (corners included), to decide whether a plane covers the
             whole image.
     """
@@ -59,7 +61,9 @@ class PixelRays:
         t = np.linspace(0.0, 1.0, _EDGE_SAMPLES, endpoint=False)
         corners = camera.sensor_corners_px
         border = np.concatenate([corners[k] + t[:, None] * (corners[(k + 1) % 4] - corners[k]) for k in range(4)])
-        self.border_xy = camera.undistort(border)
+        self.border_px = np.vstack([border, camera.K[:2, 2]])
+        self.border_px.setflags(write=False)
+        self.border_xy = camera.undistort(self.border_px)
         self.border_xy.setflags(write=False)
         # Grid of smooth_map: node k at u = (k + 0.5) * step - 0.5 - step, so that
         # cv2.resize (half-pixel centres) by ``step`` interpolates between nodes

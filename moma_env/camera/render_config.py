@@ -36,6 +36,10 @@ class RenderConfig:
         bit_px: board raster pixels per marker bit (finest pyramid level).
         paper_gray, ink_gray: gray levels of the board's white paper and black ink.
         occluder_gray: gray level painted over a marker whose line of sight is blocked.
+        floor_reuse_px: the floor view is drawn again only when the camera has
+            moved enough to shift it by more than this (px) since it was drawn;
+            0 redraws it whenever the pose changes at all. Boards are drawn
+            every frame at their exact place whatever this is.
     """
 
     blur_sigma_px: float = 0.7
@@ -50,6 +54,7 @@ class RenderConfig:
     paper_gray: int = 235
     ink_gray: int = 25
     occluder_gray: int = 70
+    floor_reuse_px: float = 0.0
 
     def __post_init__(self) -> None:
         check_non_negative("render.blur_sigma_px", self.blur_sigma_px)
@@ -61,6 +66,7 @@ class RenderConfig:
         check_choice("render.corner_refinement", self.corner_refinement, CORNER_REFINEMENTS)
         check_non_negative("render.quiet_zone_m", self.quiet_zone_m)
         check_count("render.bit_px", self.bit_px, minimum=2)
+        check_non_negative("render.floor_reuse_px", self.floor_reuse_px)
         for name in ("paper_gray", "ink_gray", "occluder_gray"):
             check_count(f"render.{name}", getattr(self, name), minimum=0)
             check_range(f"render.{name}", getattr(self, name), 0, 255)

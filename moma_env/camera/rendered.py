@@ -18,15 +18,19 @@ with the real pipeline a camera on the robots would run:
    optional PAL interlacing, the odd rows drawn one field period earlier, from
    poses interpolated with the previous frame; contrast and brightness, noise.
 3. **Detection.** ``cv2.aruco.ArucoDetector`` with the configured corner
-   refinement (markers shorter than ``CameraConfig.min_marker_px`` are
-   rejected by the detector's perimeter limit); one Detection per board with a
-   detected marker, ``T_c_m`` from solvePnP on all of its detected corners with
-   the configured ``pnp_method`` (the geometric backend's solver, so both
-   backends solve identically).
+   refinement. Of the camera's visibility limits, ``min_marker_px`` becomes
+   the detector's perimeter limit and ``margin_px`` its distance to the image
+   border; range, incidence and occlusion are whatever the image allows. One
+   Detection per board with a detected marker, ``T_c_m`` from PnP on all of
+   its detected corners with the configured ``pnp_method``
+   (``GeometricCamera.solve_boards``, so both backends solve identically).
 
-Speed: the floor view is kept while the camera does not move (the observer is
-static half of the time in MOMA); rays are computed once per camera; noise is
-one random byte per pixel through a lookup table. ``last_render_s`` and
+Speed: the floor view is kept while the camera does not move (or, with
+``RenderConfig.floor_reuse_px``, while it moves the view by less than that);
+the floor is resampled only inside the window of its textured rectangles and
+the blur applied only where the scene is not uniform; rays are computed once
+per camera; noise is one random byte per pixel through a lookup table.
+``last_render_s`` and
 ``last_detect_s`` hold the wall-clock time of the latest frame's stages
 (for ``moma-env bench``; nothing depends on them).
 
@@ -110,6 +114,7 @@ class RenderedCamera:
         self._floor_key: bytes | None = None
         self._floor_view: np.ndarray | None = None
         self._floor_window: tuple[int, int, int, int] | None = None
+        self._floor_pose = np.eye(4)
         self._previous: tuple[float, np.ndarray, dict[int, np.ndarray]] | None = None
         self.last_image: np.ndarray | None = None
         self.last_render_s = math.nan
@@ -197,35 +202,22 @@ class RenderedCamera:
         self.last_detect_s = _time.perf_counter() - start
         if not found:
             return []
-        spans, objects, pixels = [], [], []
-        start_corner = 0
+        order, objects, pixels, starts = [], [], [], [0]
         for b in sorted(found):
-            seen = sorted(found[b], key=lambda item: item[0])
-            k = len(seen)
-            if len({index for index, _ in seen}) < k:
-                seen = list({index: quad for index, quad in seen}.items())  # a duplicate detection: keep one
-                k = len(seen)
-            objects.append(layouts[b].marker_corners[[index for index, _ in seen]].reshape(-1, 3))
-            pixels.append(np.concatenate([quad for _, quad in seen]).astype(float))
-            spans.append((len(spans), b, start_corner, start_corner + 4 * k, [index for index, _ in seen]))
-            start_corner += 4 * k
-        object_points = np.concatenate(objects).reshape(-1, 1, 3)
-        px = np.concatenate(pixels)
-        xy = self.camera.undistort(px).reshape(-1, 1, 2)
-        T = np.zeros((len(spans), 4, 4))
-        T[:, 2:, 3] = 1.0
-        solved = self._solver._solve(object_points, xy, spans, T)
+            seen = dict(sorted(found[b], key=lambda item: item[0]))  # marker index -> corners (a duplicate: one kept)
+            order.append((b, tuple(seen)))
+            objects.append(layouts[b].marker_corners[list(seen)].reshape(-1, 3))
+            pixels.append(np.concatenate(list(seen.values())))
+            starts.append(starts[-1] + 4 * len(seen))
+        px = np.concatenate(pixels).astype(np.float64)
+        T, rms = self._solver.solve_boards(np.concatenate(objects), px, np.array(starts, dtype=np.int64))
         detections = []
-        for (i, b, first, end, indices), ok in zip(spans, solved):
-            if not ok:
-                continue
-            pts = object_points[first:end, 0]
-            reprojected = self.camera.project(pts @ T[i, :3, :3].T + T[i, :3, 3])
-            rms = math.sqrt(float(np.mean(np.sum((reprojected - px[first:end]) ** 2, axis=1))))
-            if not math.isfinite(rms):
+        for i, (b, indices) in enumerate(order):
+            if not math.isfinite(rms[i]):
                 continue
             ids = tuple(layouts[b].marker_ids[k] for k in indices)
-            detections.append(Detection(self.camera_id, boards[b].board_id, T[i].copy(), px[first:end].copy(), ids, time, rms))
+            first, end = starts[i], starts[i + 1]
+            detections.append(Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, float(rms[i])))
         return detections
 
     # ------------------------------------------------------------------ scene
@@ -264,11 +256,39 @@ class RenderedCamera:
             image = np.empty(self.rays.shape, dtype=np.uint8)
             return image, self.floor.draw(self.rays, T_w_c, image)
         key = T_w_c.tobytes()
-        if key != self._floor_key or self._floor_view is None:
+        if self._floor_view is None or (key != self._floor_key and not self._floor_view_holds(T_w_c)):
             self._floor_view = np.empty(self.rays.shape, dtype=np.uint8)
             self._floor_window = self.floor.draw(self.rays, T_w_c, self._floor_view)
             self._floor_key = key
+            self._floor_pose = T_w_c.copy()
         return self._floor_view.copy(), self._floor_window
+
+    def _floor_view_holds(self, T_w_c: np.ndarray) -> bool:
+        """True if the cached floor view is within ``floor_reuse_px`` of the view from ``T_w_c``.
+
+        The floor points seen by the border pixels and the principal point of
+        the cached view are projected from the new pose; the view holds if none
+        moved by more than the tolerance (a small camera motion moves the floor
+        image smoothly, so these points bound the shift). Only for a view that
+        is all floor (no horizon).
+        """
+        tolerance = self.render_config.floor_reuse_px
+        if tolerance <= 0.0:
+            return False
+        T0 = self._floor_pose
+        rays = self.rays
+        d = np.column_stack([rays.border_xy, np.ones(len(rays.border_xy))]) @ T0[:3, :3].T
+        if T0[2, 3] <= 0.0 or float(d[:, 2].max()) >= 0.0:
+            return False
+        floor_w = T0[:3, 3] + (-T0[2, 3] / d[:, 2])[:, None] * d
+        p_c = (floor_w - T_w_c[:3, 3]) @ T_w_c[:3, :3]
+        if float(p_c[:, 2].min()) <= 0.0:
+            return False
+        uv, r2 = self.camera.project_with_r2(p_c)
+        if not float(r2.max()) < self.camera.fold_r2:
+            return False
+        shift_sq = np.einsum("ij,ij->i", uv - rays.border_px, uv - rays.border_px)
+        return float(shift_sq.max()) <= tolerance * tolerance
 
     def _raster(self, layout: BoardLayout) -> BoardRaster:
         raster = self._rasters.get(id(layout))
@@ -355,6 +375,7 @@ class RenderedCamera:
             params.cornerRefinementMethod = getattr(cv2.aruco, "CORNER_REFINE_" + self.render_config.corner_refinement)
             w, h = self.config.width, self.config.height
             params.minMarkerPerimeterRate = 4.0 * self.config.min_marker_px / max(w, h)
+            params.minDistanceToBorder = int(math.ceil(self.config.margin_px))
             detector = cv2.aruco.ArucoDetector(aruco_dictionary(dictionary), params)
             self._detectors[dictionary] = detector
         return detector

@@ -69,7 +69,7 @@ class BoardTrackingController:
     def __init__(self, R_b_c: np.ndarray, focal_px: float, image_size: tuple[int, int], config: TrackingControllerConfig | None = None):
         check_positive("tracking.focal_px", focal_px)
         self.config = config or TrackingControllerConfig()
-        self._R_b_c = np.asarray(R_b_c, dtype=float)[:3, :3].copy()
+        self._R_b_c_rows = np.asarray(R_b_c, dtype=float)[:3, :3].tolist()
         self._half_fov_tan = min(image_size) / 2.0 / focal_px
 
     def target_depth(self, spread: float) -> float:
@@ -83,16 +83,21 @@ class BoardTrackingController:
         c = self.config
         if len(board_positions_c) == 0:
             return np.array([0.0, 0.0, 0.0, c.search_climb])
-        P = np.asarray(board_positions_c, dtype=float).reshape(-1, 3)
-        centroid = P.mean(axis=0)
-        lateral = P[:, :2] - centroid[:2]
-        spread = 2.0 * float(np.max(np.linalg.norm(lateral, axis=1)))
+        # Plain floats: a handful of boards, where numpy calls would cost more than the arithmetic.
+        points = [(float(p[0]), float(p[1]), float(p[2])) for p in board_positions_c]
+        n = len(points)
+        cx = sum(p[0] for p in points) / n
+        cy = sum(p[1] for p in points) / n
+        cz = sum(p[2] for p in points) / n
+        spread = 2.0 * max(math.hypot(p[0] - cx, p[1] - cy) for p in points)
         # Offset of the centroid from the optical axis, in the body frame.
-        offset_b = self._R_b_c @ np.array([centroid[0], centroid[1], 0.0])
-        v = c.gain * offset_b[:2]
-        speed = math.hypot(v[0], v[1])
+        R = self._R_b_c_rows
+        vx = c.gain * (R[0][0] * cx + R[0][1] * cy)
+        vy = c.gain * (R[1][0] * cx + R[1][1] * cy)
+        speed = math.hypot(vx, vy)
         if speed > c.max_speed:
-            v *= c.max_speed / speed
-        depth_error = centroid[2] - self.target_depth(spread)
-        climb = float(np.clip(-c.altitude_gain * depth_error, -c.max_climb, c.max_climb))
-        return np.array([v[0], v[1], 0.0, climb])
+            vx *= c.max_speed / speed
+            vy *= c.max_speed / speed
+        depth_error = cz - self.target_depth(spread)
+        climb = min(c.max_climb, max(-c.max_climb, -c.altitude_gain * depth_error))
+        return np.array([vx, vy, 0.0, climb])

@@ -303,7 +303,9 @@ class MomaParallelEnv(ParallelEnv):
                 self._make_static(device, t)
                 n_switch += 1
                 events[self._agent_of(device)].append(f"static:{device}")
-        references = {n for n, e in self.estimator.estimates().items() if e.phase is Phase.REFERENCE}  # live: phases just changed
+        # The references as of the last update: making a device static this step
+        # only starts its settling, so no device became a reference since.
+        references = {n for n, e in self._est.items() if e.phase is Phase.REFERENCE}
         for device, want_mobile in wants.items():
             if want_mobile and device not in self._mobile:
                 reason = self.rules.check_mobile(device, t, self._mobile, references, self._detections)
@@ -505,6 +507,9 @@ class MomaParallelEnv(ParallelEnv):
 
     def _measure(self) -> list:
         views = [BoardView(board_id, layout, self.world.board_transform(device)) for device, board_id, layout in self._boards]
+        if self._occlusions:
+            # Device positions for the occlusion queries, once per frame.
+            self._device_xy = [(d, self._device_pose(d)[:2]) for d in self._devices]
         detections = []
         for name, camera in self._cameras.items():
             occluded = self._occlusions.get(name)
@@ -513,12 +518,13 @@ class MomaParallelEnv(ParallelEnv):
 
     def _occlusion_query(self, camera_owner: str):
         """Line-of-sight test for a ground camera: walls, obstacles and robots other than
-        the camera's owner and the device carrying the marker (the one nearest the marker)."""
+        the camera's owner and the device carrying the marker (the one nearest the marker,
+        among the positions :meth:`_measure` takes once per frame)."""
         world = self.world
-        devices = self._devices
 
         def occluded(p_from: np.ndarray, p_to: np.ndarray) -> bool:
-            nearest = min(devices, key=lambda d: math.dist(self._device_pose(d)[:2], p_to[:2]))
+            x, y = float(p_to[0]), float(p_to[1])
+            nearest = min(self._device_xy, key=lambda item: (item[1][0] - x) ** 2 + (item[1][1] - y) ** 2)[0]
             return world.segment_blocked(p_from[:2], p_to[:2], ignore=(camera_owner, nearest))
 
         return occluded

@@ -1,0 +1,424 @@
+"""Pose of a planar board from its imaged corners: homography, then Levenberg-Marquardt.
+
+The solver behind ``CameraConfig(pnp_method="PLANAR_LM")`` (the default). It is
+compiled with numba, so a board costs a few microseconds instead of the 25-100 us
+of a ``cv2.solvePnP`` call (most of which is call overhead at 16 points).
+
+Input: the corners in the board frame M, all in its plane ``z_M = 0`` (m), and
+their undistorted normalised image coordinates ``x = X_c / Z_c``, ``y = Y_c / Z_c``.
+Output: ``T_c_m`` (4x4), the board frame M in the camera frame C.
+
+1. Homography by the normalised direct linear transform (Hartley): the plane
+   ``z_M = 0`` maps to the image by ``H ~ [r1 r2 t]``; the eigenvector of the
+   smallest eigenvalue of ``A^T A`` gives ``H`` from four or more points.
+2. ``r1, r2, t`` from ``H`` scaled by the mean length of its first two columns and
+   signed so that the board lies in front of the camera (``t_z > 0``); ``r1`` and
+   ``r2`` made orthonormal symmetrically, ``r3 = r1 x r2``.
+3. Levenberg-Marquardt on the reprojection error in normalised coordinates,
+   with rotation updates ``R <- exp([w]x) R``: the maximum-likelihood pose under
+   isotropic Gaussian corner noise, like ``SOLVEPNP_ITERATIVE`` refined from a
+   planar initial guess. Without noise it recovers the pose to ~1e-12.
+
+Like every planar PnP, a small or distant board has two poses that explain noisy
+corners almost equally well (the "flip" ambiguity). The solver also refines from
+the homography pose's mirror image (the board normal mirrored about the line of
+sight) and keeps the lower cost; that second start is abandoned after 2
+iterations if its cost is still above twice the first start's final cost (it
+halves the time). Measured on 1000 views of a robot board at 2-6 m with 1.5 px
+of noise: mean position error 0.104 m against SQPNP's 0.144 m, and 1 view ended
+at a higher reprojection cost than SQPNP's global minimum.
+
+This module imports only numpy and numba: it runs as well on corners detected in
+a real image.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["solve_planar_pnp"]
+
+#: Most Levenberg-Marquardt iterations per start (a good start needs 3 to 6).
+_MAX_ITERATIONS = 100
+#: Stop when the update's largest component is below this (rad or m).
+_STEP_TOLERANCE = 1e-10
+#: A second start still this many iterations in, at a cost above ``_GIVE_UP_FACTOR`` times
+#: the first start's final cost, is abandoned (it converges to a worse minimum).
+_GIVE_UP_AFTER = 2
+_GIVE_UP_FACTOR = 2.0
+#: ... or when a step lowers the cost by less than this fraction (noisy corners: at the minimum).
+_COST_TOLERANCE = 1e-7
+
+
+@numba.njit(cache=True)
+def _normalising(points: np.ndarray) -> tuple[float, float, float]:
+    """Centroid ``(cx, cy)`` and scale ``s`` taking (n, 2) points to mean distance sqrt(2) from 0."""
+    n = points.shape[0]
+    cx = 0.0
+    cy = 0.0
+    for i in range(n):
+        cx += points[i, 0]
+        cy += points[i, 1]
+    cx /= n
+    cy /= n
+    d = 0.0
+    for i in range(n):
+        d += np.sqrt((points[i, 0] - cx) ** 2 + (points[i, 1] - cy) ** 2)
+    d /= n
+    s = np.sqrt(2.0) / d if d > 0.0 else 1.0
+    return cx, cy, s
+
+
+@numba.njit(cache=True)
+def _matmul3(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A @ B`` of two 3x3 matrices, written out (numba's ``@`` calls BLAS: ~1 us each)."""
+    C = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            C[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
+    return C
+
+
+@numba.njit(cache=True)
+def _solve_spd(A: np.ndarray, b: np.ndarray) -> bool:
+    """Solve ``A x = b`` in place (``b`` becomes ``x``) for symmetric positive definite ``A``.
+
+    Cholesky factorisation written out (``A`` is overwritten by its factor): for
+    6x6 and 8x8 systems this is ten times cheaper than a LAPACK call. False if
+    ``A`` is not positive definite to working precision.
+    """
+    n = A.shape[0]
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d -= A[j, k] * A[j, k]
+        if not d > 0.0:
+            return False
+        d = np.sqrt(d)
+        A[j, j] = d
+        for i in range(j + 1, n):
+            s = A[i, j]
+            for k in range(j):
+                s -= A[i, k] * A[j, k]
+            A[i, j] = s / d
+    for i in range(n):
+        s = b[i]
+        for k in range(i):
+            s -= A[i, k] * b[k]
+        b[i] = s / A[i, i]
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for k in range(i + 1, n):
+            s -= A[k, i] * b[k]
+        b[i] = s / A[i, i]
+    return True
+
+
+@numba.njit(cache=True)
+def _homography(obj: np.ndarray, img: np.ndarray, H: np.ndarray) -> bool:
+    """3x3 homography ``img ~ H @ [X, Y, 1]`` by the normalised DLT (>= 4 points), into ``H``.
+
+    With both point sets normalised (Hartley) the entry ``h33`` of the normalised
+    homography is the image of the board's centroid divided by its depth scale,
+    never 0 for a board in front of the camera, so ``h33 = 1`` is fixed and the
+    other eight entries solve the 8x8 normal equations. False if they are singular
+    (all points on one line).
+    """
+    n = obj.shape[0]
+    ox, oy, os_ = _normalising(obj)
+    ix, iy, is_ = _normalising(img)
+    ata = np.zeros((8, 8))
+    atb = np.zeros(8)
+    row = np.zeros(8)
+    for i in range(n):
+        X = (obj[i, 0] - ox) * os_
+        Y = (obj[i, 1] - oy) * os_
+        x = (img[i, 0] - ix) * is_
+        y = (img[i, 1] - iy) * is_
+        for r in range(2):
+            if r == 0:
+                row[0] = X
+                row[1] = Y
+                row[2] = 1.0
+                row[3] = 0.0
+                row[4] = 0.0
+                row[5] = 0.0
+                rhs = x
+            else:
+                row[0] = 0.0
+                row[1] = 0.0
+                row[2] = 0.0
+                row[3] = X
+                row[4] = Y
+                row[5] = 1.0
+                rhs = y
+            row[6] = -rhs * X
+            row[7] = -rhs * Y
+            for a in range(8):
+                ra = row[a]
+                if ra != 0.0:
+                    atb[a] += ra * rhs
+                    for b in range(a, 8):
+                        ata[a, b] += ra * row[b]
+    for a in range(8):
+        for b in range(a):
+            ata[a, b] = ata[b, a]
+    if not _solve_spd(ata, atb):
+        return False
+    hn = np.empty((3, 3))
+    for k in range(8):
+        hn[k // 3, k % 3] = atb[k]
+    hn[2, 2] = 1.0
+    # H = T_img^-1 @ Hn @ T_obj with T = [[s, 0, -s cx], [0, s, -s cy], [0, 0, 1]].
+    t_obj = np.array([[os_, 0.0, -os_ * ox], [0.0, os_, -os_ * oy], [0.0, 0.0, 1.0]])
+    t_img_inv = np.array([[1.0 / is_, 0.0, ix], [0.0, 1.0 / is_, iy], [0.0, 0.0, 1.0]])
+    H[:, :] = _matmul3(_matmul3(t_img_inv, hn), t_obj)
+    return True
+
+
+@numba.njit(cache=True)
+def _pose_from_homography(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation (3x3) and translation (3,) of ``H ~ [r1 r2 t]`` with ``t_z > 0``.
+
+    ``r1`` and ``r2`` are made orthonormal by turning both symmetrically about
+    their bisector (exact for a noise-free ``H``; the refinement removes the rest).
+    """
+    n1 = np.sqrt(H[0, 0] ** 2 + H[1, 0] ** 2 + H[2, 0] ** 2)
+    n2 = np.sqrt(H[0, 1] ** 2 + H[1, 1] ** 2 + H[2, 1] ** 2)
+    scale = 0.5 * (n1 + n2)
+    if H[2, 2] < 0.0:
+        scale = -scale
+    t = np.empty(3)
+    a = np.empty(3)
+    b = np.empty(3)
+    for i in range(3):
+        a[i] = H[i, 0] / n1
+        b[i] = H[i, 1] / n2
+        t[i] = H[i, 2] / scale
+    if scale < 0.0:
+        a = -a
+        b = -b
+    c = a + b
+    d = a - b
+    c /= np.sqrt(c @ c)
+    d /= np.sqrt(d @ d)
+    R = np.empty((3, 3))
+    s = np.sqrt(0.5)
+    for i in range(3):
+        R[i, 0] = s * (c[i] + d[i])
+        R[i, 1] = s * (c[i] - d[i])
+    R[0, 2] = R[1, 0] * R[2, 1] - R[2, 0] * R[1, 1]
+    R[1, 2] = R[2, 0] * R[0, 1] - R[0, 0] * R[2, 1]
+    R[2, 2] = R[0, 0] * R[1, 1] - R[1, 0] * R[0, 1]
+    return R, t
+
+
+@numba.njit(cache=True)
+def _cost_and_normal_equations(
+    R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray, jtj: np.ndarray, jtr: np.ndarray
+) -> float:
+    """Sum of squared normalised residuals; fills ``J^T J`` (6x6) and ``J^T r`` (6,).
+
+    Parameters: rotation increment ``w`` (left, ``R <- exp([w]x) R``) then translation.
+    """
+    jtj[:, :] = 0.0
+    jtr[:] = 0.0
+    cost = 0.0
+    ju = np.empty(6)
+    jv = np.empty(6)
+    for i in range(obj.shape[0]):
+        X = obj[i, 0]
+        Y = obj[i, 1]
+        # q = R @ [X, Y, 0]; p = q + t.
+        q0 = R[0, 0] * X + R[0, 1] * Y
+        q1 = R[1, 0] * X + R[1, 1] * Y
+        q2 = R[2, 0] * X + R[2, 1] * Y
+        iz = 1.0 / (q2 + t[2])
+        u = (q0 + t[0]) * iz
+        v = (q1 + t[1]) * iz
+        ru = u - img[i, 0]
+        rv = v - img[i, 1]
+        cost += ru * ru + rv * rv
+        # d(u, v)/dp = [[iz, 0, -u iz], [0, iz, -v iz]]; dp/dw = -[q]x; dp/dt = I.
+        a2 = -u * iz
+        b2 = -v * iz
+        # -[q]x = [[0, q2, -q1], [-q2, 0, q0], [q1, -q0, 0]]
+        ju[0] = a2 * q1
+        ju[1] = iz * q2 - a2 * q0
+        ju[2] = -iz * q1
+        ju[3] = iz
+        ju[4] = 0.0
+        ju[5] = a2
+        jv[0] = -iz * q2 + b2 * q1
+        jv[1] = -b2 * q0
+        jv[2] = iz * q0
+        jv[3] = 0.0
+        jv[4] = iz
+        jv[5] = b2
+        for a in range(6):
+            jtr[a] += ju[a] * ru + jv[a] * rv
+            for b in range(a, 6):
+                jtj[a, b] += ju[a] * ju[b] + jv[a] * jv[b]
+    for a in range(6):
+        for b in range(a):
+            jtj[a, b] = jtj[b, a]
+    return cost
+
+
+@numba.njit(cache=True)
+def _rotation_exp(w0: float, w1: float, w2: float) -> np.ndarray:
+    """Rotation matrix ``exp([w]x)`` (Rodrigues' formula)."""
+    theta2 = w0 * w0 + w1 * w1 + w2 * w2
+    theta = np.sqrt(theta2)
+    if theta < 1e-8:
+        a = 1.0 - theta2 / 6.0
+        b = 0.5 - theta2 / 24.0
+    else:
+        a = np.sin(theta) / theta
+        b = (1.0 - np.cos(theta)) / theta2
+    # I + a [w]x + b [w]x^2, with [w]x^2 = w w^T - |w|^2 I.
+    R = np.empty((3, 3))
+    R[0, 0] = 1.0 - b * (w1 * w1 + w2 * w2)
+    R[1, 1] = 1.0 - b * (w0 * w0 + w2 * w2)
+    R[2, 2] = 1.0 - b * (w0 * w0 + w1 * w1)
+    R[0, 1] = b * w0 * w1 - a * w2
+    R[1, 0] = b * w0 * w1 + a * w2
+    R[0, 2] = b * w0 * w2 + a * w1
+    R[2, 0] = b * w0 * w2 - a * w1
+    R[1, 2] = b * w1 * w2 - a * w0
+    R[2, 1] = b * w1 * w2 + a * w0
+    return R
+
+
+@numba.njit(cache=True)
+def _refine(R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray, give_up_above: float) -> float:
+    """Levenberg-Marquardt from ``(R, t)``, updated in place; returns the final cost.
+
+    Gives up (returning ``inf``) if after ``_GIVE_UP_AFTER`` iterations the cost is
+    still above ``give_up_above`` (a start that is not going to beat another).
+    """
+    jtj = np.empty((6, 6))
+    jtr = np.empty(6)
+    jtj_new = np.empty((6, 6))
+    jtr_new = np.empty(6)
+    A = np.empty((6, 6))
+    step = np.empty(6)
+    t_new = np.empty(3)
+    cost = _cost_and_normal_equations(R, t, obj, img, jtj, jtr)
+    damping = 0.0  # Gauss-Newton until a step fails
+    for iteration in range(_MAX_ITERATIONS):
+        if iteration == _GIVE_UP_AFTER and cost > give_up_above:
+            return np.inf
+        A[:, :] = jtj
+        for a in range(6):
+            A[a, a] *= 1.0 + damping
+            step[a] = -jtr[a]
+        if not _solve_spd(A, step):
+            damping = max(damping * 10.0, 1e-3)
+            if damping > 1e8:
+                break
+            continue
+        R_new = _matmul3(_rotation_exp(step[0], step[1], step[2]), R)
+        t_new[0] = t[0] + step[3]
+        t_new[1] = t[1] + step[4]
+        t_new[2] = t[2] + step[5]
+        cost_new = _cost_and_normal_equations(R_new, t_new, obj, img, jtj_new, jtr_new)
+        if cost_new <= cost:  # False for NaN
+            converged = cost - cost_new <= _COST_TOLERANCE * cost
+            R[:, :] = R_new
+            t[:] = t_new
+            cost = cost_new
+            jtj[:, :] = jtj_new
+            jtr[:] = jtr_new
+            damping *= 0.25
+            if damping < 1e-6:
+                damping = 0.0
+            if converged or np.max(np.abs(step)) < _STEP_TOLERANCE:
+                break
+        else:
+            damping = max(damping * 10.0, 1e-3)
+            if damping > 1e8:
+                break
+    return cost
+
+
+@numba.njit(cache=True)
+def _mirrored_start(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The other pose of the planar ambiguity: the board normal mirrored about the line of sight.
+
+    Returns ``R'`` (3x3): ``R`` turned about ``z_M x z_M'`` so that its third
+    column (the normal ``z_M``) becomes its mirror image about ``t / |t|``.
+    """
+    v = t / np.sqrt(t @ t)
+    n = R[:, 2].copy()
+    m = 2.0 * (n @ v) * v - n
+    axis = np.array([n[1] * m[2] - n[2] * m[1], n[2] * m[0] - n[0] * m[2], n[0] * m[1] - n[1] * m[0]])
+    sin_angle = np.sqrt(axis @ axis)
+    cos_angle = n @ m
+    angle = np.arctan2(sin_angle, cos_angle)
+    if sin_angle < 1e-12:
+        return R.copy()
+    axis *= angle / sin_angle
+    return _matmul3(_rotation_exp(axis[0], axis[1], axis[2]), R)
+
+
+@numba.njit(cache=True)
+def solve_planar_pnp_kernel(obj: np.ndarray, img: np.ndarray, T_out: np.ndarray) -> bool:
+    """Compiled solver: writes ``T_c_m`` into ``T_out`` (4x4) and returns success.
+
+    Both poses of the planar ambiguity are refined (from the homography's pose
+    and from its mirror image, see :func:`_mirrored_start`; the second is
+    abandoned early when it is clearly worse) and the one with the smaller
+    reprojection error is kept.
+
+    Args:
+        obj: (n, 2) float64 corners ``(x_M, y_M)`` in the board plane (m), n >= 4.
+        img: (n, 2) float64 undistorted normalised image coordinates.
+        T_out: (4, 4) float64 output; left untouched on failure.
+    """
+    n = obj.shape[0]
+    if n < 4:
+        return False
+    H = np.empty((3, 3))
+    if not _homography(obj, img, H):
+        return False
+    for i in range(3):
+        for j in range(3):
+            if not np.isfinite(H[i, j]):
+                return False
+    R, t = _pose_from_homography(H)
+    R2 = _mirrored_start(R, t)
+    t2 = t.copy()
+    cost = _refine(R, t, obj, img, np.inf)
+    cost2 = _refine(R2, t2, obj, img, _GIVE_UP_FACTOR * cost)
+    if cost2 < cost and t2[2] > 0.0:
+        R = R2
+        t = t2
+        cost = cost2
+    if not (np.isfinite(cost) and t[2] > 0.0):
+        return False
+    for i in range(3):
+        for j in range(3):
+            T_out[i, j] = R[i, j]
+        T_out[i, 3] = t[i]
+        T_out[3, i] = 0.0
+    T_out[3, 3] = 1.0
+    return True
+
+
+def solve_planar_pnp(object_xy: np.ndarray, image_xy: np.ndarray) -> np.ndarray | None:
+    """``T_c_m`` (4x4) of a planar board, or None if it cannot be solved.
+
+    Args:
+        object_xy: (n, 2) corners ``(x_M, y_M)`` in the board plane ``z_M = 0`` (m), n >= 4,
+            not all on one line.
+        image_xy: (n, 2) their undistorted normalised image coordinates
+            (``(u - cx) / fx`` etc. after removing lens distortion).
+    """
+    obj = np.ascontiguousarray(object_xy, dtype=np.float64)
+    img = np.ascontiguousarray(image_xy, dtype=np.float64)
+    if obj.ndim != 2 or obj.shape[1] != 2 or img.shape != obj.shape:
+        raise ValueError(f"object_xy and image_xy must both be (n, 2), got {obj.shape} and {img.shape}")
+    T = np.empty((4, 4))
+    return T if solve_planar_pnp_kernel(obj, img, T) else None

@@ -1,0 +1,87 @@
+"""The benchmark harness (training.bench): what it counts, not how fast anything is."""
+
+from __future__ import annotations
+
+import math
+
+from gymnasium import spaces
+
+from training.bench import bench_configurations, format_bench, steps_per_second
+
+
+class CountingSpace(spaces.Discrete):
+    """A Discrete space that counts its samples."""
+
+    def __init__(self, n: int):
+        super().__init__(n)
+        self.samples = 0
+
+    def sample(self, mask=None, probability=None):
+        self.samples += 1
+        return super().sample()
+
+
+class FakeParallelEnv:
+    """Two agents whose episodes last three steps; records what it is given."""
+
+    possible_agents = ["a", "b"]
+
+    def __init__(self):
+        self.agents: list[str] = []
+        self.spaces = {a: CountingSpace(4) for a in self.possible_agents}
+        self.steps, self.resets, self.actions = 0, 0, []
+        self.samples_while_stepping = 0
+
+    def action_space(self, agent):
+        return self.spaces[agent]
+
+    def reset(self, seed=None, options=None):
+        self.resets += 1
+        self.agents = list(self.possible_agents)
+        self._left = 3
+        return {}, {}
+
+    def step(self, actions):
+        assert set(actions) == set(self.agents)
+        self.samples_while_stepping = sum(s.samples for s in self.spaces.values())
+        self.actions.append(dict(actions))
+        self.steps += 1
+        self._left -= 1
+        if self._left == 0:
+            self.agents = []
+        return {}, {}, {}, {}, {}
+
+    def close(self):
+        pass
+
+
+def test_steps_per_second_steps_resets_and_samples_before_the_clock():
+    env = FakeParallelEnv()
+    rate = steps_per_second(lambda: env, steps=10, pool=4)
+    assert rate > 0.0 and math.isfinite(rate)
+    assert env.steps == 10
+    assert env.resets == 1 + 3  # the first reset, then one after each 3-step episode
+    # Every sample was drawn before the first step: 4 joint actions x 2 agents.
+    assert sum(s.samples for s in env.spaces.values()) == 8
+    assert env.samples_while_stepping == 8
+    # The pool is used in turn.
+    assert env.actions[0] == env.actions[4] == env.actions[8]
+
+
+def test_bench_configurations_reports_every_configuration_and_mode():
+    rows = bench_configurations(steps=3)
+    from moma_env.scenarios import CONFIGURATIONS
+
+    assert {(r["env"], r["action_mode"]) for r in rows} == {(c, m) for c in CONFIGURATIONS for m in ("switching", "velocity")}
+    assert all(r["steps_per_s"] > 0 for r in rows)
+    text = format_bench(
+        {
+            "steps": 3,
+            "mpe2_simple_spread_steps_per_s": None,
+            "configurations": [dict(r, x_mpe2=None) for r in rows],
+            "memory_steps": 0,
+            "memory_mb": [],
+            "cpu_count": 2,
+        }
+    )
+    assert "top_observer" in text and "n/a" in text
