@@ -11,6 +11,7 @@ from moma_env.config import ConfigError
 from moma_env.metrics import read_tum
 from training.cli import main
 from training.experiments.square import SquareConfig, run_square, square_legs, square_waypoints
+from training.experiments.square_report import format_table
 
 
 def test_waypoints_form_the_papers_square():
@@ -49,7 +50,7 @@ def test_zero_noise_run_is_exact_through_every_switch():
 
 
 def test_noisy_run_is_reproducible_and_moma_beats_wheel_odometry():
-    cfg = SquareConfig()
+    cfg = SquareConfig(side=0.5)
     a, b = run_square(cfg, seed=3), run_square(cfg, seed=3)
     assert a.completed
     np.testing.assert_array_equal(a.trajectories["ugv_0"]["moma"].poses, b.trajectories["ugv_0"]["moma"].poses)
@@ -66,11 +67,17 @@ def test_square_config_errors_name_the_field():
         SquareConfig(separation=0.3)
     with pytest.raises(ConfigError, match="square.leg"):
         SquareConfig(leg=-1.0)
+    # The texture is kept clear of the second half: a small rendered square has no room for it.
+    SquareConfig(side=0.5)
+    with pytest.raises(ConfigError, match="square.texture_clearance"):
+        SquareConfig(side=0.5, camera_backend="rendered")
+    with pytest.raises(ConfigError, match="square.camera_backend"):
+        SquareConfig(camera_backend="pinhole")
 
 
 def test_cli_writes_table_figure_tum_and_json(tmp_path, capsys):
     out = tmp_path / "square"
-    assert main(["experiment", "square", "--runs", "2", "--seed", "5", "--out", str(out), "--json"]) == 0
+    assert main(["experiment", "square", "--side", "0.5", "--runs", "2", "--seed", "5", "--out", str(out), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["n_runs"] == 2 and data["n_completed"] == 2
     assert [r["seed"] for r in data["runs"]] == [5, 6]
@@ -82,9 +89,10 @@ def test_cli_writes_table_figure_tum_and_json(tmp_path, capsys):
     assert len(truth) > 100 and len(moma) > 100
     assert not list(out.rglob("*.tmp*"))
 
-    assert main(["experiment", "square", "--runs", "1", "--out", str(tmp_path / "t")]) == 0
+    assert main(["experiment", "square", "--side", "0.5", "--runs", "1", "--out", str(tmp_path / "t")]) == 0
     table = capsys.readouterr().out
-    assert "MOMA (ours)" in table and "wheel odometry (ours)" in table and "% of 400 cm" in table
+    assert "MOMA (ours)" in table and "wheel odometry (ours)" in table and "% of 200 cm" in table
+    assert "Viso2 (paper, real robots)" in table
 
 
 @pytest.mark.parametrize("argv", [["--runs", "0"], ["--seed", "-1"], ["--runs", "x"], ["--observer", "kite"]])
@@ -93,3 +101,35 @@ def test_cli_rejects_bad_arguments(argv, capsys):
         main(["experiment", "square", *argv])
     assert exit_info.value.code == 2
     assert "error" in capsys.readouterr().err
+
+
+def test_cli_compares_the_two_observers(tmp_path, capsys):
+    out = tmp_path / "both"
+    assert main(["experiment", "square", "--side", "0.5", "--runs", "1", "--observer", "both", "--out", str(out), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert set(data["observers"]) == {"quadcopter", "handheld"}
+    for observer in ("quadcopter", "handheld"):
+        assert data["observers"][observer]["observer"] == observer
+        assert data["observers"][observer]["path_length_m"] == pytest.approx(2.0)
+        saved = json.loads((out / observer / "summary.json").read_text())
+        assert saved["summary"] == data["observers"][observer]["summary"]
+    assert (out / "observers.png").stat().st_size > 10_000
+    assert not list(out.rglob("*.tmp*"))
+
+
+def test_summary_counts_track_loss_per_method():
+    from training.experiments.leapfrog_run import summarise
+
+    run = run_square(SquareConfig(side=0.5), seed=0)
+    lost = dataclasses.replace(run, lost_at={"moma": None, "wheel": 12.0})
+    summary = summarise([run, lost])
+    assert summary["moma"]["track_loss_rate"] == 0.0
+    assert summary["wheel"]["track_loss_rate"] == 0.5
+    assert summary["moma"]["n_runs"] == 2 and summary["moma"]["kept_track"]["n_runs"] == 2
+    # The paper's convention: statistics over the runs that kept track, here the first only.
+    assert summary["wheel"]["kept_track"]["n_runs"] == 1
+    assert summary["wheel"]["kept_track"]["mean_final_error"] == run.metrics["wheel"].final_error
+    assert summarise([lost])["wheel"]["kept_track"] is None
+    config = SquareConfig(side=0.5)
+    table = format_table(summary, config, 2, 2)
+    assert "wheel odometry, kept track" in table and "MOMA, kept track" not in table

@@ -1,7 +1,8 @@
 """The ``moma-env`` command line.
 
 Subcommands:
-    experiment square   the paper's 1 m square: table, figure, TUM files, JSON.
+    experiment square   the paper's 1 m square: table, figure, TUM files, JSON, CSV.
+    experiment line     the paper's 4.6 m line, forward-back-forward: keypoint table, figures, JSON, CSV.
     bench               environment steps per second against MPE2, memory over a long run.
     evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
 
@@ -47,16 +48,17 @@ def build_parser() -> argparse.ArgumentParser:
     exp = sub.add_parser("experiment", help="run one of the paper's experiments")
     exp_sub = exp.add_subparsers(dest="experiment", required=True)
     sq = exp_sub.add_parser("square", help="two UGVs leapfrog around a 1 m square under a UAV observer")
-    sq.add_argument("--runs", type=_int_at_least(1, "count"), default=10, help="number of runs (default 10, as in the paper)")
-    sq.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first run; run k uses seed+k (default 0)")
-    sq.add_argument("--out", type=Path, default=Path("runs/square"), help="output folder (default runs/square)")
-    sq.add_argument("--observer", choices=("quadcopter", "handheld"), default="quadcopter", help="the observer carrying the camera")
-    sq.add_argument("--noise-px", type=float, default=None, help="corner noise std in pixels (default: the camera config's)")
-    sq.add_argument(
-        "--full-6dof", action="store_true", help="estimate the UGVs' full 3D pose instead of constraining them upright on the floor"
-    )
-    sq.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
-    sq.set_defaults(handler=_run_square)
+    _add_experiment_arguments(sq, default_runs=10, default_out=Path("runs/square"))
+    sq.add_argument("--side", type=_positive_float("side (m)"), default=1.0, help="side of the square in m (default 1, the paper's)")
+    sq.add_argument("--leg", type=_positive_float("leg (m)"), default=0.5, help="length of the main robot's legs in m (default 0.5)")
+    sq.set_defaults(handler=_run_experiment)
+
+    ln = exp_sub.add_parser("line", help="the 4.6 m line driven forward, back and forward, 6 switches per pass")
+    _add_experiment_arguments(ln, default_runs=5, default_out=Path("runs/line"))
+    ln.add_argument("--length", type=_positive_float("length (m)"), default=4.595, help="length of the line in m (default 4.595: 13.785 m in 3 passes)")
+    ln.add_argument("--passes", type=_int_at_least(1, "pass count"), default=3, help="passes, alternately forward and back (default 3)")
+    ln.add_argument("--switches-per-pass", type=_int_at_least(1, "switch count"), default=6, help="keypoints per pass (default 6)")
+    ln.set_defaults(handler=_run_experiment)
 
     bench = sub.add_parser("bench", help="steps per second of every environment against MPE2, and memory over a long run")
     bench.add_argument("--steps", type=_int_at_least(100, "step count"), default=5000, help="random-action steps per row (default 5000)")
@@ -155,34 +157,109 @@ def _run_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_square(args: argparse.Namespace) -> int:
-    from training.experiments.square import SquareConfig, run_square, summarise
-    from moma_env.io import to_jsonable
-    from training.experiments.square_report import format_table, results_dict, write_outputs
+def _add_experiment_arguments(parser: argparse.ArgumentParser, default_runs: int, default_out: Path) -> None:
+    """The arguments every leapfrog experiment takes."""
+    from moma_env.camera import CAMERA_BACKENDS
+    from training.experiments.presets import PRESETS
 
-    config = SquareConfig(observer=args.observer, planar_ugvs=not args.full_6dof)
+    parser.add_argument("--runs", type=_int_at_least(1, "count"), default=default_runs, help=f"number of runs (default {default_runs})")
+    parser.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first run; run k uses seed+k (default 0)")
+    parser.add_argument(
+        "--jobs", type=_int_at_least(1, "job count"), default=1, help="worker processes for the runs (default 1; same results for any value)"
+    )
+    parser.add_argument("--out", type=Path, default=default_out, help=f"output folder (default {default_out})")
+    parser.add_argument(
+        "--observer",
+        choices=("quadcopter", "handheld", "both"),
+        default="quadcopter",
+        help="the observer carrying the camera; 'both' runs each and compares them (outputs in OUT/<observer>/, OUT/observers.png)",
+    )
+    parser.add_argument("--preset", choices=sorted(PRESETS), default="default", help="sensing settings (camera, altitude, board; default 'default')")
+    parser.add_argument(
+        "--camera", choices=CAMERA_BACKENDS, default=None, help="camera backend (default: the preset's; 'rendered' adds the visual odometry baseline)"
+    )
+    parser.add_argument("--noise-px", type=float, default=None, help="corner noise std in pixels of the geometric camera (default: the preset's)")
+    parser.add_argument(
+        "--full-6dof", action="store_true", help="estimate the UGVs' full 3D pose instead of constraining them upright on the floor"
+    )
+    parser.add_argument(
+        "--max-time", type=_positive_float("time limit (s)"), default=None, help="simulated time limit of a run in s; a run stopped by it is flagged (default: the experiment's)"
+    )
+    parser.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
+
+
+def _positive_float(what: str):
+    """An argparse type: a finite number > 0."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number for the {what}, got {text!r}") from None
+        if not value > 0.0 or value == float("inf"):
+            raise argparse.ArgumentTypeError(f"the {what} must be a finite number > 0, got {text}")
+        return value
+
+    return parse
+
+
+def _experiment_config(args: argparse.Namespace, observer: str):
+    """The experiment's configuration from the arguments: defaults, then the preset, then the flags."""
+    from training.experiments.line import LineConfig
+    from training.experiments.presets import get_preset
+    from training.experiments.square import SquareConfig
+
+    if args.experiment == "square":
+        config = SquareConfig(observer=observer, side=args.side, leg=args.leg)
+    else:
+        config = LineConfig(observer=observer, length=args.length, passes=args.passes, switches_per_pass=args.switches_per_pass)
+    config = get_preset(args.preset).apply(config, camera_backend=args.camera)
+    if args.full_6dof:
+        config = dataclasses.replace(config, planar_ugvs=False)
     if args.noise_px is not None:
         config = dataclasses.replace(config, camera=dataclasses.replace(config.camera, noise_px=args.noise_px))
-    runs = []
+    if args.max_time is not None:
+        config = dataclasses.replace(config, max_time_s=args.max_time)
+    return config
+
+
+def _run_experiment(args: argparse.Namespace) -> int:
+    from moma_env.io import to_jsonable
+    from training.experiments import line_report, square_report
+    from training.experiments.line import summarise_line
+    from training.experiments.leapfrog_run import summarise
+    from training.experiments.report_common import plot_observer_errors
+    from training.experiments.runner import run_many
+
+    report, summarise_runs = (square_report, summarise) if args.experiment == "square" else (line_report, summarise_line)
+    observers = ("quadcopter", "handheld") if args.observer == "both" else (args.observer,)
+    configs = {observer: _experiment_config(args, observer) for observer in observers}  # all validated before any run
     start = time.perf_counter()
-    for k in range(args.runs):
-        run = run_square(config, args.seed + k)
-        runs.append(run)
-        m = run.metrics["moma"]
-        print(
-            f"run {k + 1}/{args.runs} seed {run.seed}: {'done' if run.completed else 'NOT COMPLETED'} in {run.duration_s:.1f} s sim, "
-            f"MOMA E_f {100 * m.final_error:.2f} cm, wheel E_f {100 * run.metrics['wheel'].final_error:.2f} cm",
-            file=sys.stderr,
-        )
-    summary = summarise(runs)
-    paths = write_outputs(runs, summary, config, args.out)
+    results, tables, all_runs, files = {}, [], {}, {}
+    for observer, config in configs.items():
+        out = args.out / observer if len(observers) > 1 else args.out
+        runs = run_many(config, args.runs, args.seed, log=lambda line, o=observer: print(f"[{o}] {line}", file=sys.stderr), jobs=args.jobs)
+        summary = summarise_runs(runs)
+        files[observer] = report.write_outputs(runs, summary, config, out)
+        results[observer] = report.results_dict(runs, summary, config)
+        tables.append(report.format_table(summary, config, sum(r.completed for r in runs), len(runs)))
+        if args.experiment == "line":
+            tables.append(line_report.format_keypoints(runs[0]))
+        all_runs[observer] = runs
+    if len(observers) > 1:
+        files["observers_figure"] = args.out / "observers.png"
+        plot_observer_errors(all_runs, files["observers_figure"])
     wall = time.perf_counter() - start
+    completed = all(r.completed for runs in all_runs.values() for r in runs)
     if args.json:
-        print(json.dumps(to_jsonable(results_dict(runs, summary, config) | {"wall_time_s": wall}), indent=2, sort_keys=True))
+        data = results[observers[0]] if len(observers) == 1 else {"observers": results}
+        print(json.dumps(to_jsonable(data | {"wall_time_s": wall, "files": files}), indent=2, sort_keys=True))
     else:
-        print(format_table(summary, config, sum(r.completed for r in runs), len(runs)))
-        print(f"\nfigure: {paths['figure']}\nsummary: {paths['summary']}\nTUM trajectories: {paths['tum']}/run_XX/\nwall time: {wall:.1f} s")
-    return 0 if all(r.completed for r in runs) else 1
+        print("\n\n".join(tables))
+        for name, paths in files.items():
+            print("\n" + (f"{name}: {paths}" if isinstance(paths, Path) else "\n".join(f"{kind}: {path}" for kind, path in paths.items())))
+        print(f"wall time: {wall:.1f} s")
+    return 0 if completed else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:
