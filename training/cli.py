@@ -4,6 +4,7 @@ Subcommands:
     experiment square   the paper's 1 m square: table, figure, TUM files, JSON.
     bench               environment steps per second against MPE2, memory over a long run.
     evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
+    train               train a coordination policy with Stable-Baselines3 (training/train/).
 
 Every subcommand validates its arguments at the boundary and exits with status 2
 and a one-line message on bad input.
@@ -87,6 +88,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ev.add_argument("--max-cycles", type=_int_at_least(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
     ev.set_defaults(handler=_run_evaluate)
+
+    from training.train.command import add_train_parser
+
+    add_train_parser(sub, _int_at_least)
     return parser
 
 
@@ -108,6 +113,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
         print(f"moma-env evaluate: {err}", file=sys.stderr)
         return 2
     label = policy_label(args.policy)
+    env_options = dict(getattr(policy, "env_options", {}))  # a trained policy says which env it fits
     out = args.out if args.out is not None else Path("runs/evaluate") / f"{args.scenario}_{label}"
     recorder = None
     if args.video:
@@ -122,10 +128,11 @@ def _run_evaluate(args: argparse.Namespace) -> int:
             args.episodes,
             args.seed,
             random_scenarios=args.random_scenarios,
-            action_mode=args.action_mode or POLICY_ACTION_MODES.get(args.policy, "switching"),
+            action_mode=args.action_mode or env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(args.policy, "switching"),
             max_cycles=args.max_cycles,
             frame_sink=recorder,
             progress=lambda _episode: bar.update(),
+            **env_options,
         )
     result = dataclasses.replace(result, policy=label)
     paths = write_outputs(result, out)
