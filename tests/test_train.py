@@ -151,7 +151,7 @@ def test_off_policy_run_saves_and_resumes_its_replay_buffer(tmp_path):
 
 def test_evaluation_callback_writes_the_harness_metrics(tmp_path):
     out = tmp_path / "run"
-    train(tiny(steps=128, eval_every=64, eval_episodes=1), out)
+    train(tiny(steps=128, eval_every=64, eval_episodes=1, progress_bar=True), out)
     records = json.loads((out / "evaluations.json").read_text())["records"]
     assert [r["num_timesteps"] for r in records] == [64, 128]
     for record in records:
@@ -224,3 +224,23 @@ def test_train_cli_trains_and_reports(tmp_path, capsys):
     manifest = json.loads(capsys.readouterr().out)
     assert manifest["num_timesteps"] == 64 and manifest["config"]["scenario"] == "caterpillar"
     assert LearnedPolicy.from_dir(tmp_path / "run", "caterpillar").route == "shared"
+
+
+def test_compare_tables_policies_evaluated_on_the_same_episodes(tmp_path, capsys):
+    from training.train import compare
+
+    train(tiny(steps=64), tmp_path / "run")
+    common = ["--scenario", "top_observer", "--episodes", "2", "--max-cycles", "10", "--json"]
+    assert main(["evaluate", *common, "--policy", str(tmp_path / "run"), "--out", str(tmp_path / "learned")]) == 0
+    assert main(["evaluate", *common, "--policy", "random", "--out", str(tmp_path / "random")]) == 0
+    assert main(["evaluate", *common, "--policy", "random", "--seed", "5", "--out", str(tmp_path / "other")]) == 0
+    capsys.readouterr()
+    assert compare.main([str(tmp_path / "learned"), str(tmp_path / "random")]) == 0
+    rows = capsys.readouterr().out.strip().splitlines()
+    assert rows[0].startswith("| policy | success |") and len(rows) == 4
+    assert rows[2].startswith("| run | 0 % | n/a |") and rows[3].startswith("| random | 0 % | n/a |")
+    random_summary = json.loads((tmp_path / "random" / "summary.json").read_text())
+    refused = random_summary["summary"]["n_refused"]["mean"]
+    assert rows[3].split("|")[5].strip() == f"{refused:.1f}"
+    assert compare.main([str(tmp_path / "random"), str(tmp_path / "other")]) == 2
+    assert "differ in scenario, first seed" in capsys.readouterr().err

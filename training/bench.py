@@ -6,7 +6,9 @@
   action spaces, episodes reset when they end, geometric camera), in both action
   modes;
 * MPE2 ``simple_spread`` (N=3, parallel API, random actions) as the reference;
-* the resident memory of ``top_observer`` sampled over a long run (``--memory-steps``).
+* the resident memory of ``top_observer`` sampled over a long run (``--memory-steps``);
+* PPO training frames per second on the switching task (``--train-steps``; needs the
+  ``train`` extra; :mod:`training.train.bench`).
 
 The numbers are measurements, not assertions: tests never time anything.
 """
@@ -89,19 +91,25 @@ def memory_profile(steps: int, samples: int = 10) -> list[tuple[int, float]]:
     return points
 
 
-def run_bench(steps: int, memory_steps: int) -> dict:
+def run_bench(steps: int, memory_steps: int, train_steps: int = 0) -> dict:
     """Everything ``moma-env bench`` reports, as a dict."""
     mpe = bench_mpe2(steps)
     rows = bench_configurations(steps)
     for row in rows:
         row["x_mpe2"] = None if mpe is None else row["steps_per_s"] / mpe
     memory = memory_profile(memory_steps) if memory_steps > 0 else []
+    training_rows: list[dict] = []
+    if train_steps > 0:
+        from training.train.bench import bench_training
+
+        training_rows = bench_training(train_steps)
     return {
         "steps": steps,
         "mpe2_simple_spread_steps_per_s": mpe,
         "configurations": rows,
         "memory_steps": memory_steps,
         "memory_mb": memory,
+        "training": training_rows,
         "cpu_count": os.cpu_count(),
     }
 
@@ -122,4 +130,8 @@ def format_bench(result: dict) -> str:
             f"{last[1]:.1f} MB at the end, peak {peak:.1f} MB"
         )
     lines.append(f"({result['steps']} random-action steps per row, {result['cpu_count']} cores)")
+    if result.get("training"):
+        from training.train.bench import format_training
+
+        lines += format_training(result["training"])
     return "\n".join(lines)

@@ -64,6 +64,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument(
         "--memory-steps", type=_int_at_least(0, "step count"), default=100_000, help="steps of the memory run (default 100000; 0 skips it)"
     )
+    bench.add_argument(
+        "--train-steps", type=_int_at_least(0, "step count"), default=16_384, help="PPO timesteps per training row (default 16384; 0 skips them)"
+    )
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
     bench.set_defaults(handler=_run_bench)
 
@@ -152,7 +155,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
 def _run_bench(args: argparse.Namespace) -> int:
     from training.bench import format_bench, run_bench
 
-    result = run_bench(args.steps, args.memory_steps)
+    result = run_bench(args.steps, args.memory_steps, args.train_steps)
     print(json.dumps(result, indent=2) if args.json else format_bench(result))
     return 0
 

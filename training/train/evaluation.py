@@ -25,23 +25,29 @@ from training.train.config import TrainConfig
 __all__ = ["headline", "live_policy", "evaluate_model"]
 
 
-def _mean(values: list[float]) -> float:
-    finite = [v for v in values if math.isfinite(v)]
+def _float(value: float | None) -> float:
+    """A summary number; None (NaN as read back from JSON) is NaN."""
+    return math.nan if value is None else float(value)
+
+
+def _mean(values: list[float | None]) -> float:
+    finite = [v for v in map(_float, values) if math.isfinite(v)]
     return sum(finite) / len(finite) if finite else math.nan
 
 
 def headline(summary: Mapping[str, Any]) -> dict[str, float]:
-    """The table's numbers from :func:`training.evaluation.harness.summarise`'s summary."""
+    """The table's numbers from :func:`training.evaluation.harness.summarise`'s summary
+    (in memory, or read back from ``summary.json`` where NaN is null)."""
     robots = summary["robots"].values()
     return {
-        "success_rate": float(summary["success_rate"]),
-        "time_to_goal_s": summary["time_to_goal_s"]["mean"],
-        "time_to_goal_std_s": summary["time_to_goal_s"]["std"],
-        "n_switches": summary["n_switches"]["mean"],
-        "n_refused": summary["n_refused"]["mean"],
+        "success_rate": _float(summary["success_rate"]),
+        "time_to_goal_s": _float(summary["time_to_goal_s"]["mean"]),
+        "time_to_goal_std_s": _float(summary["time_to_goal_s"]["std"]),
+        "n_switches": _float(summary["n_switches"]["mean"]),
+        "n_refused": _float(summary["n_refused"]["mean"]),
         "me_m": _mean([r["moma"]["mean_mean_error"] for r in robots]),
         "e_f_m": _mean([r["moma"]["mean_final_error"] for r in robots]),
-        "total_reward": summary["total_reward"]["mean"],
+        "total_reward": _float(summary["total_reward"]["mean"]),
     }
 
 

@@ -66,7 +66,15 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, callbacks:
         agents.learned.TrainingDirError: ``resume`` without a loadable checkpoint in ``out``.
     """
     out = Path(out)
+    threads = torch.get_num_threads()
     torch.set_num_threads(config.torch_threads)
+    try:
+        return _train(config, out, resume, callbacks)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[BaseCallback]) -> dict[str, Any]:
     if resume:
         manifest = read_manifest(out)
         _check_resumable(TrainConfig.from_dict(manifest["config"]), config)

@@ -59,6 +59,7 @@ class _RemoteCopy:
     """A copy in a worker process, driven over a pipe (:func:`training.train.team_slots.worker`)."""
 
     def __init__(self, spec: EnvSpec, context: mp.context.BaseContext):
+        self.pending = 0  # commands sent and not yet answered
         self._conn, child = context.Pipe()
         self._process = context.Process(target=worker, args=(child, spec), daemon=True)
         self._process.start()
@@ -74,9 +75,20 @@ class _RemoteCopy:
 
     def send(self, command: str, payload: Any) -> None:
         self._conn.send((command, payload))
+        self.pending += 1
 
     def receive(self) -> Any:
-        return self._result(self._conn.recv())
+        message = self._conn.recv()
+        self.pending -= 1
+        return self._result(message)
+
+    def drain(self) -> None:
+        """Read the answers still owed (after an error elsewhere), ignoring their content."""
+        while self.pending > 0:
+            try:
+                self.receive()
+            except RuntimeError:
+                pass
 
     def close(self) -> None:
         self._process.join(timeout=5)
@@ -123,7 +135,6 @@ class SharedPolicyVecEnv(VecEnv):
         first = self._copies[0]
         self.agents = list(first.agents)
         self.n_agents = len(self.agents)
-        self._waiting = False
         super().__init__(n_copies * self.n_agents, first.observation_space, first.action_space)
 
     # -------------------------------------------------------------- slots <-> copies
@@ -154,20 +165,24 @@ class SharedPolicyVecEnv(VecEnv):
             raise ValueError(f"expected {self.num_envs} actions (one per slot), got shape {actions.shape}")
         for k, part in self._copy_slices():
             self._copies[k].send("step", actions[part])
-        self._waiting = True
 
     def step_wait(self) -> VecEnvStepReturn:
-        results = [copy.receive() for copy in self._copies]
-        self._waiting = False
+        try:
+            results = [copy.receive() for copy in self._copies]
+        except RuntimeError:
+            for copy in self._copies:
+                if isinstance(copy, _RemoteCopy):
+                    copy.drain()
+            raise
         obs, rewards, dones, infos = zip(*results)
         return np.concatenate(obs), np.concatenate(rewards), np.concatenate(dones), [i for part in infos for i in part]
 
     def close(self) -> None:
         if self._closed:
             return
-        if self._waiting:
-            for copy in self._copies:
-                copy.receive()
+        for copy in self._copies:
+            if isinstance(copy, _RemoteCopy):
+                copy.drain()
         for copy in self._copies:
             try:
                 copy.send("close", None)
