@@ -170,6 +170,8 @@ def test_evaluate_cli_runs_a_trained_policy_through_the_harness(tmp_path, capsys
     capsys.readouterr()
     code = main(["evaluate", "--scenario", "caterpillar", "--policy", str(tmp_path / "run"), "--episodes", "1"])
     assert code == 2 and "trained on 'top_observer', not 'caterpillar'" in capsys.readouterr().err
+    code = main(["evaluate", "--scenario", "top_observer", "--policy", str(tmp_path / "run"), "--action-mode", "velocity"])
+    assert code == 2 and "trained in 'switching' mode, not 'velocity'" in capsys.readouterr().err
 
 
 def test_learned_policy_refuses_an_env_it_does_not_fit(tmp_path):

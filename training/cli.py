@@ -117,6 +117,9 @@ def _run_evaluate(args: argparse.Namespace) -> int:
         return 2
     label = policy_label(args.policy)
     env_options = dict(getattr(policy, "env_options", {}))  # a trained policy says which env it fits
+    if args.action_mode is not None and env_options.get("action_mode", args.action_mode) != args.action_mode:
+        print(f"moma-env evaluate: the policy was trained in {env_options['action_mode']!r} mode, not {args.action_mode!r}", file=sys.stderr)
+        return 2
     out = args.out if args.out is not None else Path("runs/evaluate") / f"{args.scenario}_{label}"
     recorder = None
     if args.video:
