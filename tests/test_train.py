@@ -246,3 +246,13 @@ def test_compare_tables_policies_evaluated_on_the_same_episodes(tmp_path, capsys
     assert rows[3].split("|")[5].strip() == f"{refused:.1f}"
     assert compare.main([str(tmp_path / "random"), str(tmp_path / "other")]) == 2
     assert "differ in scenario, first seed" in capsys.readouterr().err
+
+
+def test_moma_env_the_cli_and_the_worker_engine_do_not_import_sb3_or_torch():
+    import subprocess
+    import sys
+
+    code = ("import sys, moma_env, agents.policies, agents.learned, training.cli, training.train.team_slots; "
+            "training.cli.build_parser(); print(sorted(m for m in ('stable_baselines3', 'torch') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
