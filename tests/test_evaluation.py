@@ -140,8 +140,10 @@ def test_load_policy(fake_policies, tmp_path):
         load_policy("foo", "top_observer")
     model = tmp_path / "model.zip"
     model.write_bytes(b"not a model")
-    with pytest.raises(PolicyLoadError, match="needs issue 6's loader"):
+    with pytest.raises(PolicyLoadError, match="not a folder of a training run"):
         load_policy(str(model), "top_observer")
+    with pytest.raises(PolicyLoadError, match="holds no manifest.json"):
+        load_policy(str(tmp_path), "top_observer")
     assert policy_label(str(model)) == "model"
     del fake_policies.RandomPolicy
     with pytest.raises(PolicyLoadError, match="RandomPolicy"):
@@ -311,11 +313,11 @@ def test_cli_bad_names_exit_2_with_one_line(fake_policies, args, message, capsys
     assert len(lines) == 1 and message in lines[0]
 
 
-def test_cli_trained_policy_path_is_not_supported_yet(tmp_path, capsys):
+def test_cli_trained_policy_path_without_a_run_exits_2(tmp_path, capsys):
     model = tmp_path / "ppo.zip"
     model.write_bytes(b"")
     code, _, err = _run_cli(["--scenario", "top_observer", "--policy", str(model)], capsys)
-    assert code == 2 and "issue 6's loader" in err
+    assert code == 2 and "not a folder of a training run" in err
 
 
 @pytest.mark.parametrize("episodes", ["0", "-3", "two"])

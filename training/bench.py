@@ -10,6 +10,8 @@
 * the rendered camera in ``top_observer`` (``--rendered-steps``, see
   :mod:`training.bench_rendered`): steps per second at 720x576 with noise and
   the detector's own time per frame, measured in the same run.
+* PPO training frames per second on the switching task (``--train-steps``; needs the
+  ``train`` extra; :mod:`training.train.bench`).
 
 The numbers are measurements, not assertions: tests never time anything.
 """
@@ -100,7 +102,9 @@ def memory_profile(steps: int, samples: int = 10) -> list[tuple[int, float]]:
     return points
 
 
-def run_bench(steps: int, memory_steps: int, rendered_steps: int = 0, rendered_only: bool = False) -> dict:
+def run_bench(
+    steps: int, memory_steps: int, rendered_steps: int = 0, rendered_only: bool = False, train_steps: int = 0
+) -> dict:
     """Everything ``moma-env bench`` reports, as a dict (``rendered_only``: just the rendered camera)."""
     from training.bench_rendered import bench_rendered
 
@@ -109,6 +113,11 @@ def run_bench(steps: int, memory_steps: int, rendered_steps: int = 0, rendered_o
     for row in rows:
         row["x_mpe2"] = None if mpe is None else row["steps_per_s"] / mpe
     memory = memory_profile(memory_steps) if memory_steps > 0 and not rendered_only else []
+    training_rows: list[dict] = []
+    if train_steps > 0 and not rendered_only:
+        from training.train.bench import bench_training
+
+        training_rows = bench_training(train_steps)
     return {
         "rendered": bench_rendered(rendered_steps) if rendered_steps > 0 else [],
         "steps": steps,
@@ -116,6 +125,7 @@ def run_bench(steps: int, memory_steps: int, rendered_steps: int = 0, rendered_o
         "configurations": rows,
         "memory_steps": memory_steps,
         "memory_mb": memory,
+        "training": training_rows,
         "cpu_count": os.cpu_count(),
     }
 
@@ -142,4 +152,8 @@ def format_bench(result: dict) -> str:
     lines.append(f"({result['steps']} random-action steps per row, {result['cpu_count']} cores)")
     if result.get("rendered"):
         lines.append("\n" + format_rendered(result["rendered"]))
+    if result.get("training"):
+        from training.train.bench import format_training
+
+        lines += format_training(result["training"])
     return "\n".join(lines)

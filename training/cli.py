@@ -5,6 +5,7 @@ Subcommands:
     experiment line     the paper's 4.6 m line, forward-back-forward: keypoint table, figures, JSON, CSV.
     bench               environment steps per second against MPE2, memory over a long run.
     evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
+    train               train a coordination policy with Stable-Baselines3 (training/train/).
 
 Every subcommand validates its arguments at the boundary and exits with status 2
 and a one-line message on bad input.
@@ -70,6 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="steps of each rendered-camera row (top_observer, 720x576 with noise; default 1000; 0 skips it)",
     )
     bench.add_argument("--rendered-only", action="store_true", help="run only the rendered-camera rows")
+    bench.add_argument(
+        "--train-steps", type=_int_at_least(0, "step count"), default=16_384, help="PPO timesteps per training row (default 16384; 0 skips them)"
+    )
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
     bench.set_defaults(handler=_run_bench)
 
@@ -94,6 +98,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ev.add_argument("--max-cycles", type=_int_at_least(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
     ev.set_defaults(handler=_run_evaluate)
+
+    from training.train.command import add_train_parser
+
+    add_train_parser(sub, _int_at_least)
     return parser
 
 
@@ -115,6 +123,10 @@ def _run_evaluate(args: argparse.Namespace) -> int:
         print(f"moma-env evaluate: {err}", file=sys.stderr)
         return 2
     label = policy_label(args.policy)
+    env_options = dict(getattr(policy, "env_options", {}))  # a trained policy says which env it fits
+    if args.action_mode is not None and env_options.get("action_mode", args.action_mode) != args.action_mode:
+        print(f"moma-env evaluate: the policy was trained in {env_options['action_mode']!r} mode, not {args.action_mode!r}", file=sys.stderr)
+        return 2
     out = args.out if args.out is not None else Path("runs/evaluate") / f"{args.scenario}_{label}"
     recorder = None
     if args.video:
@@ -129,10 +141,11 @@ def _run_evaluate(args: argparse.Namespace) -> int:
             args.episodes,
             args.seed,
             random_scenarios=args.random_scenarios,
-            action_mode=args.action_mode or POLICY_ACTION_MODES.get(args.policy, "switching"),
+            action_mode=args.action_mode or env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(args.policy, "switching"),
             max_cycles=args.max_cycles,
             frame_sink=recorder,
             progress=lambda _episode: bar.update(),
+            **env_options,
         )
     result = dataclasses.replace(result, policy=label)
     paths = write_outputs(result, out)
@@ -152,7 +165,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
 def _run_bench(args: argparse.Namespace) -> int:
     from training.bench import format_bench, run_bench
 
-    result = run_bench(args.steps, args.memory_steps, args.rendered_steps, args.rendered_only)
+    result = run_bench(args.steps, args.memory_steps, args.rendered_steps, args.rendered_only, args.train_steps)
     print(json.dumps(result, indent=2) if args.json else format_bench(result))
     return 0
 

@@ -49,10 +49,12 @@ class CentralisedTeamEnv(gym.Env):
             self.action_space = spaces.Box(-1.0, 1.0, shape=(size,), dtype=np.float32)
             self._discrete = False
 
-    def _flatten(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+    def team_observation(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """The agents' observations concatenated in ``possible_agents`` order (float32)."""
         return np.concatenate([obs[a] for a in self._agents]).astype(np.float32, copy=False)
 
-    def _split(self, action: Any) -> dict[str, Any]:
+    def agent_actions(self, action: Any) -> dict[str, Any]:
+        """The team action split into the agents' actions (what ``step`` sends to the parallel env)."""
         a = np.asarray(action)
         if a.shape != self.action_space.shape:
             raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
@@ -74,12 +76,12 @@ class CentralisedTeamEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
         obs, infos = self.parallel_env.reset(seed=seed, options=options)
-        return self._flatten(obs), dict(infos)
+        return self.team_observation(obs), dict(infos)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
-        obs, rewards, terms, truncs, infos = self.parallel_env.step(self._split(action))
+        obs, rewards, terms, truncs, infos = self.parallel_env.step(self.agent_actions(action))
         reward = float(next(iter(rewards.values())))
-        return self._flatten(obs), reward, any(terms.values()), any(truncs.values()), dict(infos)
+        return self.team_observation(obs), reward, any(terms.values()), any(truncs.values()), dict(infos)
 
     def render(self) -> np.ndarray | None:
         return self.parallel_env.render()

@@ -7,8 +7,9 @@ Specs understood by :func:`load_policy`:
 
 * ``"scripted"``: ``agents.policies.scripted_policy(configuration)``;
 * ``"random"``: ``agents.policies.RandomPolicy(seed)``;
-* a path: a trained policy (the hook for the Stable-Baselines3 loader of issue 6;
-  not supported yet, it raises :class:`PolicyLoadError`).
+* a path: the output folder of ``moma-env train``
+  (:class:`agents.learned.LearnedPolicy`; it names the env options it fits in
+  ``env_options``).
 
 ``agents.policies`` is imported lazily, when a policy is loaded.
 """
@@ -56,8 +57,15 @@ def _agents_policies():
 
 
 def _load_trained_policy(path: Path, configuration: str) -> Policy:
-    """Hook for trained policies (issue 6): not supported yet."""
-    raise PolicyLoadError(f"loading trained policies from PATH needs issue 6's loader (got {str(path)!r})")
+    """A policy trained by ``moma-env train`` in folder ``path`` (:class:`agents.learned.LearnedPolicy`)."""
+    try:
+        learned = importlib.import_module("agents.learned")
+    except ImportError as err:
+        raise PolicyLoadError(f"trained policies need the module agents.learned, which cannot be imported: {err}") from None
+    try:
+        return learned.LearnedPolicy.from_dir(path, configuration)
+    except learned.TrainingDirError as err:
+        raise PolicyLoadError(str(err)) from None
 
 
 def load_policy(spec: str, configuration: str, seed: int | None = None) -> Policy:
@@ -111,8 +119,7 @@ def load_policy(spec: str, configuration: str, seed: int | None = None) -> Polic
         path = Path(spec)
         if not path.exists():
             raise PolicyLoadError(
-                f"unknown policy {spec!r}: expected 'scripted', 'random' or the path of a trained policy "
-                "(loading trained policies from PATH needs issue 6's loader)"
+                f"unknown policy {spec!r}: expected 'scripted', 'planned', 'servo', 'random' or the folder of a trained policy"
             )
         policy = _load_trained_policy(path, configuration)
     if not isinstance(policy, Policy):

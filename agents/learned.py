@@ -1,0 +1,193 @@
+"""A trained Stable-Baselines3 policy as an :class:`agents.policies.base.Policy`.
+
+``LearnedPolicy.from_dir("runs/train/top")`` loads what ``moma-env train``
+wrote: ``manifest.json`` (written last, so it always names a complete
+checkpoint) names the model zip and, if the run normalised observations, the
+``VecNormalize`` statistics. The policy acts deterministically (the mode of the
+action distribution) on the observations only; it never reads ``infos``, so it
+honours the truth guard trivially.
+
+Two routes (see ``training.train.config``):
+
+* ``shared``: one network for every UGV; each robot's observation is one row
+  of a batch, each row's action is that robot's.
+* ``centralised``: the team as one agent; the observations are concatenated and
+  the team action split back into the agents' actions exactly as the Gymnasium
+  wrapper does (:class:`moma_env.env.centralised.CentralisedTeamEnv`).
+
+The UAV observer was flown by its tracking controller during training
+(``observer_agent=False``): :attr:`LearnedPolicy.env_options` says how to build
+an env the policy fits, and ``reset`` refuses one it does not fit.
+
+Stable-Baselines3 (the ``train`` extra) is imported only when a model is loaded.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from moma_env.env.centralised import CentralisedTeamEnv
+from moma_env.env.parallel import OBSERVER, MomaParallelEnv
+
+__all__ = ["LearnedPolicy", "TrainingDirError", "read_manifest", "MANIFEST", "MANIFEST_FORMAT"]
+
+#: Name of the manifest in a training output folder.
+MANIFEST = "manifest.json"
+#: Version of the manifest's layout.
+MANIFEST_FORMAT = 1
+#: Routes a manifest may name.
+_ROUTES = ("centralised", "shared")
+
+ObservationNormaliser = Callable[[np.ndarray], np.ndarray]
+
+
+class TrainingDirError(ValueError):
+    """A training output folder that holds no loadable run (one-line message)."""
+
+
+def read_manifest(directory: str | Path) -> dict[str, Any]:
+    """The manifest of a training folder, checked: format, route, and every file it names exists.
+
+    Raises:
+        TrainingDirError: no folder, no manifest, unreadable or inconsistent manifest.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise TrainingDirError(f"{str(directory)!r} is not a folder of a training run")
+    path = directory / MANIFEST
+    if not path.is_file():
+        raise TrainingDirError(f"{str(directory)!r} holds no {MANIFEST} (not a finished checkpoint of moma-env train)")
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        raise TrainingDirError(f"cannot read {str(path)!r}: {err}") from None
+    if not isinstance(manifest, dict) or manifest.get("format") != MANIFEST_FORMAT:
+        raise TrainingDirError(f"{str(path)!r} is not a version-{MANIFEST_FORMAT} training manifest")
+    for key in ("sb3_class", "route", "model", "num_timesteps", "config"):
+        if key not in manifest:
+            raise TrainingDirError(f"{str(path)!r} lacks the key {key!r}")
+    if manifest["route"] not in _ROUTES:
+        raise TrainingDirError(f"{str(path)!r} names an unknown route {manifest['route']!r}")
+    for key in ("model", "vecnormalize", "replay_buffer"):
+        name = manifest.get(key)
+        if name is not None and not (directory / name).is_file():
+            raise TrainingDirError(f"{str(path)!r} names {key} file {name!r}, which is missing")
+    return manifest
+
+
+def _sb3_class(name: str):
+    try:
+        import stable_baselines3
+    except ImportError as err:  # pragma: no cover - the train extra is installed in CI
+        raise TrainingDirError(f"loading a trained policy needs stable-baselines3 (the 'train' extra): {err}") from None
+    cls = getattr(stable_baselines3, name, None)
+    if cls is None:
+        raise TrainingDirError(f"stable-baselines3 has no algorithm {name!r}")
+    return cls
+
+
+class LearnedPolicy:
+    """A trained model acting for every UGV agent (see the module docstring).
+
+    Args:
+        model: a Stable-Baselines3 model (``predict(obs, deterministic=True)``).
+        route: ``"shared"`` or ``"centralised"``.
+        action_mode: the env action mode it was trained in.
+        normalise: maps a batch of raw observations to the model's inputs
+            (``VecNormalize.normalize_obs``), or None.
+        configuration: the configuration name it was trained on, if known.
+    """
+
+    def __init__(
+        self,
+        model: Any,
+        route: str,
+        action_mode: str,
+        normalise: ObservationNormaliser | None = None,
+        configuration: str | None = None,
+    ):
+        if route not in _ROUTES:
+            raise ValueError(f"route must be one of {_ROUTES}, got {route!r}")
+        self.model = model
+        self.route = route
+        self.action_mode = action_mode
+        self.configuration = configuration
+        self._normalise = normalise
+        self._agents: list[str] = []
+        self._team: CentralisedTeamEnv | None = None
+        self._discrete = isinstance(model.action_space, spaces.Discrete)
+
+    @property
+    def env_options(self) -> dict[str, Any]:
+        """Options of ``parallel_env`` that build an env this policy fits."""
+        return {"action_mode": self.action_mode, "observer_agent": False}
+
+    @classmethod
+    def from_dir(cls, directory: str | Path, configuration: str | None = None) -> "LearnedPolicy":
+        """Load the checkpoint named by ``directory``'s manifest.
+
+        Args:
+            directory: a ``moma-env train --out`` folder.
+            configuration: if given, must be the configuration the run trained on.
+
+        Raises:
+            TrainingDirError: see :func:`read_manifest`; a configuration mismatch.
+        """
+        directory = Path(directory)
+        manifest = read_manifest(directory)
+        config = manifest["config"]
+        trained_on = config.get("scenario")
+        if configuration is not None and trained_on != configuration:
+            raise TrainingDirError(f"{str(directory)!r} was trained on {trained_on!r}, not {configuration!r}")
+        model = _sb3_class(manifest["sb3_class"]).load(directory / manifest["model"], device="cpu")
+        normalise = None
+        if manifest.get("vecnormalize"):
+            with open(directory / manifest["vecnormalize"], "rb") as f:
+                stats = pickle.load(f)
+            if getattr(stats, "norm_obs", False):
+                normalise = stats.normalize_obs
+        return cls(model, manifest["route"], config["action_mode"], normalise, trained_on)
+
+    def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
+        """Check that ``env`` fits the model; read its agents (call after ``env.reset``)."""
+        if env.config.action_mode != self.action_mode:
+            raise ValueError(f"the policy was trained in {self.action_mode!r} mode; the env is in {env.config.action_mode!r} mode")
+        if OBSERVER in env.possible_agents:
+            raise ValueError("the policy was trained with the observer flown by its tracking controller: build the env with observer_agent=False")
+        self._agents = list(env.possible_agents)
+        expected = self.model.observation_space.shape
+        if self.route == "centralised":
+            self._team = CentralisedTeamEnv(env)
+            got = self._team.observation_space.shape
+        else:
+            got = env.observation_space(self._agents[0]).shape
+        if got != expected:
+            raise ValueError(f"the model expects observations of shape {expected}; this env gives {got}")
+
+    def _predict(self, batch: np.ndarray) -> np.ndarray:
+        if self._normalise is not None:
+            batch = self._normalise(batch)
+        actions, _ = self.model.predict(batch, deterministic=True)
+        return actions
+
+    def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+        """The model's deterministic action of every agent in ``observations`` (infos unread)."""
+        if not observations:
+            return {}
+        if self.route == "centralised":
+            assert self._team is not None, "call reset(env) first"
+            team = self._team.team_observation(observations)[None, :]
+            return self._team.agent_actions(self._predict(team)[0])
+        agents = [a for a in self._agents if a in observations]
+        batch = np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents])
+        actions = self._predict(batch)
+        if self._discrete:
+            return {a: int(actions[k]) for k, a in enumerate(agents)}
+        return {a: np.asarray(actions[k], dtype=np.float32) for k, a in enumerate(agents)}

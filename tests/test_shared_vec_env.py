@@ -1,0 +1,140 @@
+"""The shared-policy VecEnv adapter over the PettingZoo parallel env (training/train/shared_vec_env.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from gymnasium import spaces
+from stable_baselines3 import PPO
+
+from training.train.shared_vec_env import SharedPolicyVecEnv
+from training.train.team_slots import EnvSpec
+
+SPEC = EnvSpec("top_observer", {"max_cycles": 12, "random_scenarios": True, "observer_agent": False})
+
+
+def _rollout(venv: SharedPolicyVecEnv, seed: int, steps: int) -> list:
+    """Seed, reset, then ``steps`` steps of seeded random actions; everything returned."""
+    venv.seed(seed)
+    record = [venv.reset().copy()]
+    rng = np.random.default_rng(seed)
+    for _ in range(steps):
+        obs, rewards, dones, infos = venv.step(rng.integers(0, 2, size=venv.num_envs))
+        record += [obs.copy(), rewards.copy(), dones.copy()]
+    return record
+
+
+def _same(a: list, b: list) -> bool:
+    return len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def test_slots_are_the_ugvs_of_every_copy():
+    venv = SharedPolicyVecEnv(SPEC, 3)
+    try:
+        assert venv.agents == ["ugv_0", "ugv_1"] and venv.num_envs == 6
+        assert venv.observation_space.shape == (30,) and venv.action_space == spaces.Discrete(2)
+        obs = venv.reset()
+        assert obs.shape == (6, 30) and obs.dtype == np.float32
+        assert len(venv.reset_infos) == 6 and all("status" in info for info in venv.reset_infos)
+        assert venv.get_attr("max_cycles") == [12] * 6
+        assert venv.env_method("state", indices=[2])[0].dtype == np.float32
+    finally:
+        venv.close()
+
+
+def test_same_seed_same_first_rollout_and_another_seed_another():
+    a, b = SharedPolicyVecEnv(SPEC, 2), SharedPolicyVecEnv(SPEC, 2)
+    try:
+        first = _rollout(a, 5, 30)  # 30 steps over 12-step episodes: two auto-resets on new random layouts
+        assert _same(first, _rollout(b, 5, 30))
+        other = _rollout(b, 6, 30)
+        assert not np.array_equal(first[0], other[0])
+    finally:
+        a.close()
+        b.close()
+
+
+def test_worker_processes_give_the_same_rollout_as_in_process():
+    local, remote = SharedPolicyVecEnv(SPEC, 2), SharedPolicyVecEnv(SPEC, 2, subproc=True)
+    try:
+        assert _same(_rollout(local, 11, 15), _rollout(remote, 11, 15))
+        assert remote.get_attr("max_cycles", indices=[3]) == [12]
+    finally:
+        local.close()
+        remote.close()
+
+
+def test_a_worker_error_is_raised_with_its_traceback():
+    remote = SharedPolicyVecEnv(SPEC, 1, subproc=True)
+    try:
+        remote.reset()
+        with pytest.raises(RuntimeError, match="(?s)env worker failed:.*must be an integer in"):
+            remote.step(np.array([0, 7]))
+    finally:
+        remote.close()
+
+
+def test_infos_and_episode_ends_follow_the_vecenv_contract():
+    venv = SharedPolicyVecEnv(SPEC, 2)
+    try:
+        venv.seed(0)
+        venv.reset()
+        hold = np.zeros(venv.num_envs, dtype=np.int64)
+        for step in range(1, 13):
+            obs, rewards, dones, infos = venv.step(hold)
+            assert isinstance(infos, list) and len(infos) == 4 and all(type(i) is dict for i in infos)
+            assert rewards.dtype == np.float32 and rewards.shape == (4,) and dones.dtype == bool
+            assert rewards[0] == rewards[1] and rewards[2] == rewards[3]  # the team reward, per copy
+            if step < 12:
+                assert not dones.any() and not any("terminal_observation" in i for i in infos)
+        assert dones.all()  # max_cycles reached: truncated, auto-reset
+        for k, info in enumerate(infos):
+            assert info["TimeLimit.truncated"] is True
+            assert info["terminal_observation"].shape == (30,)
+            assert info["episode"]["l"] == 12 and info["episode"]["r"] == pytest.approx(12 * float(rewards[k]), abs=1.0)
+            assert not np.array_equal(info["terminal_observation"], obs[k])  # obs is the next episode's first
+        obs, _, dones, infos = venv.step(hold)
+        assert not dones.any() and "terminal_observation" not in infos[0]
+    finally:
+        venv.close()
+
+
+def test_the_observer_agent_and_bad_sizes_are_refused():
+    with pytest.raises(ValueError, match="observer_agent=False"):
+        SharedPolicyVecEnv(EnvSpec("top_observer", {"action_mode": "velocity"}), 1)
+    with pytest.raises(ValueError, match="n_copies"):
+        SharedPolicyVecEnv(SPEC, 0)
+    venv = SharedPolicyVecEnv(SPEC, 1)
+    try:
+        venv.reset()
+        with pytest.raises(ValueError, match="expected 2 actions"):
+            venv.step(np.zeros(3, dtype=np.int64))
+    finally:
+        venv.close()
+
+
+@pytest.fixture
+def one_torch_thread():
+    """Tiny networks: one thread is fastest and does not contend with other processes."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def test_ppo_with_a_seed_trains_reproducibly_on_the_adapter(one_torch_thread):
+    def learn(seed: int) -> list:
+        venv = SharedPolicyVecEnv(SPEC, 1)
+        try:
+            model = PPO("MlpPolicy", venv, seed=seed, n_steps=16, batch_size=16, n_epochs=1, device="cpu",
+                        policy_kwargs={"net_arch": [8]})
+            model.learn(64)
+            assert model.num_timesteps == 64
+            return [p.detach().clone() for p in model.policy.parameters()]
+        finally:
+            venv.close()
+
+    first, again, other = learn(3), learn(3), learn(4)
+    assert all(np.array_equal(a.numpy(), b.numpy()) for a, b in zip(first, again))
+    assert not all(np.array_equal(a.numpy(), b.numpy()) for a, b in zip(first, other))

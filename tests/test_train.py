@@ -1,0 +1,258 @@
+"""Training with Stable-Baselines3 (training/train/): both routes, checkpoints, resume, the CLI.
+
+Every run here is tiny (a few hundred timesteps, networks of 8 units, episodes of
+a few dozen steps): these tests check the plumbing, not learning.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+
+import numpy as np
+import pytest
+from stable_baselines3.common.callbacks import BaseCallback
+
+from agents.learned import LearnedPolicy, TrainingDirError
+from moma_env.config import ConfigError
+from moma_env.env.factory import parallel_env
+from policy_guard import guarded
+from training.cli import main
+from training.train.checkpoint import checkpoint_files, save_checkpoint
+from training.train.config import TrainConfig
+from training.train.evaluation import live_policy
+from training.train.run import train
+
+
+def tiny(**changes) -> TrainConfig:
+    base = dict(
+        scenario="top_observer", steps=256, envs=1, n_steps=32, batch_size=32, net_arch=(8,), max_cycles=40,
+        checkpoint_every=10**6, eval_episodes=1, eval_max_cycles=20,
+    )
+    return TrainConfig(**(base | changes))
+
+
+class KeepModel(BaseCallback):
+    """Keeps the model at the end of training, and the step count and statistics at its start."""
+
+    def __init__(self):
+        super().__init__()
+        self.start_steps = None
+        self.start_obs_count = None
+
+    def _on_training_start(self) -> None:
+        self.start_steps = self.model.num_timesteps
+        env = self.model.get_env()
+        self.start_obs_count = float(env.obs_rms.count) if hasattr(env, "obs_rms") else None
+        buffer = getattr(self.model, "replay_buffer", None)
+        self.start_replay_rows = None if buffer is None else buffer.size()
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def _episode_actions(policy, config: TrainConfig, seed: int, steps: int) -> list[dict]:
+    env = parallel_env(config.scenario, **(config.env_options | {"max_cycles": steps}))
+    observations, infos = env.reset(seed=seed)
+    policy.reset(env, seed=seed)
+    out = []
+    while env.agents:
+        actions = policy.act(observations, guarded(infos))
+        out.append({a: np.asarray(v).tolist() for a, v in actions.items()})
+        observations, _, _, _, infos = env.step(actions)
+    return out
+
+
+@pytest.mark.parametrize(
+    "route, mode", [("shared", "switching"), ("centralised", "switching"), ("shared", "velocity"), ("centralised", "velocity")]
+)
+def test_short_run_saves_and_reloads_with_the_same_deterministic_actions(tmp_path, route, mode):
+    config = tiny(route=route, action_mode=mode)
+    keep = KeepModel()
+    manifest = train(config, tmp_path / "run", callbacks=[keep])
+    steps = keep.model.num_timesteps
+    assert steps >= config.steps and manifest["num_timesteps"] == steps
+    assert manifest["route"] == route and manifest["config"]["action_mode"] == mode
+    names = sorted(p.name for p in checkpoint_files(tmp_path / "run"))
+    assert names == [f"model_{steps:012d}.zip", f"vecnormalize_{steps:012d}.pkl"]
+    live = _episode_actions(live_policy(keep.model, config), config, seed=3, steps=30)
+    loaded = _episode_actions(LearnedPolicy.from_dir(tmp_path / "run", "top_observer"), config, seed=3, steps=30)
+    assert len(live) == 30 and live == loaded
+
+
+def test_resume_after_a_kill_continues_from_the_checkpoint_with_its_statistics(tmp_path):
+    out = tmp_path / "run"
+    config = tiny(steps=512, checkpoint_every=128)  # 2 slots x 32 steps = 64 timesteps per rollout
+
+    class Kill(BaseCallback):
+        def _on_rollout_start(self) -> None:
+            if self.num_timesteps >= 256:
+                raise KeyboardInterrupt("killed")
+
+        def _on_step(self) -> bool:
+            return True
+
+    with pytest.raises(KeyboardInterrupt):
+        train(config, out, callbacks=[Kill()])
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["num_timesteps"] == 256
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "model_000000000256.zip", "vecnormalize_000000000256.pkl"]
+    with open(out / manifest["vecnormalize"], "rb") as f:
+        saved_count = float(pickle.load(f).obs_rms.count)
+
+    with pytest.raises(ConfigError, match="^out: .*--resume"):
+        train(config, out)
+    with pytest.raises(ConfigError, match="^learning_rate: "):
+        train(tiny(steps=512, checkpoint_every=128, learning_rate=1e-3), out, resume=True)
+
+    keep = KeepModel()
+    final = train(config, out, resume=True, callbacks=[keep])
+    assert keep.start_steps == 256
+    assert saved_count > 256  # every observation so far, not a fresh VecNormalize's
+    assert keep.start_obs_count == saved_count + 2  # plus the 2 slots' observations of the resumed envs' reset
+    assert final["num_timesteps"] == keep.model.num_timesteps == 512
+    adam = keep.model.policy.optimizer.state_dict()["state"]
+    assert adam and all(float(s["step"]) > 0 for s in adam.values())  # the optimiser's moments came back
+    assert final["wall_time_s"] > manifest["wall_time_s"]
+    assert sorted(p.name for p in checkpoint_files(out)) == ["model_000000000512.zip", "vecnormalize_000000000512.pkl"]
+
+
+def test_a_failed_save_leaves_the_previous_checkpoint_whole(tmp_path):
+    out = tmp_path / "run"
+    keep = KeepModel()
+    config = tiny(steps=64)
+    before = train(config, out, callbacks=[keep])
+    files = {p.name: p.read_bytes() for p in out.iterdir()}
+    model = keep.model
+
+    def broken_save(path, *args, **kwargs):
+        with open(path, "wb") as f:
+            f.write(b"half a model")
+        raise OSError("disk full")
+
+    model.save = broken_save
+    model.num_timesteps += 64
+    with pytest.raises(OSError, match="disk full"):
+        save_checkpoint(out, model, config, 1.0)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == files
+    assert json.loads((out / "manifest.json").read_text())["num_timesteps"] == before["num_timesteps"]
+
+
+def test_off_policy_run_saves_and_resumes_its_replay_buffer(tmp_path):
+    out = tmp_path / "sac"
+    config = tiny(algo="sac", action_mode="velocity", steps=40, batch_size=16, buffer_size=1000)
+    manifest = train(config, out)
+    assert manifest["replay_buffer"] == f"replay_{manifest['num_timesteps']:012d}.pkl"
+    keep = KeepModel()
+    final = train(tiny(algo="sac", action_mode="velocity", steps=60, batch_size=16, buffer_size=1000), out, resume=True, callbacks=[keep])
+    assert keep.start_steps == 40 and keep.start_replay_rows == 40 // 2  # rows of 2 slots (one env step each)
+    assert final["num_timesteps"] == 60 and keep.model.replay_buffer.size() == 60 // 2
+
+
+def test_evaluation_callback_writes_the_harness_metrics(tmp_path):
+    out = tmp_path / "run"
+    train(tiny(steps=128, eval_every=64, eval_episodes=1, progress_bar=True), out)
+    records = json.loads((out / "evaluations.json").read_text())["records"]
+    assert [r["num_timesteps"] for r in records] == [64, 128]
+    for record in records:
+        assert set(record) >= {"success_rate", "time_to_goal_s", "me_m", "e_f_m", "n_switches", "n_refused"}
+        assert 0.0 <= record["success_rate"] <= 1.0
+
+
+def test_evaluate_cli_runs_a_trained_policy_through_the_harness(tmp_path, capsys):
+    train(tiny(steps=64), tmp_path / "run")
+    code = main(["evaluate", "--scenario", "top_observer", "--policy", str(tmp_path / "run"), "--episodes", "2",
+                 "--max-cycles", "15", "--out", str(tmp_path / "eval"), "--json"])
+    assert code == 0
+    summary = json.loads((tmp_path / "eval" / "summary.json").read_text())
+    assert summary["policy"] == "run" and summary["n_episodes"] == 2 and summary["action_mode"] == "switching"
+    assert all(ep["steps"] == 15 for ep in summary["episodes"])
+    capsys.readouterr()
+    code = main(["evaluate", "--scenario", "caterpillar", "--policy", str(tmp_path / "run"), "--episodes", "1"])
+    assert code == 2 and "trained on 'top_observer', not 'caterpillar'" in capsys.readouterr().err
+    code = main(["evaluate", "--scenario", "top_observer", "--policy", str(tmp_path / "run"), "--action-mode", "velocity"])
+    assert code == 2 and "trained in 'switching' mode, not 'velocity'" in capsys.readouterr().err
+
+
+def test_learned_policy_refuses_an_env_it_does_not_fit(tmp_path):
+    train(tiny(steps=64), tmp_path / "run")
+    policy = LearnedPolicy.from_dir(tmp_path / "run")
+    env = parallel_env("top_observer", action_mode="velocity")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="trained in 'switching' mode"):
+        policy.reset(env)
+    env = parallel_env("top_observer", n_ugvs=3, observer_agent=False)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="observations of shape"):
+        policy.reset(env)
+    with pytest.raises(TrainingDirError, match="holds no manifest.json"):
+        LearnedPolicy.from_dir(tmp_path)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--scenario", "nowhere"], "scenario: unknown value 'nowhere'"),
+        (["--scenario", "top_observer", "--algo", "sac"], "algo: sac needs continuous actions"),
+        (["--scenario", "top_observer", "--algo", "dqn", "--route", "centralised"], "algo: dqn needs one discrete action"),
+        (["--scenario", "top_observer", "--reward", "speed=1"], "rewards.speed: unknown field"),
+        (["--scenario", "top_observer", "--reward", "time"], "rewards: expected NAME=VALUE"),
+        (["--scenario", "top_observer", "--reward", "time=soon"], "rewards.time: must be a number"),
+        (["--scenario", "top_observer", "--gamma", "1.5"], "gamma: must be in [0.0, 1.0]"),
+        (["--scenario", "top_observer", "--resume"], "holds no manifest.json"),
+    ],
+)
+def test_train_cli_bad_input_exits_2_with_one_line(tmp_path, capsys, args, message):
+    (tmp_path / "out").mkdir()
+    code = main(["train", *args, "--out", str(tmp_path / "out"), "--no-progress"])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.out == ""
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0]
+
+
+@pytest.mark.parametrize("args", [["--envs", "0"], ["--steps", "ten"], ["--net", "64,0"], ["--route", "solo"]])
+def test_train_cli_rejects_malformed_numbers_and_choices(tmp_path, capsys, args):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", "--scenario", "top_observer", "--out", str(tmp_path), *args])
+    assert exit_info.value.code == 2
+    assert "moma-env train: error:" in capsys.readouterr().err
+
+
+def test_train_cli_trains_and_reports(tmp_path, capsys):
+    code = main(["train", "--scenario", "caterpillar", "--steps", "64", "--envs", "1", "--n-steps", "32", "--batch-size", "32",
+                 "--net", "8", "--max-cycles", "30", "--out", str(tmp_path / "run"), "--no-progress", "--json"])
+    assert code == 0
+    manifest = json.loads(capsys.readouterr().out)
+    assert manifest["num_timesteps"] == 64 and manifest["config"]["scenario"] == "caterpillar"
+    assert LearnedPolicy.from_dir(tmp_path / "run", "caterpillar").route == "shared"
+
+
+def test_compare_tables_policies_evaluated_on_the_same_episodes(tmp_path, capsys):
+    from training.train import compare
+
+    train(tiny(steps=64), tmp_path / "run")
+    common = ["--scenario", "top_observer", "--episodes", "2", "--max-cycles", "10", "--json"]
+    assert main(["evaluate", *common, "--policy", str(tmp_path / "run"), "--out", str(tmp_path / "learned")]) == 0
+    assert main(["evaluate", *common, "--policy", "random", "--out", str(tmp_path / "random")]) == 0
+    assert main(["evaluate", *common, "--policy", "random", "--seed", "5", "--out", str(tmp_path / "other")]) == 0
+    capsys.readouterr()
+    assert compare.main([str(tmp_path / "learned"), str(tmp_path / "random")]) == 0
+    rows = capsys.readouterr().out.strip().splitlines()
+    assert rows[0].startswith("| policy | success |") and len(rows) == 4
+    assert rows[2].startswith("| run | 0 % | n/a |") and rows[3].startswith("| random | 0 % | n/a |")
+    random_summary = json.loads((tmp_path / "random" / "summary.json").read_text())
+    refused = random_summary["summary"]["n_refused"]["mean"]
+    assert rows[3].split("|")[5].strip() == f"{refused:.1f}"
+    assert compare.main([str(tmp_path / "random"), str(tmp_path / "other")]) == 2
+    assert "differ in scenario, first seed" in capsys.readouterr().err
+
+
+def test_moma_env_the_cli_and_the_worker_engine_do_not_import_sb3_or_torch():
+    import subprocess
+    import sys
+
+    code = ("import sys, moma_env, agents.policies, agents.learned, training.cli, training.train.team_slots; "
+            "training.cli.build_parser(); print(sorted(m for m in ('stable_baselines3', 'torch') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

@@ -1,0 +1,111 @@
+"""Callbacks of a training run: periodic checkpoints and periodic held-out evaluations.
+
+Both act at the start of a rollout, that is after the model has been updated
+with every step counted so far (for PPO, after ``train()`` of the previous
+rollout), so a checkpoint at ``S`` timesteps holds the weights trained on those
+``S`` steps and a resumed run neither repeats nor skips an update.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from stable_baselines3.common.callbacks import BaseCallback
+
+from moma_env.io import write_json
+from training.train.config import TrainConfig
+from training.train.evaluation import evaluate_model, headline
+
+__all__ = ["CheckpointCallback", "EvaluationCallback", "EVALUATIONS"]
+
+#: File of the held-out evaluations in the run's folder.
+EVALUATIONS = "evaluations.json"
+
+
+class CheckpointCallback(BaseCallback):
+    """Calls ``save()`` at the first rollout start ``every`` timesteps after the last save.
+
+    Args:
+        every: timesteps between checkpoints.
+        save: writes a checkpoint of the model (see :func:`training.train.checkpoint.save_checkpoint`).
+    """
+
+    def __init__(self, every: int, save: Callable[[], Any]):
+        super().__init__()
+        self.every = every
+        self._save = save
+        self.last_saved: int | None = None
+        self.saved_at: list[int] = []
+
+    def _on_training_start(self) -> None:
+        self.last_saved = self.num_timesteps
+
+    def _on_rollout_start(self) -> None:
+        if self.num_timesteps - self.last_saved >= self.every:
+            self._save()
+            self.last_saved = self.num_timesteps
+            self.saved_at.append(self.num_timesteps)
+
+    def _on_step(self) -> bool:
+        return True
+
+
+class EvaluationCallback(BaseCallback):
+    """Runs the evaluation harness on held-out random scenarios every ``config.eval_every`` timesteps.
+
+    Every evaluation appends a record (timesteps, training wall time, the
+    :func:`~training.train.evaluation.headline` numbers) and rewrites
+    ``<out>/evaluations.json`` whole; the numbers also go to the SB3 logger
+    (``eval/...``, in TensorBoard when it is installed).
+
+    Args:
+        config: the run (``eval_every``, ``eval_episodes``, ``eval_seed``, ...).
+        out: the run's folder.
+        records: the records of earlier sessions of the run (resume).
+        wall_time: returns the run's training wall time so far (s).
+    """
+
+    def __init__(self, config: TrainConfig, out: Path, records: list[dict], wall_time: Callable[[], float]):
+        super().__init__()
+        self.config = config
+        self.out = Path(out)
+        self.records = list(records)
+        self._wall_time = wall_time
+        self._last: int | None = None
+
+    def _on_training_start(self) -> None:
+        self._last = self.num_timesteps
+
+    def _on_rollout_start(self) -> None:
+        if self.config.eval_every > 0 and self.num_timesteps - self._last >= self.config.eval_every:
+            self.evaluate_now()
+            self._last = self.num_timesteps
+
+    def evaluate_now(self) -> dict:
+        """Evaluate the current model, log and write the records; return the new record."""
+        start = time.perf_counter()
+        result = evaluate_model(self.model, self.config)
+        record = {"num_timesteps": int(self.model.num_timesteps), "wall_time_s": self._wall_time(), **headline(result.summary),
+                  "eval_seconds": time.perf_counter() - start}
+        self.records.append(record)
+        for key in ("success_rate", "time_to_goal_s", "n_switches", "me_m", "e_f_m"):
+            self.logger.record(f"eval/{key}", record[key])
+        write_evaluations(self.out, self.config, self.records)
+        return record
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def write_evaluations(out: Path, config: TrainConfig, records: list[dict]) -> None:
+    """``<out>/evaluations.json``, whole or not at all."""
+    write_json(Path(out) / EVALUATIONS, {
+        "scenario": config.scenario,
+        "episodes": config.eval_episodes,
+        "first_seed": config.eval_seed,
+        "action_mode": config.action_mode,
+        "records": records,
+    })

@@ -1,0 +1,109 @@
+"""Checkpoints of a training run: the output folder never holds a half-written model.
+
+A checkpoint at ``S`` timesteps is the model zip ``model_<S>.zip`` (weights,
+optimiser state, step counter), the ``VecNormalize`` statistics
+``vecnormalize_<S>.pkl`` if the run normalises, the replay buffer
+``replay_<S>.pkl`` of off-policy algorithms, and then, last, ``manifest.json``
+naming them. Every file is written through :func:`moma_env.io.atomic_path`
+(temporary file, fsync, rename), and the manifest is only replaced once its
+files are complete, so the manifest always names a whole checkpoint; files of
+older checkpoints are deleted after the new manifest is in place. A run killed
+at any instant resumes from the checkpoint its manifest names
+(:func:`agents.learned.read_manifest` checks it).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import re
+from pathlib import Path
+from typing import Any
+
+import stable_baselines3
+import torch
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.vec_env import VecNormalize
+
+from agents.learned import MANIFEST, MANIFEST_FORMAT, read_manifest
+from moma_env.io import atomic_path, write_json
+from training.train.config import ALGORITHMS, TrainConfig
+
+__all__ = ["save_checkpoint", "read_manifest", "checkpoint_files", "remove_stale_temporaries"]
+
+#: Files of checkpoints: ``<kind>_<timesteps>.<ext>``.
+_CHECKPOINT_FILE = re.compile(r"^(model|vecnormalize|replay)_\d+\.(zip|pkl)$")
+
+
+def checkpoint_files(out: Path) -> list[Path]:
+    """Every checkpoint file in ``out`` (of any step)."""
+    return sorted(p for p in Path(out).iterdir() if _CHECKPOINT_FILE.match(p.name))
+
+
+def save_checkpoint(
+    out: Path,
+    model: BaseAlgorithm,
+    config: TrainConfig,
+    wall_time_s: float,
+    extra: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Write a checkpoint of ``model`` at its current step into ``out``; return its manifest.
+
+    Args:
+        out: the run's folder (exists).
+        model: the model; its env is the (possibly ``VecNormalize``-wrapped) training env.
+        config: the run's configuration (stored in the manifest).
+        wall_time_s: training wall time so far (s), over every session of the run.
+        extra: more manifest entries (plain data).
+    """
+    out = Path(out)
+    steps = int(model.num_timesteps)
+    names: dict[str, str | None] = {"model": f"model_{steps:012d}.zip", "vecnormalize": None, "replay_buffer": None}
+    with atomic_path(out / names["model"]) as tmp:
+        model.save(tmp)
+    venv = model.get_env()
+    if isinstance(venv, VecNormalize):
+        names["vecnormalize"] = f"vecnormalize_{steps:012d}.pkl"
+        with atomic_path(out / names["vecnormalize"]) as tmp:
+            venv.save(str(tmp))
+    if isinstance(model, OffPolicyAlgorithm) and model.replay_buffer is not None:
+        names["replay_buffer"] = f"replay_{steps:012d}.pkl"
+        with atomic_path(out / names["replay_buffer"]) as tmp:
+            model.save_replay_buffer(tmp)
+    manifest = {
+        "format": MANIFEST_FORMAT,
+        "num_timesteps": steps,
+        "sb3_class": ALGORITHMS[config.algo],
+        "route": config.route,
+        **names,
+        "config": config.to_dict(),
+        "observation_shape": list(model.observation_space.shape),
+        "action_space": repr(model.action_space),
+        "wall_time_s": float(wall_time_s),
+        "saved_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "versions": {"stable_baselines3": stable_baselines3.__version__, "torch": torch.__version__},
+        **(extra or {}),
+    }
+    write_json(out / MANIFEST, manifest)
+    keep = {name for name in names.values() if name is not None}
+    for path in checkpoint_files(out):
+        if path.name not in keep:
+            with contextlib.suppress(FileNotFoundError):
+                path.unlink()
+    return manifest
+
+
+#: Temporaries of :func:`moma_env.io.atomic_path` left by a process killed mid-write.
+_STALE_TEMPORARY = re.compile(r"^\.(model|vecnormalize|replay|manifest|evaluations)_?[\w]*\.[0-9a-f]{12}\.tmp\.(zip|pkl|json)$")
+
+
+def remove_stale_temporaries(out: Path) -> list[Path]:
+    """Delete half-written temporaries of a killed run in ``out``; return what was deleted."""
+    removed = []
+    for path in Path(out).iterdir():
+        if _STALE_TEMPORARY.match(path.name):
+            with contextlib.suppress(FileNotFoundError):
+                path.unlink()
+            removed.append(path)
+    return removed

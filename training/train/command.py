@@ -1,0 +1,119 @@
+"""The ``moma-env train`` subcommand: arguments, validation, and the call into :func:`training.train.run.train`.
+
+Stable-Baselines3 is imported only when the command runs, so ``moma-env``'s
+other subcommands work without the ``train`` extra.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+
+from moma_env.config import ConfigError
+from training.train.config import ALGORITHMS, ROUTES, TrainConfig, reward_overrides
+
+__all__ = ["add_train_parser", "run_train", "config_from_args"]
+
+
+def _layers(text: str) -> tuple[int, ...]:
+    try:
+        sizes = tuple(int(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated layer sizes such as 64,64, got {text!r}") from None
+    if not sizes or min(sizes) < 1:
+        raise argparse.ArgumentTypeError(f"layer sizes must be integers >= 1, got {text!r}")
+    return sizes
+
+
+def add_train_parser(sub, int_at_least) -> argparse.ArgumentParser:
+    """Add ``train`` to the subparsers ``sub``; ``int_at_least(minimum, what)`` is the CLI's integer type."""
+    defaults = {f.name: f.default for f in dataclasses.fields(TrainConfig) if f.default is not dataclasses.MISSING}
+    tr = sub.add_parser("train", help="train a coordination policy with Stable-Baselines3")
+    tr.add_argument("--scenario", required=True, help="configuration name (top_observer, caterpillar, caterpillar_sled, caterpillar_multi)")
+    tr.add_argument("--algo", choices=sorted(ALGORITHMS), default=defaults["algo"], help="algorithm (default ppo; dqn: switching + shared; sac, td3: velocity)")
+    tr.add_argument("--steps", type=int_at_least(1, "step count"), default=defaults["steps"],
+                    help="total timesteps: env steps (centralised) or agent steps (shared) (default %(default)s)")
+    tr.add_argument("--envs", type=int_at_least(1, "env count"), default=defaults["envs"], help="env copies K (default %(default)s)")
+    tr.add_argument("--subproc", action="store_true", help="run the env copies in worker processes")
+    tr.add_argument("--seed", type=int_at_least(0, "seed"), default=defaults["seed"], help="seed of the model and the envs (default 0)")
+    tr.add_argument("--out", type=Path, required=True, help="output folder: checkpoints, manifest.json, evaluations.json")
+    tr.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint (same settings; --steps is the new total)")
+    tr.add_argument("--action-mode", choices=("switching", "velocity"), default=defaults["action_mode"], help="env action mode (default switching)")
+    tr.add_argument("--route", choices=ROUTES, default=defaults["route"], help="shared policy over the UGV agents, or the centralised team (default shared)")
+    tr.add_argument("--max-cycles", type=int_at_least(1, "step count"), default=None, help="training episode length in steps (default: the scenario's)")
+    tr.add_argument("--reward", action="append", default=[], metavar="NAME=VALUE",
+                    help="override a reward weight of RewardConfig (repeatable), e.g. --reward time=-0.01")
+    tr.add_argument("--no-normalize", dest="normalize", action="store_false", help="no VecNormalize of observations and rewards")
+    tr.add_argument("--net", type=_layers, default=defaults["net_arch"], help="hidden layer sizes, e.g. 64,64 (default)")
+    tr.add_argument("--n-steps", type=int_at_least(1, "step count"), default=defaults["n_steps"], help="rollout length per slot (default %(default)s)")
+    tr.add_argument("--batch-size", type=int_at_least(2, "batch size"), default=defaults["batch_size"], help="minibatch size (default %(default)s)")
+    tr.add_argument("--learning-rate", type=float, default=defaults["learning_rate"], help="learning rate (default %(default)s)")
+    tr.add_argument("--gamma", type=float, default=defaults["gamma"], help="discount factor (default %(default)s)")
+    tr.add_argument("--ent-coef", type=float, default=defaults["ent_coef"], help="entropy bonus, PPO and A2C (default %(default)s)")
+    tr.add_argument("--checkpoint-every", type=int_at_least(1, "step count"), default=defaults["checkpoint_every"],
+                    help="timesteps between checkpoints (default %(default)s)")
+    tr.add_argument("--eval-every", type=int_at_least(0, "step count"), default=defaults["eval_every"],
+                    help="timesteps between held-out evaluations, also run at the end (default 0: never)")
+    tr.add_argument("--eval-episodes", type=int_at_least(1, "episode count"), default=defaults["eval_episodes"],
+                    help="episodes per evaluation (default %(default)s)")
+    tr.add_argument("--eval-seed", type=int_at_least(0, "seed"), default=defaults["eval_seed"],
+                    help="seed of the first held-out evaluation episode (default %(default)s)")
+    tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar")
+    tr.add_argument("--json", action="store_true", help="print the final manifest as JSON")
+    tr.set_defaults(handler=run_train)
+    return tr
+
+
+def config_from_args(args: argparse.Namespace) -> TrainConfig:
+    """The :class:`TrainConfig` of parsed arguments (ConfigError names a bad field)."""
+    return TrainConfig(
+        scenario=args.scenario,
+        algo=args.algo,
+        steps=args.steps,
+        envs=args.envs,
+        subproc=args.subproc,
+        seed=args.seed,
+        action_mode=args.action_mode,
+        route=args.route,
+        max_cycles=args.max_cycles,
+        rewards=reward_overrides(args.reward),
+        normalize=args.normalize,
+        net_arch=tuple(args.net),
+        n_steps=args.n_steps,
+        batch_size=args.batch_size,
+        learning_rate=args.learning_rate,
+        gamma=args.gamma,
+        ent_coef=args.ent_coef,
+        checkpoint_every=args.checkpoint_every,
+        eval_every=args.eval_every,
+        eval_episodes=args.eval_episodes,
+        eval_seed=args.eval_seed,
+        progress_bar=args.progress_bar,
+    )
+
+
+def run_train(args: argparse.Namespace) -> int:
+    """Handler of ``moma-env train``: exit status 0, or 2 with a one-line message on bad input."""
+    config = config_from_args(args)  # ConfigError -> the CLI's exit status 2
+    try:
+        from training.train.run import train
+    except ImportError as err:
+        print(f"moma-env train: needs the 'train' extra (stable-baselines3, torch): {err}", file=sys.stderr)
+        return 2
+    from agents.learned import TrainingDirError
+
+    try:
+        manifest = train(config, args.out, resume=args.resume)
+    except TrainingDirError as err:
+        print(f"moma-env train: {err}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(manifest, indent=2, sort_keys=True))
+    else:
+        print(f"trained {config.algo} ({config.route}, {config.action_mode}) on {config.scenario}: "
+              f"{manifest['num_timesteps']} timesteps, {manifest['wall_time_s']:.1f} s of training wall time\n"
+              f"model: {Path(args.out) / manifest['model']}\nmanifest: {Path(args.out) / 'manifest.json'}")
+    return 0

@@ -1,0 +1,186 @@
+"""What a training run is: :class:`TrainConfig`, validated at the boundary.
+
+A run trains one Stable-Baselines3 algorithm on one configuration of
+:mod:`moma_env.scenarios` through one of two routes:
+
+* ``centralised``: the whole team as one Gymnasium agent
+  (:class:`moma_env.env.centralised.CentralisedTeamEnv`), K copies vectorised
+  with SB3's ``DummyVecEnv`` / ``SubprocVecEnv``; one timestep is one env step.
+* ``shared``: one policy shared by every UGV agent, through
+  :class:`training.train.shared_vec_env.SharedPolicyVecEnv` (each UGV of each of
+  the K copies is one slot); one timestep is one agent step, so an env step of
+  a team of N robots counts N timesteps.
+
+The UAV observer is never a learning agent here: its tracking controller flies
+it in both action modes (``observer_agent=False``), so the learned problem is
+the UGVs' coordination. Every layout is a new random scenario of the
+configuration (``random_scenarios=True``) drawn from the env's seeded generator.
+
+Nothing in this module imports Stable-Baselines3.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from moma_env.config import ConfigError, check_bool, check_choice, check_count, check_non_negative, check_positive, check_range, from_mapping
+from moma_env.env.config import ACTION_MODES, RewardConfig
+from moma_env.scenarios import CONFIGURATIONS
+
+__all__ = ["ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "BOX_ONLY", "TrainConfig", "reward_overrides"]
+
+#: Algorithms by CLI name -> Stable-Baselines3 class name.
+ALGORITHMS = {"ppo": "PPO", "a2c": "A2C", "dqn": "DQN", "sac": "SAC", "td3": "TD3"}
+#: Algorithms that need a single ``Discrete`` action (switching mode, shared route).
+DISCRETE_ONLY = frozenset({"dqn"})
+#: Algorithms that need a ``Box`` action (velocity mode).
+BOX_ONLY = frozenset({"sac", "td3"})
+#: Training routes (see the module docstring).
+ROUTES = ("centralised", "shared")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One training run.
+
+    Attributes:
+        scenario: configuration name (``"top_observer"``, ...).
+        algo: a key of :data:`ALGORITHMS`.
+        steps: total SB3 timesteps (env steps on the centralised route, agent
+            steps on the shared route).
+        envs: number of env copies K.
+        subproc: run the K copies in worker processes.
+        seed: seed of the model and of the envs (copy k resets first with a seed
+            derived from it; later layouts come from each env's own generator).
+        action_mode: ``"switching"`` or ``"velocity"``.
+        route: ``"centralised"`` or ``"shared"``.
+        max_cycles: episode length limit in steps (None: the scenario's).
+        rewards: reward weights (defaults of :class:`RewardConfig` overridden).
+        normalize: wrap the envs in ``VecNormalize`` (observations and rewards).
+        net_arch: hidden layer sizes of the policy and value networks.
+        n_steps: rollout length per slot (on-policy algorithms).
+        batch_size: minibatch size.
+        learning_rate: optimiser step size.
+        gamma: discount factor per step.
+        buffer_size: replay buffer capacity in transitions (off-policy algorithms).
+        ent_coef: entropy bonus of the loss (PPO, A2C): keeps exploring.
+        checkpoint_every: timesteps between checkpoints (the last one is always saved).
+        eval_every: timesteps between evaluations on held-out scenarios (0: never).
+        eval_episodes: episodes per evaluation.
+        eval_seed: seed of the first held-out evaluation episode.
+        eval_max_cycles: episode length limit of the evaluations (None: the scenario's).
+        progress_bar: show SB3's progress bar.
+        torch_threads: torch's intra-op threads while training (1: the networks
+            are tiny, more threads only contend with the envs for the cores).
+    """
+
+    scenario: str
+    algo: str = "ppo"
+    steps: int = 100_000
+    envs: int = 2
+    subproc: bool = False
+    seed: int = 0
+    action_mode: str = "switching"
+    route: str = "shared"
+    max_cycles: int | None = None
+    rewards: RewardConfig = field(default_factory=RewardConfig)
+    normalize: bool = True
+    net_arch: tuple[int, ...] = (64, 64)
+    n_steps: int = 256
+    batch_size: int = 256
+    learning_rate: float = 3e-4
+    gamma: float = 0.995
+    buffer_size: int = 100_000
+    ent_coef: float = 0.01
+    checkpoint_every: int = 20_000
+    eval_every: int = 0
+    eval_episodes: int = 5
+    eval_seed: int = 10_000
+    eval_max_cycles: int | None = None
+    progress_bar: bool = False
+    torch_threads: int = 1
+
+    def __post_init__(self) -> None:
+        check_choice("scenario", self.scenario, sorted(CONFIGURATIONS))
+        check_choice("algo", self.algo, sorted(ALGORITHMS))
+        check_count("steps", self.steps, 1)
+        check_count("envs", self.envs, 1)
+        check_bool("subproc", self.subproc)
+        check_count("seed", self.seed, 0)
+        check_choice("action_mode", self.action_mode, ACTION_MODES)
+        check_choice("route", self.route, ROUTES)
+        for name in ("max_cycles", "eval_max_cycles"):
+            if getattr(self, name) is not None:
+                check_count(name, getattr(self, name), 1)
+        if not isinstance(self.rewards, RewardConfig):
+            raise ConfigError("rewards", f"must be a RewardConfig, got {type(self.rewards).__name__}")
+        check_bool("normalize", self.normalize)
+        if not isinstance(self.net_arch, tuple) or not self.net_arch:
+            raise ConfigError("net_arch", f"must be a non-empty tuple of layer sizes, got {self.net_arch!r}")
+        for k, size in enumerate(self.net_arch):
+            check_count(f"net_arch[{k}]", size, 1)
+        check_count("n_steps", self.n_steps, 1)
+        check_count("batch_size", self.batch_size, 1)
+        check_positive("learning_rate", self.learning_rate)
+        check_range("gamma", self.gamma, 0.0, 1.0)
+        check_count("buffer_size", self.buffer_size, 1)
+        check_non_negative("ent_coef", self.ent_coef)
+        check_count("checkpoint_every", self.checkpoint_every, 1)
+        check_count("eval_every", self.eval_every, 0)
+        check_count("eval_episodes", self.eval_episodes, 1)
+        check_count("eval_seed", self.eval_seed, 0)
+        check_bool("progress_bar", self.progress_bar)
+        check_count("torch_threads", self.torch_threads, 1)
+        if self.algo in DISCRETE_ONLY and (self.action_mode != "switching" or self.route != "shared"):
+            raise ConfigError(
+                "algo", f"{self.algo} needs one discrete action per slot: use --action-mode switching --route shared"
+            )
+        if self.algo in BOX_ONLY and self.action_mode != "velocity":
+            raise ConfigError("algo", f"{self.algo} needs continuous actions: use --action-mode velocity")
+
+    @property
+    def env_options(self) -> dict[str, Any]:
+        """Keyword options of :func:`moma_env.env.factory.parallel_env` for this run."""
+        return {
+            "action_mode": self.action_mode,
+            "observer_agent": False,
+            "max_cycles": self.max_cycles,
+            "rewards": dataclasses.asdict(self.rewards),
+            "random_scenarios": True,
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for the manifest (tuples as lists)."""
+        out = dataclasses.asdict(self)
+        out["net_arch"] = list(self.net_arch)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "TrainConfig":
+        """Inverse of :meth:`to_dict`; unknown keys raise ConfigError."""
+        data = dict(data)
+        if "net_arch" in data and isinstance(data["net_arch"], list):
+            data["net_arch"] = tuple(data["net_arch"])
+        return from_mapping(cls, data, name="train")
+
+
+def reward_overrides(pairs: list[str] | tuple[str, ...]) -> RewardConfig:
+    """``["progress=2", "time=-0.01"]`` -> a :class:`RewardConfig` with those weights changed.
+
+    Raises:
+        ConfigError: a pair without ``=``, a value that is not a number, or an
+            unknown weight (named ``rewards.<name>``).
+    """
+    values: dict[str, float] = {}
+    for pair in pairs:
+        name, sep, text = pair.partition("=")
+        if not sep or not name:
+            raise ConfigError("rewards", f"expected NAME=VALUE, got {pair!r}")
+        try:
+            values[name.strip()] = float(text)
+        except ValueError:
+            raise ConfigError(f"rewards.{name.strip()}", f"must be a number, got {text!r}") from None
+    return from_mapping(RewardConfig, values, name="rewards")

@@ -1,0 +1,58 @@
+"""The vectorised training envs of a :class:`~training.train.config.TrainConfig`.
+
+* ``shared`` route: :class:`~training.train.shared_vec_env.SharedPolicyVecEnv`
+  (K copies, one slot per UGV; worker processes with ``subproc``).
+* ``centralised`` route: K :class:`moma_env.env.centralised.CentralisedTeamEnv`
+  each in SB3's ``Monitor`` (episode statistics), in ``DummyVecEnv`` or, with
+  ``subproc``, ``SubprocVecEnv``.
+
+Both are seeded with ``seed`` through ``VecEnv.seed`` (slot i resets first with
+``seed + i``); ``normalize`` adds ``VecNormalize`` (observations and rewards,
+discounted with the run's gamma), or restores its statistics from a file.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
+
+from moma_env.env.factory import centralised_env
+from training.train.config import TrainConfig
+from training.train.shared_vec_env import SharedPolicyVecEnv, default_start_method
+from training.train.team_slots import EnvSpec
+
+__all__ = ["env_spec", "make_vec_env", "wrap_normalisation"]
+
+
+def env_spec(config: TrainConfig) -> EnvSpec:
+    """What one env copy of the run is built from."""
+    return EnvSpec(config.scenario, config.env_options)
+
+
+def _monitored_team_env(spec: EnvSpec) -> Monitor:
+    """One centralised team env with episode statistics (module level: picklable for workers)."""
+    return Monitor(centralised_env(spec.configuration, **spec.options))
+
+
+def make_vec_env(config: TrainConfig, seed: int) -> VecEnv:
+    """The run's K env copies through its route, seeded with ``seed`` (without normalisation)."""
+    spec = env_spec(config)
+    if config.route == "shared":
+        venv: VecEnv = SharedPolicyVecEnv(spec, config.envs, subproc=config.subproc)
+    else:
+        fns = [functools.partial(_monitored_team_env, spec) for _ in range(config.envs)]
+        venv = SubprocVecEnv(fns, start_method=default_start_method()) if config.subproc else DummyVecEnv(fns)
+    venv.seed(seed)
+    return venv
+
+
+def wrap_normalisation(venv: VecEnv, config: TrainConfig, stats: Path | None = None) -> VecEnv:
+    """``venv`` in ``VecNormalize`` if the run normalises (statistics from ``stats`` when resuming)."""
+    if not config.normalize:
+        return venv
+    if stats is not None:
+        return VecNormalize.load(str(stats), venv)
+    return VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=config.gamma)

@@ -1,0 +1,73 @@
+"""Evaluation of a policy during and after training, through the evaluation harness.
+
+:func:`evaluate_model` runs the current model (deterministic actions, the
+run's observation normalisation) on held-out random scenarios with
+:func:`training.evaluation.harness.evaluate`, the same harness as the scripted
+baselines, and :func:`headline` reduces a summary to the numbers of the
+issue's table: success rate, time to goal (s), switches and refused requests
+per episode, ME and E_f (m, mean over episodes and robots of each robot's mean
+and final position error of its MOMA estimate).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.vec_env import VecNormalize
+
+from agents.learned import LearnedPolicy
+from training.evaluation.harness import EvaluationResult, evaluate
+from training.train.config import TrainConfig
+
+__all__ = ["headline", "live_policy", "evaluate_model"]
+
+
+def _float(value: float | None) -> float:
+    """A summary number; None (NaN as read back from JSON) is NaN."""
+    return math.nan if value is None else float(value)
+
+
+def _mean(values: list[float | None]) -> float:
+    finite = [v for v in map(_float, values) if math.isfinite(v)]
+    return sum(finite) / len(finite) if finite else math.nan
+
+
+def headline(summary: Mapping[str, Any]) -> dict[str, float]:
+    """The table's numbers from :func:`training.evaluation.harness.summarise`'s summary
+    (in memory, or read back from ``summary.json`` where NaN is null)."""
+    robots = summary["robots"].values()
+    return {
+        "success_rate": _float(summary["success_rate"]),
+        "time_to_goal_s": _float(summary["time_to_goal_s"]["mean"]),
+        "time_to_goal_std_s": _float(summary["time_to_goal_s"]["std"]),
+        "n_switches": _float(summary["n_switches"]["mean"]),
+        "n_refused": _float(summary["n_refused"]["mean"]),
+        "me_m": _mean([r["moma"]["mean_mean_error"] for r in robots]),
+        "e_f_m": _mean([r["moma"]["mean_final_error"] for r in robots]),
+        "total_reward": _float(summary["total_reward"]["mean"]),
+    }
+
+
+def live_policy(model: BaseAlgorithm, config: TrainConfig) -> LearnedPolicy:
+    """The model as a policy, normalising observations with the training env's current statistics."""
+    venv = model.get_env()
+    normalise = venv.normalize_obs if isinstance(venv, VecNormalize) and venv.norm_obs else None
+    return LearnedPolicy(model, config.route, config.action_mode, normalise, config.scenario)
+
+
+def evaluate_model(model: BaseAlgorithm, config: TrainConfig) -> EvaluationResult:
+    """``config.eval_episodes`` held-out episodes of the model from ``config.eval_seed``."""
+    policy = live_policy(model, config)
+    return evaluate(
+        config.scenario,
+        policy,
+        config.eval_episodes,
+        config.eval_seed,
+        random_scenarios=True,
+        action_mode=config.action_mode,
+        max_cycles=config.eval_max_cycles,
+        **{k: v for k, v in policy.env_options.items() if k != "action_mode"},
+    )

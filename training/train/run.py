@@ -1,0 +1,118 @@
+"""A training run from start to finish, or resumed from its last checkpoint.
+
+``train(config, out)`` builds the vectorised envs of the route, the model, the
+checkpoint and evaluation callbacks, learns ``config.steps`` timesteps and
+writes the final checkpoint (:mod:`training.train.checkpoint`). With
+``resume=True`` it loads the checkpoint that ``out``'s manifest names: model
+weights, optimiser state and step counter (the SB3 zip), ``VecNormalize``
+statistics, the replay buffer of off-policy algorithms, the training wall time
+and the earlier evaluations, and learns the remaining ``config.steps -
+num_timesteps`` timesteps. The resumed envs are seeded with ``config.seed +
+num_timesteps``: a resumed run is as reproducible as a fresh one, though not
+identical to an uninterrupted one (its envs restart at new layouts).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import torch
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+
+from moma_env.config import ConfigError
+from training.train.callbacks import EVALUATIONS, CheckpointCallback, EvaluationCallback
+from training.train.checkpoint import checkpoint_files, read_manifest, remove_stale_temporaries, save_checkpoint
+from training.train.config import TrainConfig
+from training.train.envs import make_vec_env, wrap_normalisation
+from training.train.models import algorithm_class, build_model, tensorboard_dir
+
+__all__ = ["train", "RESUMABLE_CHANGES"]
+
+#: Fields of the configuration that a resumed run may change; every other must match the run's.
+RESUMABLE_CHANGES = frozenset({"steps", "subproc", "checkpoint_every", "eval_every", "eval_episodes", "eval_seed", "eval_max_cycles", "progress_bar", "torch_threads"})
+
+
+def _check_resumable(stored: TrainConfig, config: TrainConfig) -> None:
+    old, new = stored.to_dict(), config.to_dict()
+    for name in old:
+        if name not in RESUMABLE_CHANGES and old[name] != new[name]:
+            raise ConfigError(name, f"the run in this folder has {old[name]!r}, the command gives {new[name]!r}; resume with the run's own settings")
+
+
+def _earlier_records(out: Path, up_to: int) -> list[dict]:
+    path = out / EVALUATIONS
+    if not path.is_file():
+        return []
+    records = json.loads(path.read_text(encoding="utf-8")).get("records", [])
+    return [r for r in records if r.get("num_timesteps", 0) <= up_to]
+
+
+def train(config: TrainConfig, out: str | Path, resume: bool = False, callbacks: Sequence[BaseCallback] = ()) -> dict[str, Any]:
+    """Train (or resume) the run ``config`` in folder ``out``; return the final manifest.
+
+    Args:
+        config: the run.
+        out: its folder (created). A fresh run refuses a folder that already holds one.
+        resume: continue the run in ``out`` from its last checkpoint.
+        callbacks: more SB3 callbacks (called after the checkpoint and evaluation ones).
+
+    Raises:
+        ConfigError: ``out`` holds a run and ``resume`` is False, or the
+            configuration differs from the resumed run's (naming the field).
+        agents.learned.TrainingDirError: ``resume`` without a loadable checkpoint in ``out``.
+    """
+    out = Path(out)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(config.torch_threads)
+    try:
+        return _train(config, out, resume, callbacks)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[BaseCallback]) -> dict[str, Any]:
+    if resume:
+        manifest = read_manifest(out)
+        _check_resumable(TrainConfig.from_dict(manifest["config"]), config)
+        remove_stale_temporaries(out)
+        done = int(manifest["num_timesteps"])
+        venv = make_vec_env(config, config.seed + done)
+        stats = out / manifest["vecnormalize"] if manifest.get("vecnormalize") else None
+        venv = wrap_normalisation(venv, config, stats)
+        model = algorithm_class(config.algo).load(out / manifest["model"], env=venv, device="cpu", tensorboard_log=tensorboard_dir(out))
+        if manifest.get("replay_buffer"):
+            model.load_replay_buffer(out / manifest["replay_buffer"])
+        wall_before = float(manifest["wall_time_s"])
+        records = _earlier_records(out, done)
+    else:
+        if out.exists() and ((out / "manifest.json").exists() or checkpoint_files(out)):
+            raise ConfigError("out", f"{str(out)!r} already holds a training run; pass --resume to continue it or choose another folder")
+        out.mkdir(parents=True, exist_ok=True)
+        venv = wrap_normalisation(make_vec_env(config, config.seed), config)
+        model = build_model(config, venv, out)
+        wall_before = 0.0
+        records = []
+    session_start = time.perf_counter()
+
+    def wall_time() -> float:
+        return wall_before + time.perf_counter() - session_start
+
+    def save() -> dict[str, Any]:
+        return save_checkpoint(out, model, config, wall_time())
+
+    evaluation = EvaluationCallback(config, out, records, wall_time)
+    chain = CallbackList([CheckpointCallback(config.checkpoint_every, save), evaluation, *callbacks])
+    try:
+        remaining = config.steps - model.num_timesteps
+        if remaining > 0:
+            model.learn(remaining, callback=chain, reset_num_timesteps=not resume, progress_bar=config.progress_bar, tb_log_name="run")
+            if config.eval_every > 0 and (not evaluation.records or evaluation.records[-1]["num_timesteps"] != model.num_timesteps):
+                evaluation.evaluate_now()
+        manifest = save()
+    finally:
+        venv.close()
+    return manifest

@@ -1,0 +1,221 @@
+"""A Stable-Baselines3 ``VecEnv`` over K copies of a MOMA PettingZoo parallel env.
+
+Every UGV agent of every copy is one slot (``num_envs = K * N`` for N UGVs), so
+one policy is shared by all the robots (parameter sharing): the observations are
+each robot's own (egocentric, from its estimates), the reward is the team's.
+The copies run in this process or, with ``subproc=True``, one per worker
+process (:mod:`training.train.team_slots` holds the engine and the pipe
+protocol; the workers import neither SB3 nor torch).
+
+Contract (Stable-Baselines3 ``VecEnv``): ``reset()`` returns the stacked
+observations ``(K*N, D)`` and stores the infos in ``reset_infos``;
+``step_wait()`` returns observations, rewards ``(K*N,)`` float32, dones
+``(K*N,)`` bool and a list of K*N info dicts; at an episode's end the copy
+auto-resets and each of its slots' infos carries ``terminal_observation``,
+``TimeLimit.truncated`` and the ``episode`` statistics. ``seed(s)`` (what
+``PPO(seed=s)`` calls) sets slot i's seed to ``s + i``; copy k resets with its
+first slot's seed ``s + k*N`` at the next ``reset()``, and every later layout
+comes from that copy's seeded generator: same seed, same rollouts.
+
+This adapter lives in ``training/`` rather than ``moma_env/``: it subclasses
+SB3's ``VecEnv``, and SB3 is an optional extra that ``import moma_env`` must
+not need.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
+
+from training.train.team_slots import EnvSpec, TeamSlots, worker
+
+__all__ = ["SharedPolicyVecEnv", "default_start_method"]
+
+
+class _LocalCopy:
+    """A copy in this process (same interface as :class:`_RemoteCopy`)."""
+
+    def __init__(self, spec: EnvSpec):
+        self._slots = TeamSlots(spec)
+        self.agents = self._slots.agents
+        self.observation_space = self._slots.observation_space
+        self.action_space = self._slots.action_space
+        self._pending: tuple[str, Any] | None = None
+
+    def send(self, command: str, payload: Any) -> None:
+        self._pending = (command, payload)
+
+    def receive(self) -> Any:
+        command, payload = self._pending
+        self._pending = None
+        return self._slots.handle(command, payload)
+
+
+class _RemoteCopy:
+    """A copy in a worker process, driven over a pipe (:func:`training.train.team_slots.worker`)."""
+
+    def __init__(self, spec: EnvSpec, context: mp.context.BaseContext):
+        self.pending = 0  # commands sent and not yet answered
+        self._conn, child = context.Pipe()
+        self._process = context.Process(target=worker, args=(child, spec), daemon=True)
+        self._process.start()
+        child.close()
+        self.agents, self.observation_space, self.action_space = self._result(self._conn.recv())
+
+    @staticmethod
+    def _result(message: tuple[str, Any]) -> Any:
+        status, value = message
+        if status != "ok":
+            raise RuntimeError(f"env worker failed:\n{value}")
+        return value
+
+    def send(self, command: str, payload: Any) -> None:
+        self._conn.send((command, payload))
+        self.pending += 1
+
+    def receive(self) -> Any:
+        message = self._conn.recv()
+        self.pending -= 1
+        return self._result(message)
+
+    def drain(self) -> None:
+        """Read the answers still owed (after an error elsewhere), ignoring their content."""
+        while self.pending > 0:
+            try:
+                self.receive()
+            except RuntimeError:
+                pass
+
+    def close(self) -> None:
+        self._process.join(timeout=5)
+        if self._process.is_alive():
+            self._process.terminate()
+        self._conn.close()
+
+
+def default_start_method() -> str:
+    """forkserver where the platform has it (workers start from a clean server process), else spawn."""
+    methods = mp.get_all_start_methods()
+    return "forkserver" if "forkserver" in methods else "spawn"
+
+
+class SharedPolicyVecEnv(VecEnv):
+    """K copies of a parallel env, one slot per UGV agent (see the module docstring).
+
+    Args:
+        spec: how to build a copy (configuration and env options; the observer
+            must not be an agent).
+        n_copies: K >= 1.
+        subproc: one worker process per copy.
+        start_method: multiprocessing start method (default forkserver, else spawn).
+    """
+
+    def __init__(self, spec: EnvSpec, n_copies: int, subproc: bool = False, start_method: str | None = None):
+        if isinstance(n_copies, bool) or not isinstance(n_copies, int) or n_copies < 1:
+            raise ValueError(f"n_copies must be an integer >= 1, got {n_copies!r}")
+        self.spec = spec
+        self.subproc = subproc
+        if subproc:
+            context = mp.get_context(start_method or default_start_method())
+            self._copies: list[Any] = []
+            try:
+                for _ in range(n_copies):
+                    self._copies.append(_RemoteCopy(spec, context))
+            except BaseException:
+                self._closed = False
+                self.close()
+                raise
+        else:
+            self._copies = [_LocalCopy(spec) for _ in range(n_copies)]
+        self._closed = False
+        first = self._copies[0]
+        self.agents = list(first.agents)
+        self.n_agents = len(self.agents)
+        super().__init__(n_copies * self.n_agents, first.observation_space, first.action_space)
+
+    # -------------------------------------------------------------- slots <-> copies
+    def _copy_slices(self) -> Iterable[tuple[int, slice]]:
+        n = self.n_agents
+        return ((k, slice(k * n, (k + 1) * n)) for k in range(len(self._copies)))
+
+    def _copies_of(self, indices: VecEnvIndices) -> list[int]:
+        return [i // self.n_agents for i in self._get_indices(indices)]
+
+    # -------------------------------------------------------------- VecEnv API
+    def reset(self) -> VecEnvObs:
+        for k, copy in enumerate(self._copies):
+            first = k * self.n_agents
+            copy.send("reset", (self._seeds[first], self._options[first] or None))
+        observations = []
+        for k, copy in enumerate(self._copies):
+            obs, infos = copy.receive()
+            observations.append(obs)
+            self.reset_infos[k * self.n_agents : (k + 1) * self.n_agents] = infos
+        self._reset_seeds()
+        self._reset_options()
+        return np.concatenate(observations)
+
+    def step_async(self, actions: np.ndarray) -> None:
+        actions = np.asarray(actions)
+        if actions.shape[0] != self.num_envs:
+            raise ValueError(f"expected {self.num_envs} actions (one per slot), got shape {actions.shape}")
+        for k, part in self._copy_slices():
+            self._copies[k].send("step", actions[part])
+
+    def step_wait(self) -> VecEnvStepReturn:
+        try:
+            results = [copy.receive() for copy in self._copies]
+        except RuntimeError:
+            for copy in self._copies:
+                if isinstance(copy, _RemoteCopy):
+                    copy.drain()
+            raise
+        obs, rewards, dones, infos = zip(*results)
+        return np.concatenate(obs), np.concatenate(rewards), np.concatenate(dones), [i for part in infos for i in part]
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        for copy in self._copies:
+            if isinstance(copy, _RemoteCopy):
+                copy.drain()
+        for copy in self._copies:
+            try:
+                copy.send("close", None)
+                copy.receive()
+            except (EOFError, BrokenPipeError, RuntimeError):
+                pass
+            if isinstance(copy, _RemoteCopy):
+                copy.close()
+        self._closed = True
+
+    def _per_slot(self, command: str, payload: Any, indices: VecEnvIndices) -> list[Any]:
+        wanted = self._copies_of(indices)
+        values = {}
+        for k in sorted(set(wanted)):
+            self._copies[k].send(command, payload)
+            values[k] = self._copies[k].receive()
+        return [values[k] for k in wanted]
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """The attribute of the parallel env behind each slot."""
+        return self._per_slot("getattr", attr_name, indices)
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Set the attribute on the parallel envs behind the slots."""
+        self._per_slot("setattr", (attr_name, value), indices)
+
+    def env_method(self, method_name: str, *method_args, indices: VecEnvIndices = None, **method_kwargs) -> list[Any]:
+        """Call a method of the parallel envs behind the slots."""
+        return self._per_slot("call", (method_name, method_args, method_kwargs), indices)
+
+    def env_is_wrapped(self, wrapper_class: type, indices: VecEnvIndices = None) -> list[bool]:
+        """The copies are bare parallel envs: never wrapped."""
+        return [False for _ in self._get_indices(indices)]
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [None for _ in range(self.num_envs)]
