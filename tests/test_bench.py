@@ -85,3 +85,14 @@ def test_bench_configurations_reports_every_configuration_and_mode():
         }
     )
     assert "top_observer" in text and "n/a" in text
+
+
+def test_step_breakdown_accounts_for_the_whole_step():
+    from training.bench_step import step_breakdown
+
+    result = step_breakdown("top_observer", steps=60, warmup=5)
+    assert set(result) == {"step", "camera", "estimator", "world", "rest"}
+    # Episodes reset within the run (max_cycles is long, but every part was timed every step).
+    assert all(result[k] > 0.0 for k in ("step", "camera", "estimator", "world"))
+    assert result["rest"] == result["step"] - result["camera"] - result["estimator"] - result["world"]
+    assert result["camera"] + result["estimator"] + result["world"] < result["step"]
