@@ -252,6 +252,50 @@ def test_blur_of_the_non_uniform_window_equals_the_whole_image_blur() -> None:
         assert not np.array_equal(whole, scene)
 
 
+def test_noise_bytes_are_the_generator_bytes_and_leave_the_same_state() -> None:
+    from moma_env.camera.sensor import noise_bytes
+
+    for make, n in (
+        (lambda: np.random.default_rng(3), 720 * 576),  # the fast path
+        (lambda: np.random.default_rng(3), 8 * 7 + 5),  # not a multiple of 8
+        (lambda: np.random.Generator(np.random.MT19937(3)), 64),  # 32-bit raw outputs
+        (lambda: np.random.Generator(np.random.PCG64DXSM(3)), 64),
+    ):
+        for pending_half in (False, True):
+            a, b = make(), make()
+            if pending_half:  # a 32-bit draw leaves half of a 64-bit output pending
+                a.integers(0, 7, dtype=np.int32)
+                b.integers(0, 7, dtype=np.int32)
+            drawn = noise_bytes(a, n)
+            assert drawn.dtype == np.uint8 and drawn.shape == (n,)
+            assert drawn.tobytes() == b.bytes(n)
+            assert a.integers(0, 2**63, 4).tolist() == b.integers(0, 2**63, 4).tolist()
+
+
+def test_read_out_equals_gain_then_saturating_float_noise() -> None:
+    """The fused read-out table gives, pixel for pixel, the gain LUT then the float noise
+    added with OpenCV's saturation, from the same random bytes."""
+    from statistics import NormalDist
+
+    import cv2
+
+    from moma_env.camera.sensor import SensorModel
+
+    quantiles = np.array([NormalDist().inv_cdf((k + 0.5) / 256.0) for k in range(256)])
+    scenes = np.random.default_rng(0)
+    for config in (RenderConfig(), RenderConfig(noise_std=6.0, contrast=1.3, brightness=-20.0), RenderConfig(noise_std=60.0)):
+        sensor = SensorModel(config)
+        gain = np.clip(np.rint(config.contrast * (np.arange(256) - 128.0) + 128.0 + config.brightness), 0, 255).astype(np.uint8)
+        for shape in ((576, 720), (5, 9)):
+            scene = scenes.integers(0, 256, shape, dtype=np.uint8)
+            draws = np.frombuffer(np.random.default_rng(1).bytes(scene.size), dtype=np.uint8).reshape(shape)
+            expected = cv2.add(cv2.LUT(scene, gain), cv2.LUT(draws, (config.noise_std * quantiles).astype(np.float32)), dtype=cv2.CV_8U)
+            out = sensor.read_out(scene.copy(), np.random.default_rng(1))
+            assert np.array_equal(out, expected)
+            assert np.any(out != scene)
+    assert np.array_equal(SensorModel(RenderConfig(noise_std=0.0)).read_out(scene.copy(), np.random.default_rng(1)), scene)
+
+
 def test_nearer_boards_cover_farther_ones_and_their_occluded_markers() -> None:
     """A forward camera: a board 0.8 m ahead hides the middle of one 1.6 m ahead, listed first."""
     from moma_env.geometry import R_BODY_BOARD_BACK

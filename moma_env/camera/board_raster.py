@@ -46,6 +46,8 @@ class BoardRaster:
             with the 3x3 affine map from board ``(x, y, 1)`` (m) to its pixels.
         outline_m: (n, 3) points along the paper's border in M (m), to bound
             the board's image.
+        next_index: ``outline_m[next_index]`` is the outline shifted by one point (cyclic).
+        area_m2: area of the outline's bounding box (m^2), the paper's area.
 
     Markers are placed at their layout position rounded to the raster grid:
     exact when the gaps and the quiet zone are whole multiples of a raster
@@ -88,6 +90,9 @@ class BoardRaster:
         edges = np.concatenate([box[k] + t[:, None] * (box[(k + 1) % 4] - box[k]) for k in range(4)])
         self.outline_m = np.column_stack([edges, np.zeros(len(edges))])
         self.outline_m.setflags(write=False)
+        extent = self.outline_m[:, :2].max(axis=0) - self.outline_m[:, :2].min(axis=0)
+        self.area_m2 = float(extent[0] * extent[1])
+        self.next_index = np.roll(np.arange(len(self.outline_m)), -1)
 
     def level_for(self, image_px_per_m: float) -> tuple[np.ndarray, np.ndarray]:
         """The coarsest level still at least as fine as ``image_px_per_m`` (the board's

@@ -33,6 +33,8 @@ __all__ = ["FloorConfig", "FloorTexture"]
 _SMOOTH_MAP_MIN_SINE = math.sin(math.radians(20.0))
 #: Where the edges of a textured rectangle are sampled (fractions of each edge).
 _EDGE_FRACTIONS = np.linspace(0.0, 1.0, 8, endpoint=False)
+#: Index of the next corner of a quadrilateral (cyclic).
+_NEXT_CORNER = np.array([1, 2, 3, 0])
 
 
 def remap_into(raster: np.ndarray, sample_map: np.ndarray, out: np.ndarray, border_value: int) -> None:
@@ -232,10 +234,11 @@ class FloorTexture:
             x0, y0, x1, y1 = max(x0, gx0), max(y0, gy0), min(x1, gx1), min(y1, gy1)
             if x0 < x1 and y0 < y1:
                 box = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
-                samples += [box[k] + f * (box[(k + 1) % 4] - box[k]) for k in range(4) for f in _EDGE_FRACTIONS]
+                # Side k sampled at the fractions f: box[k] + f * (box[k + 1] - box[k]).
+                samples.append((box[:, None, :] + _EDGE_FRACTIONS[None, :, None] * (box[_NEXT_CORNER] - box)[:, None, :]).reshape(-1, 2))
         if not samples:
             return None
-        points_w = np.column_stack([np.array(samples), np.zeros(len(samples))])
+        points_w = np.column_stack([np.concatenate(samples), np.zeros(sum(len(part) for part in samples))])
         uv, r2 = rays.camera.project_with_r2((points_w - t) @ R)
         if not float(r2.max()) < rays.camera.fold_r2:
             return (0, 0, rays.shape[1], rays.shape[0])  # beyond the lens model's fold: bound by the image

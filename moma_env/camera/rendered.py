@@ -315,9 +315,9 @@ class RenderedCamera:
         if roi is None:
             return None
         x, y = uv[:, 0], uv[:, 1]
-        area_px = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
-        extent = raster.outline_m[:, :2].max(axis=0) - raster.outline_m[:, :2].min(axis=0)
-        image, A = raster.level_for(math.sqrt(area_px / float(extent[0] * extent[1])))
+        following = raster.next_index
+        area_px = 0.5 * abs(float(np.dot(x, y[following]) - np.dot(y, x[following])))  # shoelace
+        image, A = raster.level_for(math.sqrt(area_px / raster.area_m2))
         H_n_m = np.column_stack([R[:, 0], R[:, 1], t])
         x0, y0, x1, y1 = roi
         window = np.ascontiguousarray(scene[y0:y1, x0:x1])
