@@ -20,13 +20,18 @@ The UAV observer was flown by its tracking controller during training
 an env the policy fits, and ``reset`` refuses one it does not fit.
 
 Stable-Baselines3 (the ``train`` extra) is imported only when a model is loaded.
+The network runs on ``torch_threads`` threads (default 1, as in training):
+a 64x64 network on a batch of a few robots gains nothing from more, and on a
+busy machine torch's thread pool waiting for a second core made each step
+about 20x slower.
 """
 
 from __future__ import annotations
 
 import json
 import pickle
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -93,6 +98,19 @@ def _sb3_class(name: str):
     return cls
 
 
+@contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """Run the block with torch's intra-op thread count set to ``n``, restored after."""
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
 class LearnedPolicy:
     """A trained model acting for every UGV agent (see the module docstring).
 
@@ -103,6 +121,7 @@ class LearnedPolicy:
         normalise: maps a batch of raw observations to the model's inputs
             (``VecNormalize.normalize_obs``), or None.
         configuration: the configuration name it was trained on, if known.
+        torch_threads: torch's thread count while the network runs (>= 1).
     """
 
     def __init__(
@@ -112,6 +131,7 @@ class LearnedPolicy:
         action_mode: str,
         normalise: ObservationNormaliser | None = None,
         configuration: str | None = None,
+        torch_threads: int = 1,
     ):
         if route not in _ROUTES:
             raise ValueError(f"route must be one of {_ROUTES}, got {route!r}")
@@ -123,6 +143,9 @@ class LearnedPolicy:
         self._agents: list[str] = []
         self._team: CentralisedTeamEnv | None = None
         self._discrete = isinstance(model.action_space, spaces.Discrete)
+        if isinstance(torch_threads, bool) or not isinstance(torch_threads, int) or torch_threads < 1:
+            raise ValueError(f"torch_threads must be an int >= 1, got {torch_threads!r}")
+        self.torch_threads = torch_threads
 
     @property
     def env_options(self) -> dict[str, Any]:
@@ -174,7 +197,8 @@ class LearnedPolicy:
     def _predict(self, batch: np.ndarray) -> np.ndarray:
         if self._normalise is not None:
             batch = self._normalise(batch)
-        actions, _ = self.model.predict(batch, deterministic=True)
+        with torch_threads(self.torch_threads):
+            actions, _ = self.model.predict(batch, deterministic=True)
         return actions
 
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:

@@ -189,6 +189,31 @@ def test_learned_policy_refuses_an_env_it_does_not_fit(tmp_path):
         LearnedPolicy.from_dir(tmp_path)
 
 
+def test_learned_policy_runs_its_network_on_its_own_thread_count(tmp_path):
+    import torch
+
+    train(tiny(steps=64), tmp_path / "run")
+    policy = LearnedPolicy.from_dir(tmp_path / "run")
+    assert policy.torch_threads == 1
+    seen = []
+    predict = policy.model.predict
+    policy.model.predict = lambda *args, **kwargs: (seen.append(torch.get_num_threads()), predict(*args, **kwargs))[1]
+    env = parallel_env("top_observer", **policy.env_options)
+    observations, infos = env.reset(seed=0)
+    policy.reset(env)
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        actions = policy.act(observations, infos)
+        assert set(actions) == set(observations) and seen == [1]
+        assert torch.get_num_threads() == 2  # restored
+    finally:
+        torch.set_num_threads(before)
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="torch_threads must be an int >= 1"):
+            LearnedPolicy(policy.model, "shared", "switching", torch_threads=bad)
+
+
 @pytest.mark.parametrize(
     "args, message",
     [

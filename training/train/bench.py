@@ -14,8 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
-import torch
 
+from agents.learned import torch_threads
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.models import build_model
@@ -26,20 +26,18 @@ __all__ = ["training_fps", "bench_training"]
 def training_fps(steps: int, envs: int, route: str = "shared", subproc: bool = False, scenario: str = "top_observer") -> dict:
     """One PPO training measurement (see the module docstring)."""
     config = TrainConfig(scenario=scenario, steps=steps, envs=envs, route=route, subproc=subproc, checkpoint_every=10**9)
-    threads = torch.get_num_threads()
-    torch.set_num_threads(config.torch_threads)
-    venv = wrap_normalisation(make_vec_env(config, config.seed), config)
-    try:
-        with tempfile.TemporaryDirectory() as out:
-            model = build_model(config, venv, Path(out))
-            start = time.perf_counter()
-            model.learn(steps)
-            elapsed = time.perf_counter() - start
-        slots_per_env_step = venv.num_envs // envs
-        timesteps = int(model.num_timesteps)
-    finally:
-        venv.close()
-        torch.set_num_threads(threads)
+    with torch_threads(config.torch_threads):
+        venv = wrap_normalisation(make_vec_env(config, config.seed), config)
+        try:
+            with tempfile.TemporaryDirectory() as out:
+                model = build_model(config, venv, Path(out))
+                start = time.perf_counter()
+                model.learn(steps)
+                elapsed = time.perf_counter() - start
+            slots_per_env_step = venv.num_envs // envs
+            timesteps = int(model.num_timesteps)
+        finally:
+            venv.close()
     return {
         "scenario": scenario, "route": route, "envs": envs, "subproc": subproc, "timesteps": timesteps, "seconds": elapsed,
         "timesteps_per_s": timesteps / elapsed, "env_steps_per_s": timesteps / slots_per_env_step / elapsed,

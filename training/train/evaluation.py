@@ -55,7 +55,7 @@ def live_policy(model: BaseAlgorithm, config: TrainConfig) -> LearnedPolicy:
     """The model as a policy, normalising observations with the training env's current statistics."""
     venv = model.get_env()
     normalise = venv.normalize_obs if isinstance(venv, VecNormalize) and venv.norm_obs else None
-    return LearnedPolicy(model, config.route, config.action_mode, normalise, config.scenario)
+    return LearnedPolicy(model, config.route, config.action_mode, normalise, config.scenario, torch_threads=config.torch_threads)
 
 
 def evaluate_model(model: BaseAlgorithm, config: TrainConfig) -> EvaluationResult:

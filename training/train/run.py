@@ -20,12 +20,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import torch
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 
 from moma_env.config import ConfigError
 from training.train.callbacks import EVALUATIONS, CheckpointCallback, EvaluationCallback
 from training.train.checkpoint import checkpoint_files, read_manifest, remove_stale_temporaries, save_checkpoint
+from agents.learned import torch_threads
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.models import algorithm_class, build_model, tensorboard_dir
@@ -66,12 +66,8 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, callbacks:
         agents.learned.TrainingDirError: ``resume`` without a loadable checkpoint in ``out``.
     """
     out = Path(out)
-    threads = torch.get_num_threads()
-    torch.set_num_threads(config.torch_threads)
-    try:
+    with torch_threads(config.torch_threads):
         return _train(config, out, resume, callbacks)
-    finally:
-        torch.set_num_threads(threads)
 
 
 def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[BaseCallback]) -> dict[str, Any]:
