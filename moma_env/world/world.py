@@ -175,7 +175,7 @@ class World:
         self._contacts: set[frozenset[str]] = set()
         space.on_collision(None, None, pre_solve=_record_contact, data=(names, self._contacts))
         self._space = space
-        self._poses = self._read_poses()
+        self._read_poses()
         self._previous_poses = self._poses.copy()
         self._steps = 0
         if self._uav is not None:
@@ -248,7 +248,7 @@ class World:
                     ugv.drive()
                 space.step(h)
         self._previous_poses = self._poses
-        self._poses = self._read_poses()
+        self._read_poses()
         if self._uav is not None:
             if uav is None:
                 self._uav.step(0.0, 0.0, 0.0, 0.0)
@@ -257,12 +257,17 @@ class World:
             self._uav_state = None
         self._steps += 1
 
-    def _read_poses(self) -> np.ndarray:
+    def _read_poses(self) -> None:
+        """Read the robots' poses once per step: ``_rows`` (x, y, unwrapped angle) and
+        ``_planar`` (x, y, yaw in [-pi, pi)) as tuples of floats, ``_poses`` as an (n, 3) array."""
         rows = []
         for ugv in self._ugvs:
-            x, y = ugv.body.position
-            rows.append((x, y, ugv.body.angle))
-        return np.array(rows, dtype=float).reshape(len(rows), 3)
+            body = ugv.body
+            x, y = body.position
+            rows.append((float(x), float(y), float(body.angle)))
+        self._rows = rows
+        self._planar = [(x, y, wrap_angle(angle)) for x, y, angle in rows]
+        self._poses = np.array(rows, dtype=float).reshape(len(rows), 3)
 
     @property
     def time(self) -> float:
@@ -327,8 +332,7 @@ class World:
 
     def ugv_pose(self, name: str) -> tuple[float, float, float]:
         """Planar pose ``(x, y, yaw)`` of robot ``name`` in W (m, m, rad in [-pi, pi))."""
-        x, y, angle = self._poses[self._index(name)].tolist()
-        return x, y, wrap_angle(angle)
+        return self._planar[self._index(name)]
 
     def ugv_poses(self) -> np.ndarray:
         """(n, 3) array of ``(x, y, yaw)`` of all robots, yaw in [-pi, pi) (a copy)."""
@@ -338,7 +342,7 @@ class World:
 
     def ugv_transform(self, name: str) -> np.ndarray:
         """4x4 ``T_w_b`` of robot ``name`` (body origin on the floor, z = 0)."""
-        x, y, angle = self._poses[self._index(name)].tolist()
+        x, y, angle = self._rows[self._index(name)]
         return se2_to_se3(x, y, angle)
 
     def ugv_body_velocity(self, name: str) -> tuple[float, float, float]:
@@ -364,7 +368,7 @@ class World:
         mount = self._boards[i]
         if mount is None:
             return None
-        x, y, angle = self._poses[i].tolist()
+        x, y, angle = self._rows[i]
         return se2_to_se3(x, y, angle) @ mount
 
     def segment_blocked(
@@ -484,7 +488,7 @@ class World:
             raise unknown_name("camera", camera_name, self._camera_names) from None
         if owner == UAV_OWNER:
             return self._uav.body_transform() @ T_b_c  # type: ignore[union-attr]
-        x, y, angle = self._poses[owner].tolist()
+        x, y, angle = self._rows[owner]
         return se2_to_se3(x, y, angle) @ T_b_c
 
     # -- UAV -------------------------------------------------------------------------------
