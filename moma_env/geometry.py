@@ -97,7 +97,7 @@ def invert(T: np.ndarray) -> np.ndarray:
     Rt = T[:3, :3].T
     Ti = np.empty((4, 4))
     Ti[:3, :3] = Rt
-    Ti[:3, 3] = -(Rt @ T[:3, 3])
+    np.negative(Rt @ T[:3, 3], out=Ti[:3, 3])
     Ti[3] = _LAST_ROW
     return Ti
 

@@ -528,7 +528,7 @@ class MomaParallelEnv(ParallelEnv):
         if self._observer_agent:
             a = parsed[OBSERVER]
             return np.array([a[0] * uav.max_speed, a[1] * uav.max_speed, a[2] * uav.max_yaw_rate, a[3] * uav.max_climb])
-        positions = [d.T_c_m[:3, 3] for d in self._detections if d.camera_id == uav.camera_name]
+        positions = [d.T_c_m[:3, 3].tolist() for d in self._detections if d.camera_id == uav.camera_name]
         return self._tracker.command(positions)
 
     def _measure(self) -> list:
