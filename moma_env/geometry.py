@@ -97,7 +97,7 @@ def invert(T: np.ndarray) -> np.ndarray:
     Rt = T[:3, :3].T
     Ti = np.empty((4, 4))
     Ti[:3, :3] = Rt
-    Ti[:3, 3] = -(Rt @ T[:3, 3])
+    np.negative(Rt @ T[:3, 3], out=Ti[:3, 3])
     Ti[3] = _LAST_ROW
     return Ti
 
@@ -145,11 +145,13 @@ def upright_body_from_mount(T_w_x: np.ndarray, T_b_x: np.ndarray, z: float = 0.0
     R = T_w_x[:3, :3] @ T_b_x[:3, :3].T
     yaw = math.atan2(R[1, 0], R[0, 0])
     c, s = math.cos(yaw), math.sin(yaw)
-    tx, ty = T_b_x[0, 3], T_b_x[1, 3]
+    # Plain floats (the same IEEE arithmetic as numpy scalars, without their overhead).
+    tx, ty = T_b_x[:2, 3].tolist()
+    x, y = T_w_x[:2, 3].tolist()
     return np.array(
         [
-            [c, -s, 0.0, T_w_x[0, 3] - (c * tx - s * ty)],
-            [s, c, 0.0, T_w_x[1, 3] - (s * tx + c * ty)],
+            [c, -s, 0.0, x - (c * tx - s * ty)],
+            [s, c, 0.0, y - (s * tx + c * ty)],
             [0.0, 0.0, 1.0, z],
             [0.0, 0.0, 0.0, 1.0],
         ]

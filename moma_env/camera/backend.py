@@ -15,7 +15,6 @@ in the scene; it never tells the backend which boards are visible.
 
 from __future__ import annotations
 
-import math
 import operator
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -24,6 +23,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from moma_env.camera.pinhole import PinholeCamera
+from moma_env.config import all_finite
 from moma_env.estimator.detection import Detection
 from moma_env.markers import BoardLayout
 
@@ -39,8 +39,7 @@ def as_pose(T: object, name: str) -> np.ndarray:
     T = np.asarray(T, dtype=float)
     if T.shape != (4, 4):
         raise ValueError(f"{name} must be a 4x4 pose, got shape {T.shape}")
-    # The sum is finite whenever every entry is (up to overflow, re-checked exactly).
-    if not math.isfinite(np.add.reduce(T, axis=None)) and not np.isfinite(T).all():
+    if not all_finite(T):
         raise ValueError(f"{name} must be finite, got {T.tolist()}")
     return T
 

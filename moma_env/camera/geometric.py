@@ -170,7 +170,8 @@ class GeometricCamera:
             return []
         if occluded is not None:
             apply_occlusion(visible.reshape(-1), T_w_c, centres.reshape(-1, 3), occluded)
-        counts = np.add.reduce(visible, axis=1).tolist()
+        visible_rows = visible.tolist()
+        counts = [sum(row) for row in visible_rows]
         if not any(counts):
             return []
 
@@ -182,13 +183,12 @@ class GeometricCamera:
             noise *= self.config.noise_px
             px += noise
         seen = [b for b, k in enumerate(counts) if k]
-        starts = np.zeros(len(seen) + 1, dtype=np.int64)
-        np.cumsum([4 * counts[b] for b in seen], out=starts[1:])
-        T, rms = self.solve_boards(obj, px, starts)
+        bounds = [0]
+        for b in seen:
+            bounds.append(bounds[-1] + 4 * counts[b])
+        T, rms = self.solve_boards(obj, px, np.array(bounds, dtype=np.int64))
 
         detections = []
-        bounds = starts.tolist()
-        visible_rows = visible.tolist()
         for i, b in enumerate(seen):
             rms_b = float(rms[i])
             if not math.isfinite(rms_b):

@@ -54,6 +54,8 @@ STATUS_ORDER = (Status.LOCALISED, Status.HOLDING, Status.LOST)
 _SWITCH_HORIZON_S = 5.0
 _ALTITUDE_SCALE_M = 4.0
 _SWITCH_SCALE = 100.0
+#: Status -> its one-hot, in STATUS_ORDER.
+_ONE_HOT = {status: tuple(1.0 if status is s else 0.0 for s in STATUS_ORDER) for status in Status}
 
 
 @dataclass(frozen=True)
@@ -186,6 +188,8 @@ class ObservationLayout:
         if has_observer:
             self.features["observer"] = observer_features(self.devices)
         self.spaces = {a: _box(f) for a, f in self.features.items()}
+        self._bounds = {a: (space.low, space.high) for a, space in self.spaces.items()}
+        self._others = {a: tuple(d for d in self.devices if d != a) for a in ugv_agents}
         self._cx, self._cy = centre
         self._r = half_diagonal
         self._dwell = dwell_s
@@ -200,15 +204,17 @@ class ObservationLayout:
 
     @staticmethod
     def _status(out: list[float], status: Status) -> None:
-        out += [1.0 if status is s else 0.0 for s in STATUS_ORDER]
+        out += _ONE_HOT[status]
 
     def _timing(self, out: list[float], since_switch: float, dwell_remaining: float) -> None:
         out.append(min(1.0, since_switch / _SWITCH_HORIZON_S))
         out.append(0.0 if self._dwell <= 0 else min(1.0, dwell_remaining / self._dwell))
 
     def _finish(self, agent: str, out: list[float]) -> np.ndarray:
-        space = self.spaces[agent]
-        return np.clip(np.asarray(out, dtype=np.float32), space.low, space.high)
+        low, high = self._bounds[agent]
+        obs = np.array(out, dtype=np.float32)
+        obs.clip(low, high, out=obs)  # np.clip's ufunc, without its wrappers
+        return obs
 
     # ------------------------------------------------------------------ builders
     def ugv(
@@ -222,15 +228,17 @@ class ObservationLayout:
     ) -> np.ndarray:
         """Observation vector of UGV ``agent``."""
         me = snap[agent]
+        pose = me.pose
         out: list[float] = []
-        self._abs_pose(out, me.pose)
+        self._abs_pose(out, pose)
         out.append(1.0 if me.static else 0.0)
-        self._status(out, me.status)
+        out += _ONE_HOT[me.status]
         out += [me.staleness, me.window_fill, min(1.0, me.switches / _SWITCH_SCALE)]
         two_r = 2.0 * self._r
-        if goal is not None and me.pose is not None:
-            x, y, yaw = me.pose
+        if pose is not None:
+            x, y, yaw = pose
             c, s = math.cos(yaw), math.sin(yaw)
+        if goal is not None and pose is not None:
             dx, dy = goal[0] - x, goal[1] - y
             dyaw = goal[2] - yaw
             out += [(c * dx + s * dy) / two_r, (-s * dx + c * dy) / two_r, math.cos(dyaw), math.sin(dyaw), math.hypot(dx, dy) / two_r, 1.0]
@@ -238,20 +246,16 @@ class ObservationLayout:
             out += [0.0, 0.0, 0.0, 0.0, 0.0, 1.0 if goal is not None else 0.0]
         self._timing(out, since_switch, dwell_remaining)
         out.append(1.0 if me.seen else 0.0)
-        for other in self.devices:
-            if other == agent:
-                continue
+        for other in self._others[agent]:
             o = snap[other]
-            if o.pose is not None and me.pose is not None:
-                x, y, yaw = me.pose
-                c, s = math.cos(yaw), math.sin(yaw)
+            if o.pose is not None and pose is not None:
                 dx, dy = o.pose[0] - x, o.pose[1] - y
                 dyaw = o.pose[2] - yaw
                 out += [(c * dx + s * dy) / two_r, (-s * dx + c * dy) / two_r, math.cos(dyaw), math.sin(dyaw), 1.0]
             else:
                 out += [0.0, 0.0, 0.0, 0.0, 0.0]
             out.append(1.0 if o.static else 0.0)
-            self._status(out, o.status)
+            out += _ONE_HOT[o.status]
         if agent in self.tows:
             out.append(0.0 if rope_fraction is None else rope_fraction)
         return self._finish(agent, out)

@@ -124,6 +124,9 @@ class MomaParallelEnv(ParallelEnv):
         sleds = tuple(getattr(wc, "sleds", ()))
         self._sleds = tuple(s.name for s in sleds)
         self._tows = {s.robot: s.name for s in sleds}
+        self._towed_by: dict[str, str] = {}  # sled -> the robot towing it (the first, if several)
+        for robot, sled in self._tows.items():
+            self._towed_by.setdefault(sled, robot)
         self._devices = self._ugvs + self._sleds
         self._has_uav = wc.uav is not None
         agents = list(self._ugvs)
@@ -258,6 +261,7 @@ class MomaParallelEnv(ParallelEnv):
         self._detections = self._measure()
         est.update(self.world.time, self._detections)
         self._est = est.estimates()
+        self._read_truth()
         self._prev_goal_distance = self._goal_distances()
         self._prev_contacts: frozenset = frozenset()
         observations = self._observations()
@@ -279,6 +283,25 @@ class MomaParallelEnv(ParallelEnv):
         if device in self._sleds:
             return self.world.sled_pose(device)
         return self.world.ugv_pose(device)
+
+    def _read_truth(self) -> None:
+        """Per device, once the step's world and estimates are final: ``_truth`` (true
+        planar pose), ``_est_planar`` (planar pose of the estimate, None without one)
+        and ``_errors`` (:meth:`localisation_error`), for the reward, observations and infos."""
+        truth = {d: self._device_pose(d) for d in self._devices}
+        est_planar: dict[str, tuple[float, float, float] | None] = {}
+        errors: dict[str, float] = {}
+        for device, (x, y, _) in truth.items():
+            T = self._est[device].T_w_b
+            if T is None:
+                est_planar[device] = None
+                errors[device] = math.nan
+            else:
+                est_planar[device] = se3_to_se2(T)
+                errors[device] = math.hypot(T[0, 3] - x, T[1, 3] - y)
+        self._truth = truth
+        self._est_planar = est_planar
+        self._errors = errors
 
     # ------------------------------------------------------------------ step
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
@@ -305,9 +328,11 @@ class MomaParallelEnv(ParallelEnv):
                 events[self._agent_of(device)].append(f"static:{device}")
         # The references as of the last update: making a device static this step
         # only starts its settling, so no device became a reference since.
-        references = {n for n, e in self._est.items() if e.phase is Phase.REFERENCE}
+        references = None
         for device, want_mobile in wants.items():
             if want_mobile and device not in self._mobile:
+                if references is None:
+                    references = {n for n, e in self._est.items() if e.phase is Phase.REFERENCE}
                 reason = self.rules.check_mobile(device, t, self._mobile, references, self._detections)
                 agent = self._agent_of(device)
                 if reason is None:
@@ -331,6 +356,7 @@ class MomaParallelEnv(ParallelEnv):
         self._est = self.estimator.estimates()
         if self._auto_static_sleds(events):
             self._est = self.estimator.estimates()
+        self._read_truth()
 
         # 4. Rewards, terminations, observations.
         reward, newly_reached, collisions = self._reward(n_switch, n_refused)
@@ -352,16 +378,13 @@ class MomaParallelEnv(ParallelEnv):
         return observations, rewards, terminations, truncations, infos
 
     def _agent_of(self, device: str) -> str:
-        for robot, sled in self._tows.items():
-            if sled == device:
-                return robot
-        return device
+        return self._towed_by.get(device, device)
 
     def _parse_action(self, agent: str, action: Any) -> Any:
-        """Validated action: an int for Discrete, a clipped float array for Box."""
+        """Validated action: an int for Discrete, a list of floats clipped to [-1, 1] for Box."""
         space = self._action_spaces[agent]
         if action is None:
-            return 0 if isinstance(space, spaces.Discrete) else np.zeros(space.shape, dtype=np.float64)
+            return 0 if isinstance(space, spaces.Discrete) else [0.0] * space.shape[0]
         if isinstance(space, spaces.Discrete):
             try:
                 value = int(action)
@@ -373,9 +396,12 @@ class MomaParallelEnv(ParallelEnv):
         a = np.asarray(action, dtype=np.float64)
         if a.shape != space.shape:
             raise ValueError(f"action of {agent!r} must have shape {space.shape}, got {a.shape}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action of {agent!r} must be finite, got {a.tolist()}")
-        return np.clip(a, -1.0, 1.0)
+        values = a.tolist()
+        # The sum is finite whenever every value is (up to overflow, re-checked exactly).
+        if not math.isfinite(sum(values)) and not all(map(math.isfinite, values)):
+            raise ValueError(f"action of {agent!r} must be finite, got {values}")
+        # Plain floats: a handful of values, where numpy calls cost more than the arithmetic.
+        return [-1.0 if v < -1.0 else (1.0 if v > 1.0 else v) for v in values]
 
     def _requests(self, parsed: Mapping[str, Any]) -> dict[str, bool]:
         """Device -> wants to be mobile, from this step's actions."""
@@ -502,7 +528,7 @@ class MomaParallelEnv(ParallelEnv):
         if self._observer_agent:
             a = parsed[OBSERVER]
             return np.array([a[0] * uav.max_speed, a[1] * uav.max_speed, a[2] * uav.max_yaw_rate, a[3] * uav.max_climb])
-        positions = [d.T_c_m[:3, 3] for d in self._detections if d.camera_id == uav.camera_name]
+        positions = [d.T_c_m[:3, 3].tolist() for d in self._detections if d.camera_id == uav.camera_name]
         return self._tracker.command(positions)
 
     def _measure(self) -> list:
@@ -532,8 +558,9 @@ class MomaParallelEnv(ParallelEnv):
     # ------------------------------------------------------------------ reward
     def _goal_distances(self) -> dict[str, float]:
         out = {}
+        truth = self._truth
         for device, goal in self.scenario.goals.items():
-            x, y, _ = self._device_pose(device)
+            x, y, _ = truth[device]
             out[device] = math.hypot(goal[0] - x, goal[1] - y)
         return out
 
@@ -544,7 +571,7 @@ class MomaParallelEnv(ParallelEnv):
         self._prev_goal_distance = dist
         errors, n_lost = [], 0
         for device in self._ugvs:
-            err = self.localisation_error(device)
+            err = self._errors[device]
             if math.isnan(err):
                 errors.append(w.lost_error_m)
             else:
@@ -555,7 +582,7 @@ class MomaParallelEnv(ParallelEnv):
         for device, goal in self.scenario.goals.items():
             if device in self._reached_goal:
                 continue
-            x, y, yaw = self._device_pose(device)
+            yaw = self._truth[device][2]
             if dist[device] <= self.scenario.goal_tolerance_m and abs(wrap_angle(goal[2] - yaw)) <= self.scenario.goal_tolerance_rad:
                 self._reached_goal.add(device)
                 newly.append(device)
@@ -594,7 +621,7 @@ class MomaParallelEnv(ParallelEnv):
         snaps = {}
         for device in self._devices:
             e = self._est[device]
-            pose = None if e.T_w_b is None or e.status is Status.LOST else se3_to_se2(e.T_w_b)
+            pose = None if e.status is Status.LOST else self._est_planar[device]
             age = 1.0 if e.last_fresh_time is None else min(1.0, (t - e.last_fresh_time) / lost_after)
             fill = e.n_window / window if e.phase is Phase.SETTLING else (1.0 if e.phase is Phase.REFERENCE else 0.0)
             snaps[device] = DeviceSnapshot(
@@ -636,13 +663,17 @@ class MomaParallelEnv(ParallelEnv):
             uav = self.scenario.world.uav
             s = self.world.uav_state
             e = self._est[uav.name]
-            err = None if e.T_w_b is None else float(np.linalg.norm(e.T_w_b[:3, 3] - np.array([s.x, s.y, s.z])))
+            if e.T_w_b is None:
+                err = None
+            else:
+                d = e.T_w_b[:3, 3] - np.array([s.x, s.y, s.z])
+                err = math.sqrt(d.dot(d))  # what np.linalg.norm computes for a vector
             return {"truth": (s.x, s.y, s.yaw, s.z), "status": e.status.name.lower(), "localisation_error": err, "events": events}
         e = self._est[agent]
         info = {
-            "truth": self._device_pose(agent),
-            "estimate": None if e.T_w_b is None else se3_to_se2(e.T_w_b),
-            "localisation_error": _none_if_nan(self.localisation_error(agent)),
+            "truth": self._truth[agent],
+            "estimate": self._est_planar[agent],
+            "localisation_error": _none_if_nan(self._errors[agent]),
             "status": e.status.name.lower(),
             "static": agent not in self._mobile,
             "events": events,
@@ -653,8 +684,8 @@ class MomaParallelEnv(ParallelEnv):
         }
         sled = self._tows.get(agent)
         if sled is not None:
-            info["sled_truth"] = self._device_pose(sled)
-            info["sled_localisation_error"] = _none_if_nan(self.localisation_error(sled))
+            info["sled_truth"] = self._truth[sled]
+            info["sled_localisation_error"] = _none_if_nan(self._errors[sled])
         return info
 
     # ------------------------------------------------------------------ state, render

@@ -11,7 +11,7 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from moma_env.config import ConfigError, check_rigid_transform
+from moma_env.config import ConfigError, all_finite, check_rigid_transform
 from moma_env.estimator.config import EstimatorConfig
 from moma_env.estimator.detection import Detection
 from moma_env.estimator.errors import (
@@ -138,25 +138,24 @@ class MomaEstimator:
 
     def estimate(self, name: str) -> RobotEstimate:
         """Snapshot of robot ``name``'s estimate (the pose is a copy)."""
-        r = self._robot(name)
-        if r.phase is _SETTLING:
-            n_window = len(r.window)
-        elif r.phase is _REFERENCE:
-            n_window = r.n_frozen
-        else:
-            n_window = 0
-        return RobotEstimate(
-            name=r.name,
-            T_w_b=None if r.pose is None else r.pose.copy(),
-            status=r.status,
-            phase=r.phase,
-            last_fresh_time=r.last_fresh_time,
-            n_window=n_window,
-        )
+        return self._snapshot(self._robot(name))
 
     def estimates(self) -> dict[str, RobotEstimate]:
         """Snapshots of every robot, by name."""
-        return {name: self.estimate(name) for name in self._robots}
+        snapshot = self._snapshot
+        return {name: snapshot(r) for name, r in self._robots.items()}
+
+    @staticmethod
+    def _snapshot(r: _Robot) -> RobotEstimate:
+        phase = r.phase
+        if phase is _SETTLING:
+            n_window = len(r.window)
+        elif phase is _REFERENCE:
+            n_window = r.n_frozen
+        else:
+            n_window = 0
+        pose = r.pose
+        return RobotEstimate(r.name, None if pose is None else pose.copy(), r.status, phase, r.last_fresh_time, n_window)
 
     def camera_pose(self, camera_id: str) -> np.ndarray | None:
         """``T_w_c`` (4x4 copy) of a camera located in the last update, else None."""
@@ -324,7 +323,7 @@ class MomaEstimator:
             if d.board_id not in board_owner:
                 raise UnknownBoardError(d.board_id, board_owner)
             T_c_m = d.T_c_m
-            if not isinstance(T_c_m, np.ndarray) or T_c_m.shape != (4, 4) or not np.isfinite(T_c_m).all():
+            if not isinstance(T_c_m, np.ndarray) or T_c_m.shape != (4, 4) or not all_finite(T_c_m):
                 raise ValueError(
                     f"detection of board {d.board_id} by camera {camera_id!r}: T_c_m must be a finite 4x4 array"
                 )
@@ -379,7 +378,7 @@ class MomaEstimator:
         settle_delay = self._config.settle_delay_s
         for r, poses in samples.items():
             T = poses[0] if len(poses) == 1 else mean_pose(poses)
-            if r.gate is not None and not r.gate.accept((T[0, 3], T[1, 3], T[2, 3]), t):
+            if r.gate is not None and not r.gate.accept(T[:3, 3].tolist(), t):
                 continue
             if r.phase is _MOBILE:
                 r.pose = T

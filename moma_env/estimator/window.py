@@ -8,6 +8,8 @@ from moma_env.geometry import project_to_rotation
 
 __all__ = ["SwitchWindow"]
 
+_LAST_ROW = (0.0, 0.0, 0.0, 1.0)
+
 
 class SwitchWindow:
     """Running average of up to ``capacity`` 4x4 poses (world frame W, metres).
@@ -61,7 +63,8 @@ class SwitchWindow:
             raise ValueError("the switch window is empty")
         if n == 1:
             return self._first.copy()  # type: ignore[union-attr]
-        T = np.eye(4)
+        T = np.empty((4, 4))
         T[:3, :3] = project_to_rotation(self._rotation_sum)
         T[:3, 3] = self._translation_sum / n
+        T[3] = _LAST_ROW
         return T

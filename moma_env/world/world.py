@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import struct
 from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -52,6 +53,8 @@ _DEDICATED_BITS = 30
 _SHARED_BIT = 1 << 31
 _ALL_MASKS = pymunk.ShapeFilter.ALL_MASKS()
 _NO_CONTACTS: frozenset[frozenset[str]] = frozenset()
+#: Bytes of a planar pose (x, y, angle): an exact cache key.
+_PACK_POSE = struct.Struct("3d").pack
 
 
 def _record_contact(arbiter: pymunk.Arbiter, space: pymunk.Space, data: tuple[dict, set]) -> None:
@@ -142,6 +145,8 @@ class World:
         self._cameras = cameras
         self._camera_names = tuple(cameras)
         self._uav = UAVDynamics(config.uav, self.dt) if config.uav is not None else None
+        # (kind, index or name) -> (packed planar pose, pose @ mount): see _mounted.
+        self._mounted_cache: dict[tuple, tuple[bytes, np.ndarray]] = {}
         self.reset()
 
     # -- simulation ----------------------------------------------------------------
@@ -175,8 +180,8 @@ class World:
         self._contacts: set[frozenset[str]] = set()
         space.on_collision(None, None, pre_solve=_record_contact, data=(names, self._contacts))
         self._space = space
-        self._poses = self._read_poses()
-        self._previous_poses = self._poses.copy()
+        self._read_poses()
+        self._previous_rows = self._rows
         self._steps = 0
         if self._uav is not None:
             self._uav.reset()
@@ -247,8 +252,8 @@ class World:
                 for ugv in moving:
                     ugv.drive()
                 space.step(h)
-        self._previous_poses = self._poses
-        self._poses = self._read_poses()
+        self._previous_rows = self._rows
+        self._read_poses()
         if self._uav is not None:
             if uav is None:
                 self._uav.step(0.0, 0.0, 0.0, 0.0)
@@ -257,12 +262,16 @@ class World:
             self._uav_state = None
         self._steps += 1
 
-    def _read_poses(self) -> np.ndarray:
+    def _read_poses(self) -> None:
+        """Read the robots' poses once per step, as tuples of floats: ``_rows``
+        (x, y, unwrapped angle) and ``_planar`` (x, y, yaw in [-pi, pi))."""
         rows = []
         for ugv in self._ugvs:
-            x, y = ugv.body.position
-            rows.append((x, y, ugv.body.angle))
-        return np.array(rows, dtype=float).reshape(len(rows), 3)
+            body = ugv.body
+            x, y = body.position
+            rows.append((float(x), float(y), float(body.angle)))
+        self._rows = rows
+        self._planar = [(x, y, wrap_angle(angle)) for x, y, angle in rows]
 
     @property
     def time(self) -> float:
@@ -327,18 +336,17 @@ class World:
 
     def ugv_pose(self, name: str) -> tuple[float, float, float]:
         """Planar pose ``(x, y, yaw)`` of robot ``name`` in W (m, m, rad in [-pi, pi))."""
-        x, y, angle = self._poses[self._index(name)].tolist()
-        return x, y, wrap_angle(angle)
+        return self._planar[self._index(name)]
 
     def ugv_poses(self) -> np.ndarray:
         """(n, 3) array of ``(x, y, yaw)`` of all robots, yaw in [-pi, pi) (a copy)."""
-        poses = self._poses.copy()
+        poses = np.array(self._rows, dtype=float).reshape(len(self._rows), 3)
         poses[:, 2] = wrap_angle(poses[:, 2])
         return poses
 
     def ugv_transform(self, name: str) -> np.ndarray:
         """4x4 ``T_w_b`` of robot ``name`` (body origin on the floor, z = 0)."""
-        x, y, angle = self._poses[self._index(name)].tolist()
+        x, y, angle = self._rows[self._index(name)]
         return se2_to_se3(x, y, angle)
 
     def ugv_body_velocity(self, name: str) -> tuple[float, float, float]:
@@ -350,7 +358,7 @@ class World:
         and while static.
         """
         i = self._index(name)
-        return _mean_body_twist(self._previous_poses[i].tolist(), self._poses[i].tolist(), self.dt)
+        return _mean_body_twist(self._previous_rows[i], self._rows[i], self.dt)
 
     def board_transform(self, name: str) -> np.ndarray | None:
         """4x4 ``T_w_m`` of the board of robot or sled ``name``, or None for a robot without one.
@@ -360,12 +368,27 @@ class World:
         i = self._body_index(name)
         if i >= len(self._ugvs):
             sled = self._sleds[i - len(self._ugvs)]
-            return self.sled_transform(sled.config.name) @ sled.config.board_mount
+            x, y = sled.body.position
+            return self._mounted(("board", i), (x, y, sled.body.angle), sled.config.board_mount)
         mount = self._boards[i]
         if mount is None:
             return None
-        x, y, angle = self._poses[i].tolist()
-        return se2_to_se3(x, y, angle) @ mount
+        return self._mounted(("board", i), self._rows[i], mount)
+
+    def _mounted(self, key: tuple, pose: tuple[float, float, float], mount: np.ndarray) -> np.ndarray:
+        """``se2_to_se3(*pose) @ mount`` (a new array), for the fixed ``mount`` named by ``key``.
+
+        A static device keeps its pose, so the product of the last call per key is
+        kept and copied while ``pose`` is bit for bit unchanged (compared packed, as
+        ``==`` on floats would confuse 0.0 and -0.0).
+        """
+        packed = _PACK_POSE(*pose)
+        hit = self._mounted_cache.get(key)
+        if hit is not None and hit[0] == packed:
+            return hit[1].copy()
+        T = se2_to_se3(*pose) @ mount
+        self._mounted_cache[key] = (packed, T.copy())
+        return T
 
     def segment_blocked(
         self, p_from_xy: Sequence[float], p_to_xy: Sequence[float], ignore: Iterable[str] = ()
@@ -484,8 +507,7 @@ class World:
             raise unknown_name("camera", camera_name, self._camera_names) from None
         if owner == UAV_OWNER:
             return self._uav.body_transform() @ T_b_c  # type: ignore[union-attr]
-        x, y, angle = self._poses[owner].tolist()
-        return se2_to_se3(x, y, angle) @ T_b_c
+        return self._mounted(("camera", camera_name), self._rows[owner], T_b_c)
 
     # -- UAV -------------------------------------------------------------------------------
 
