@@ -87,6 +87,34 @@ def test_bench_configurations_reports_every_configuration_and_mode():
     assert "top_observer" in text and "n/a" in text
 
 
+def test_rounds_are_interleaved_and_each_row_reports_its_best_round(monkeypatch):
+    import training.bench as bench
+
+    calls = []
+    rates = iter(range(1, 1000))
+
+    def fake_rate(make_env, steps, seed=0, pool=1000):
+        env = make_env()
+        calls.append(getattr(env, "metadata", {}).get("name"))
+        env.close()
+        return float(next(rates))
+
+    monkeypatch.setattr(bench, "steps_per_second", fake_rate)
+    rows = bench.bench_configurations(steps=3, rounds=3, include_mpe2=True)
+    per_round = len(rows)
+    assert len(calls) == 3 * per_round
+    assert calls[:per_round] == calls[per_round : 2 * per_round]  # every round runs every row, in the same order
+    assert rows[0]["env"] == "mpe2 simple_spread"
+    for k, row in enumerate(rows):
+        assert row["rounds_steps_per_s"] == [float(1 + k + r * per_round) for r in range(3)]
+        assert row["steps_per_s"] == max(row["rounds_steps_per_s"])
+    result = bench.run_bench(steps=3, memory_steps=0, rounds=2)
+    assert result["rounds"] == 2 and len(result["mpe2_rounds_steps_per_s"]) == 2
+    assert all(r["env"] != "mpe2 simple_spread" for r in result["configurations"])
+    assert all(r["x_mpe2"] == r["steps_per_s"] / result["mpe2_simple_spread_steps_per_s"] for r in result["configurations"])
+    assert "best of 2 interleaved rounds" in bench.format_bench(result)
+
+
 def test_step_breakdown_accounts_for_the_whole_step():
     from training.bench_step import step_breakdown
 

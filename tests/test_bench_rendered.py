@@ -25,3 +25,11 @@ def test_bench_rendered_reports_every_variant_with_its_camera_times():
         assert math.isclose(r["step_over_detect"], r["step_ms"] / r["detect_ms"])
     text = format_bench({"configurations": [], "rendered": rows})
     assert "step/detect" in text and text.count("top_observer") == len(rows)
+
+
+def test_bench_rendered_keeps_the_fastest_round_of_each_variant():
+    rows = bench_rendered(steps=2, rounds=2)
+    assert len(rows) == len(VARIANTS)
+    for r in rows:
+        assert len(r["rounds_steps_per_s"]) == 2 and r["steps_per_s"] == max(r["rounds_steps_per_s"])
+        assert math.isclose(r["step_ms"], 1e3 / r["steps_per_s"])

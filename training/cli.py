@@ -74,6 +74,10 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument(
         "--train-steps", type=_int_at_least(0, "step count"), default=16_384, help="PPO timesteps per training row (default 16384; 0 skips them)"
     )
+    bench.add_argument(
+        "--rounds", type=_int_at_least(1, "round count"), default=3,
+        help="interleaved rounds of the step-rate rows; each row reports its best round (default 3)",
+    )
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
     bench.set_defaults(handler=_run_bench)
 
@@ -165,7 +169,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
 def _run_bench(args: argparse.Namespace) -> int:
     from training.bench import format_bench, run_bench
 
-    result = run_bench(args.steps, args.memory_steps, args.rendered_steps, args.rendered_only, args.train_steps)
+    result = run_bench(args.steps, args.memory_steps, args.rendered_steps, args.rendered_only, args.train_steps, args.rounds)
     print(json.dumps(result, indent=2) if args.json else format_bench(result))
     return 0
 
