@@ -53,13 +53,14 @@ def noise_bytes(rng: np.random.Generator, n: int) -> np.ndarray:
 
 @numba.njit(cache=True)
 def _read_out_kernel(image: np.ndarray, draws: np.ndarray, table: np.ndarray) -> None:
-    """``image[i, j] = table[image[i, j], draws[i * width + j]]`` in place (uint8)."""
+    """``image[i, j] = table[256 * image[i, j] + draws[i * width + j]]`` in place (uint8;
+    ``table`` flat, 65536 entries)."""
     rows, cols = image.shape
     for i in range(rows):
         row = image[i]
         base = i * cols
         for j in range(cols):
-            row[j] = table[row[j], draws[base + j]]
+            row[j] = table[(np.int64(row[j]) << 8) | np.int64(draws[base + j])]
 
 
 class SensorModel:
@@ -81,12 +82,13 @@ class SensorModel:
         unit = NormalDist()
         quantiles = [unit.inv_cdf((k + 0.5) / 256.0) for k in range(256)]
         self._noise_lut = (config.noise_std * np.array(quantiles)).astype(np.float32)
-        # table[level, byte]: the read-out of gray level ``level`` with random byte ``byte``,
+        # table[256 * level + byte]: the read-out of gray level ``level`` with random byte ``byte``,
         # computed with the same OpenCV calls (gain LUT, then a saturating add of the
         # float noise) as a frame read out step by step.
         grid = np.broadcast_to(np.arange(256, dtype=np.uint8)[:, None], (256, 256))
         draws = np.ascontiguousarray(np.broadcast_to(np.arange(256, dtype=np.uint8), (256, 256)))
-        self._readout_table = cv2.add(cv2.LUT(np.ascontiguousarray(grid), self._gain_lut), cv2.LUT(draws, self._noise_lut), dtype=cv2.CV_8U)
+        table = cv2.add(cv2.LUT(np.ascontiguousarray(grid), self._gain_lut), cv2.LUT(draws, self._noise_lut), dtype=cv2.CV_8U)
+        self._readout_table = np.ascontiguousarray(table).reshape(-1)  # flat: one index per pixel
 
     def apply(self, scene: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The output image of ``scene`` (uint8, (height, width); modified in place and returned):
