@@ -602,12 +602,9 @@ class MomaParallelEnv(ParallelEnv):
         return float(reward), newly, len(new_contacts)
 
     def localisation_error(self, device: str) -> float:
-        """Planar position error (m) of a device's MOMA estimate, NaN without one."""
-        e = self._est[device]
-        if e.T_w_b is None:
-            return math.nan
-        x, y, _ = self._device_pose(device)
-        return math.hypot(e.T_w_b[0, 3] - x, e.T_w_b[1, 3] - y)
+        """Planar position error (m) of a device's MOMA estimate, NaN without one
+        (as of the last ``reset`` or ``step``; see :meth:`_read_truth`)."""
+        return self._errors[device]
 
     # ------------------------------------------------------------------ observations
     def _snapshots(self) -> dict[str, DeviceSnapshot]:
