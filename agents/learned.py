@@ -20,6 +20,16 @@ The UAV observer was flown by its tracking controller during training
 an env the policy fits, and ``reset`` refuses one it does not fit.
 
 Stable-Baselines3 (the ``train`` extra) is imported only when a model is loaded.
+Actions: by default the mode of the action distribution
+(``deterministic=True``, what SB3's evaluation does). With
+``deterministic=False`` the policy samples from the distribution it was
+trained with; every sample comes from the policy's own numpy generator,
+seeded by ``reset(env, seed)`` with the episode's seed (each call seeds a
+forked torch RNG from it, so torch's global RNG is left as it was): the same
+seed gives the same episode. A policy whose deterministic mode stalls (a state
+that repeats and whose most likely action is to hold) keeps moving when
+sampling.
+
 The network runs on ``torch_threads`` threads (default 1, as in training):
 a 64x64 network on a batch of a few robots gains nothing from more, and on a
 busy machine torch's thread pool waiting for a second core made each step
@@ -122,6 +132,8 @@ class LearnedPolicy:
             (``VecNormalize.normalize_obs``), or None.
         configuration: the configuration name it was trained on, if known.
         torch_threads: torch's thread count while the network runs (>= 1).
+        deterministic: act with the mode of the action distribution (True) or
+            sample from it (False; seeded by :meth:`reset`).
     """
 
     def __init__(
@@ -132,6 +144,7 @@ class LearnedPolicy:
         normalise: ObservationNormaliser | None = None,
         configuration: str | None = None,
         torch_threads: int = 1,
+        deterministic: bool = True,
     ):
         if route not in _ROUTES:
             raise ValueError(f"route must be one of {_ROUTES}, got {route!r}")
@@ -146,6 +159,10 @@ class LearnedPolicy:
         if isinstance(torch_threads, bool) or not isinstance(torch_threads, int) or torch_threads < 1:
             raise ValueError(f"torch_threads must be an int >= 1, got {torch_threads!r}")
         self.torch_threads = torch_threads
+        if not isinstance(deterministic, bool):
+            raise ValueError(f"deterministic must be a bool, got {deterministic!r}")
+        self.deterministic = deterministic
+        self._sampler = np.random.default_rng(0)
 
     @property
     def env_options(self) -> dict[str, Any]:
@@ -153,12 +170,13 @@ class LearnedPolicy:
         return {"action_mode": self.action_mode, "observer_agent": False}
 
     @classmethod
-    def from_dir(cls, directory: str | Path, configuration: str | None = None) -> "LearnedPolicy":
+    def from_dir(cls, directory: str | Path, configuration: str | None = None, deterministic: bool = True) -> "LearnedPolicy":
         """Load the checkpoint named by ``directory``'s manifest.
 
         Args:
             directory: a ``moma-env train --out`` folder.
             configuration: if given, must be the configuration the run trained on.
+            deterministic: see the class.
 
         Raises:
             TrainingDirError: see :func:`read_manifest`; a configuration mismatch.
@@ -176,10 +194,12 @@ class LearnedPolicy:
                 stats = pickle.load(f)
             if getattr(stats, "norm_obs", False):
                 normalise = stats.normalize_obs
-        return cls(model, manifest["route"], config["action_mode"], normalise, trained_on)
+        return cls(model, manifest["route"], config["action_mode"], normalise, trained_on, deterministic=deterministic)
 
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
-        """Check that ``env`` fits the model; read its agents (call after ``env.reset``)."""
+        """Check that ``env`` fits the model; read its agents (call after ``env.reset``);
+        seed the action sampler with ``seed`` (0 if None)."""
+        self._sampler = np.random.default_rng(0 if seed is None else seed)
         if env.config.action_mode != self.action_mode:
             raise ValueError(f"the policy was trained in {self.action_mode!r} mode; the env is in {env.config.action_mode!r} mode")
         if OBSERVER in env.possible_agents:
@@ -198,11 +218,19 @@ class LearnedPolicy:
         if self._normalise is not None:
             batch = self._normalise(batch)
         with torch_threads(self.torch_threads):
-            actions, _ = self.model.predict(batch, deterministic=True)
+            if self.deterministic:
+                actions, _ = self.model.predict(batch, deterministic=True)
+                return actions
+            import torch
+
+            with torch.random.fork_rng(devices=[]):
+                torch.manual_seed(int(self._sampler.integers(2**63)))
+                actions, _ = self.model.predict(batch, deterministic=False)
         return actions
 
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
-        """The model's deterministic action of every agent in ``observations`` (infos unread)."""
+        """The model's action of every agent in ``observations`` (infos unread): the
+        distribution's mode, or a sample (see the class)."""
         if not observations:
             return {}
         if self.route == "centralised":

@@ -189,6 +189,45 @@ def test_learned_policy_refuses_an_env_it_does_not_fit(tmp_path):
         LearnedPolicy.from_dir(tmp_path)
 
 
+@pytest.mark.parametrize("mode", ["switching", "velocity"])
+def test_sampled_actions_are_seeded_by_the_episode_and_leave_torch_rng_alone(tmp_path, mode):
+    import torch
+
+    config = tiny(action_mode=mode)
+    train(config, tmp_path / "run")
+    sampled = LearnedPolicy.from_dir(tmp_path / "run", deterministic=False)
+    mode_policy = LearnedPolicy.from_dir(tmp_path / "run")
+    assert not sampled.deterministic and mode_policy.deterministic
+    torch.manual_seed(123)
+    before = torch.get_rng_state()
+    first = _episode_actions(sampled, config, seed=4, steps=30)
+    assert torch.equal(torch.get_rng_state(), before)  # torch's global RNG untouched
+    assert _episode_actions(sampled, config, seed=4, steps=30) == first  # same episode seed, same samples
+    fresh = _episode_actions(LearnedPolicy.from_dir(tmp_path / "run", deterministic=False), config, seed=4, steps=30)
+    assert fresh == first  # a fresh policy object gives the same samples for the same seed
+    # Sampling differs from the distribution's mode somewhere in the episode (a freshly trained
+    # network is far from deterministic), while the mode is the same every time.
+    modes = _episode_actions(mode_policy, config, seed=4, steps=30)
+    assert modes != first
+    assert _episode_actions(mode_policy, config, seed=4, steps=30) == modes
+    with pytest.raises(ValueError, match="deterministic must be a bool"):
+        LearnedPolicy(sampled.model, "shared", mode, deterministic=None)
+
+
+def test_evaluate_samples_only_trained_policies(tmp_path, capsys):
+    from training.cli import main
+
+    code = main(["evaluate", "--scenario", "top_observer", "--policy", "scripted", "--sample-actions", "--episodes", "1"])
+    assert code == 2 and "sampling actions applies to a trained policy (a path), not 'scripted'" in capsys.readouterr().err
+    train(tiny(), tmp_path / "run")
+    capsys.readouterr()
+    out = tmp_path / "eval"
+    code = main(["evaluate", "--scenario", "top_observer", "--policy", str(tmp_path / "run"), "--sample-actions",
+                 "--episodes", "1", "--max-cycles", "20", "--out", str(out), "--json"])
+    assert code == 0
+    assert '"policy": "run_sampled"' in capsys.readouterr().out
+
+
 def test_learned_policy_runs_its_network_on_its_own_thread_count(tmp_path):
     import torch
 

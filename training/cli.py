@@ -101,6 +101,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="the env's action mode (default: the policy's own, velocity for 'planned', else switching)",
     )
     ev.add_argument("--max-cycles", type=_int_at_least(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
+    ev.add_argument(
+        "--sample-actions", action="store_true",
+        help="a trained policy samples its actions (seeded by the episode's seed) instead of taking the most likely one",
+    )
     ev.set_defaults(handler=_run_evaluate)
 
     from training.train.command import add_train_parser
@@ -122,11 +126,11 @@ def _run_evaluate(args: argparse.Namespace) -> int:
         print(f"moma-env evaluate: unknown scenario {args.scenario!r}; known: {', '.join(sorted(CONFIGURATIONS))}", file=sys.stderr)
         return 2
     try:
-        policy = load_policy(args.policy, args.scenario, args.seed)
+        policy = load_policy(args.policy, args.scenario, args.seed, sample_actions=args.sample_actions)
     except PolicyLoadError as err:
         print(f"moma-env evaluate: {err}", file=sys.stderr)
         return 2
-    label = policy_label(args.policy)
+    label = policy_label(args.policy) + ("_sampled" if args.sample_actions else "")
     env_options = dict(getattr(policy, "env_options", {}))  # a trained policy says which env it fits
     if args.action_mode is not None and env_options.get("action_mode", args.action_mode) != args.action_mode:
         print(f"moma-env evaluate: the policy was trained in {env_options['action_mode']!r} mode, not {args.action_mode!r}", file=sys.stderr)

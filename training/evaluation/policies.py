@@ -56,19 +56,20 @@ def _agents_policies():
         raise PolicyLoadError(f"the built-in policies need the package agents.policies, which cannot be imported: {err}") from None
 
 
-def _load_trained_policy(path: Path, configuration: str) -> Policy:
-    """A policy trained by ``moma-env train`` in folder ``path`` (:class:`agents.learned.LearnedPolicy`)."""
+def _load_trained_policy(path: Path, configuration: str, sample_actions: bool = False) -> Policy:
+    """A policy trained by ``moma-env train`` in folder ``path`` (:class:`agents.learned.LearnedPolicy`),
+    sampling its actions if ``sample_actions``."""
     try:
         learned = importlib.import_module("agents.learned")
     except ImportError as err:
         raise PolicyLoadError(f"trained policies need the module agents.learned, which cannot be imported: {err}") from None
     try:
-        return learned.LearnedPolicy.from_dir(path, configuration)
+        return learned.LearnedPolicy.from_dir(path, configuration, deterministic=not sample_actions)
     except learned.TrainingDirError as err:
         raise PolicyLoadError(str(err)) from None
 
 
-def load_policy(spec: str, configuration: str, seed: int | None = None) -> Policy:
+def load_policy(spec: str, configuration: str, seed: int | None = None, sample_actions: bool = False) -> Policy:
     """The policy named by ``spec`` for configuration ``configuration``.
 
     Args:
@@ -79,6 +80,9 @@ def load_policy(spec: str, configuration: str, seed: int | None = None) -> Polic
             of a trained policy.
         configuration: the configuration's name (``"top_observer"``, ...).
         seed: the random policy's seed (ignored by the others).
+        sample_actions: a trained policy samples its actions (seeded per
+            episode) instead of taking the distribution's mode; only for trained
+            policies.
 
     Raises:
         PolicyLoadError: an unknown spec, a path that does not exist or is not
@@ -86,6 +90,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None) -> Polic
     """
     if not isinstance(spec, str) or not spec:
         raise PolicyLoadError(f"policy must be 'scripted', 'random' or a path, got {spec!r}")
+    if sample_actions and spec in ("scripted", "planned", "servo", "random"):
+        raise PolicyLoadError(f"sampling actions applies to a trained policy (a path), not {spec!r}")
     if spec == "scripted":
         module = _agents_policies()
         factory = getattr(module, "scripted_policy", None)
@@ -121,7 +127,7 @@ def load_policy(spec: str, configuration: str, seed: int | None = None) -> Polic
             raise PolicyLoadError(
                 f"unknown policy {spec!r}: expected 'scripted', 'planned', 'servo', 'random' or the folder of a trained policy"
             )
-        policy = _load_trained_policy(path, configuration)
+        policy = _load_trained_policy(path, configuration, sample_actions)
     if not isinstance(policy, Policy):
         raise PolicyLoadError(f"policy {spec!r} lacks reset(env, seed) or act(observations, infos)")
     return policy
