@@ -159,6 +159,22 @@ def test_evaluation_callback_writes_the_harness_metrics(tmp_path):
         assert 0.0 <= record["success_rate"] <= 1.0
 
 
+def test_evaluations_may_sample_the_actions_and_say_so(tmp_path):
+    out = tmp_path / "run"
+    sampled = tiny(steps=64, eval_every=64, eval_episodes=1, eval_sample_actions=True)
+    train(sampled, out)
+    records = json.loads((out / "evaluations.json").read_text())["records"]
+    assert records and all(r["sample_actions"] is True for r in records)
+    keep = KeepModel()
+    train(tiny(steps=128, eval_every=64, eval_episodes=1), out, resume=True, callbacks=[keep])  # a resume may change it
+    records = json.loads((out / "evaluations.json").read_text())["records"]
+    assert records[0]["sample_actions"] is True and records[-1]["sample_actions"] is False
+    assert not live_policy(keep.model, sampled).deterministic
+    assert live_policy(keep.model, tiny()).deterministic
+    with pytest.raises(ConfigError, match="eval_sample_actions"):
+        tiny(eval_sample_actions="yes")
+
+
 def test_evaluate_cli_runs_a_trained_policy_through_the_harness(tmp_path, capsys):
     train(tiny(steps=64), tmp_path / "run")
     code = main(["evaluate", "--scenario", "top_observer", "--policy", str(tmp_path / "run"), "--episodes", "2",

@@ -57,7 +57,8 @@ class EvaluationCallback(BaseCallback):
     """Runs the evaluation harness on held-out random scenarios every ``config.eval_every`` timesteps.
 
     Every evaluation appends a record (timesteps, training wall time, the
-    :func:`~training.train.evaluation.headline` numbers) and rewrites
+    :func:`~training.train.evaluation.headline` numbers, whether the actions
+    were sampled) and rewrites
     ``<out>/evaluations.json`` whole; the numbers also go to the SB3 logger
     (``eval/...``, in TensorBoard when it is installed).
 
@@ -89,7 +90,7 @@ class EvaluationCallback(BaseCallback):
         start = time.perf_counter()
         result = evaluate_model(self.model, self.config)
         record = {"num_timesteps": int(self.model.num_timesteps), "wall_time_s": self._wall_time(), **headline(result.summary),
-                  "eval_seconds": time.perf_counter() - start}
+                  "eval_seconds": time.perf_counter() - start, "sample_actions": self.config.eval_sample_actions}
         self.records.append(record)
         for key in ("success_rate", "time_to_goal_s", "n_switches", "me_m", "e_f_m"):
             self.logger.record(f"eval/{key}", record[key])

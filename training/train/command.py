@@ -61,6 +61,8 @@ def add_train_parser(sub, int_at_least) -> argparse.ArgumentParser:
                     help="episodes per evaluation (default %(default)s)")
     tr.add_argument("--eval-seed", type=int_at_least(0, "seed"), default=defaults["eval_seed"],
                     help="seed of the first held-out evaluation episode (default %(default)s)")
+    tr.add_argument("--eval-sample-actions", action="store_true",
+                    help="the held-out evaluations sample the policy's actions instead of taking the most likely one")
     tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar")
     tr.add_argument("--json", action="store_true", help="print the final manifest as JSON")
     tr.set_defaults(handler=run_train)
@@ -91,6 +93,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         eval_every=args.eval_every,
         eval_episodes=args.eval_episodes,
         eval_seed=args.eval_seed,
+        eval_sample_actions=args.eval_sample_actions,
         progress_bar=args.progress_bar,
     )
 

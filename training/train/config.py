@@ -72,6 +72,8 @@ class TrainConfig:
         eval_episodes: episodes per evaluation.
         eval_seed: seed of the first held-out evaluation episode.
         eval_max_cycles: episode length limit of the evaluations (None: the scenario's).
+        eval_sample_actions: the evaluations sample the policy's actions (seeded per
+            episode) instead of taking the most likely one.
         progress_bar: show SB3's progress bar.
         torch_threads: torch's intra-op threads while training (1: the networks
             are tiny, more threads only contend with the envs for the cores).
@@ -100,6 +102,7 @@ class TrainConfig:
     eval_episodes: int = 5
     eval_seed: int = 10_000
     eval_max_cycles: int | None = None
+    eval_sample_actions: bool = False
     progress_bar: bool = False
     torch_threads: int = 1
 
@@ -132,6 +135,7 @@ class TrainConfig:
         check_count("eval_every", self.eval_every, 0)
         check_count("eval_episodes", self.eval_episodes, 1)
         check_count("eval_seed", self.eval_seed, 0)
+        check_bool("eval_sample_actions", self.eval_sample_actions)
         check_bool("progress_bar", self.progress_bar)
         check_count("torch_threads", self.torch_threads, 1)
         if self.algo in DISCRETE_ONLY and (self.action_mode != "switching" or self.route != "shared"):

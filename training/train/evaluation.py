@@ -1,7 +1,8 @@
 """Evaluation of a policy during and after training, through the evaluation harness.
 
-:func:`evaluate_model` runs the current model (deterministic actions, the
-run's observation normalisation) on held-out random scenarios with
+:func:`evaluate_model` runs the current model (the most likely actions, or
+sampled ones with ``eval_sample_actions``; the run's observation
+normalisation) on held-out random scenarios with
 :func:`training.evaluation.harness.evaluate`, the same harness as the scripted
 baselines, and :func:`headline` reduces a summary to the numbers of the
 issue's table: success rate, time to goal (s), switches and refused requests
@@ -55,7 +56,10 @@ def live_policy(model: BaseAlgorithm, config: TrainConfig) -> LearnedPolicy:
     """The model as a policy, normalising observations with the training env's current statistics."""
     venv = model.get_env()
     normalise = venv.normalize_obs if isinstance(venv, VecNormalize) and venv.norm_obs else None
-    return LearnedPolicy(model, config.route, config.action_mode, normalise, config.scenario, torch_threads=config.torch_threads)
+    return LearnedPolicy(
+        model, config.route, config.action_mode, normalise, config.scenario,
+        torch_threads=config.torch_threads, deterministic=not config.eval_sample_actions,
+    )
 
 
 def evaluate_model(model: BaseAlgorithm, config: TrainConfig) -> EvaluationResult:

@@ -33,7 +33,9 @@ from training.train.models import algorithm_class, build_model, tensorboard_dir
 __all__ = ["train", "RESUMABLE_CHANGES"]
 
 #: Fields of the configuration that a resumed run may change; every other must match the run's.
-RESUMABLE_CHANGES = frozenset({"steps", "subproc", "checkpoint_every", "eval_every", "eval_episodes", "eval_seed", "eval_max_cycles", "progress_bar", "torch_threads"})
+RESUMABLE_CHANGES = frozenset(
+    {"steps", "subproc", "checkpoint_every", "eval_every", "eval_episodes", "eval_seed", "eval_max_cycles", "eval_sample_actions", "progress_bar", "torch_threads"}
+)
 
 
 def _check_resumable(stored: TrainConfig, config: TrainConfig) -> None:
