@@ -202,10 +202,6 @@ class ObservationLayout:
         x, y, yaw = pose
         out += [(x - self._cx) / self._r, (y - self._cy) / self._r, math.cos(yaw), math.sin(yaw), 1.0]
 
-    @staticmethod
-    def _status(out: list[float], status: Status) -> None:
-        out += _ONE_HOT[status]
-
     def _timing(self, out: list[float], since_switch: float, dwell_remaining: float) -> None:
         out.append(min(1.0, since_switch / _SWITCH_HORIZON_S))
         out.append(0.0 if self._dwell <= 0 else min(1.0, dwell_remaining / self._dwell))
@@ -273,7 +269,7 @@ class ObservationLayout:
         out: list[float] = []
         self._abs_pose(out, pose)
         out.append(0.0 if altitude is None else altitude / _ALTITUDE_SCALE_M)
-        self._status(out, status)
+        out += _ONE_HOT[status]
         for d in self.devices:
             p = board_in_camera.get(d)
             if p is None or p[2] <= 0.0:

@@ -38,6 +38,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from moma_env.camera import BoardView
+from moma_env.config import all_finite
 from moma_env.control import BoardTrackingController, WaypointFollower, WaypointFollowerConfig
 from moma_env.env.cameras import build_cameras, floor_for
 from moma_env.env.config import EnvConfig
@@ -397,8 +398,7 @@ class MomaParallelEnv(ParallelEnv):
         if a.shape != space.shape:
             raise ValueError(f"action of {agent!r} must have shape {space.shape}, got {a.shape}")
         values = a.tolist()
-        # The sum is finite whenever every value is (up to overflow, re-checked exactly).
-        if not math.isfinite(sum(values)) and not all(map(math.isfinite, values)):
+        if not all_finite(a):
             raise ValueError(f"action of {agent!r} must be finite, got {values}")
         # Plain floats: a handful of values, where numpy calls cost more than the arithmetic.
         return [-1.0 if v < -1.0 else (1.0 if v > 1.0 else v) for v in values]
