@@ -28,10 +28,10 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["steps_per_second", "bench_configurations", "memory_profile", "resident_mb"]
+__all__ = ["steps_per_second", "best_of_rounds", "bench_configurations", "memory_profile", "resident_mb"]
 
 
 def resident_mb() -> float:
@@ -70,11 +70,25 @@ def steps_per_second(make_env: Callable[[], Any], steps: int, seed: int = 0, poo
     return steps / elapsed
 
 
+def best_of_rounds(measures: Sequence[Callable[[], dict]], rounds: int) -> list[dict]:
+    """Run every measure once per round, rounds interleaved; per measure, the row of
+    its fastest run (largest ``steps_per_s``) with ``rounds_steps_per_s``, every run's rate."""
+    runs: list[list[dict]] = [[] for _ in measures]
+    for _ in range(rounds):
+        for k, measure in enumerate(measures):
+            runs[k].append(measure())
+    rows = []
+    for measured in runs:
+        best = dict(max(measured, key=lambda row: row["steps_per_s"]))
+        best["rounds_steps_per_s"] = [row["steps_per_s"] for row in measured]
+        rows.append(best)
+    return rows
+
+
 def bench_configurations(steps: int, rounds: int = 1, include_mpe2: bool = False) -> list[dict]:
     """Steps per second of every configuration in both action modes (and of MPE2
-    ``simple_spread`` N=3 first, if ``include_mpe2`` and mpe2 is installed), each
-    measured once per round, rounds interleaved; ``steps_per_s`` is the best round,
-    ``rounds_steps_per_s`` every round's."""
+    ``simple_spread`` N=3 first, if ``include_mpe2`` and mpe2 is installed), in
+    interleaved rounds (:func:`best_of_rounds`)."""
     from moma_env.env.factory import parallel_env
     from moma_env.scenarios import CONFIGURATIONS
 
@@ -89,14 +103,13 @@ def bench_configurations(steps: int, rounds: int = 1, include_mpe2: bool = False
     for name in CONFIGURATIONS:
         for mode in ("switching", "velocity"):
             makers.append((name, mode, lambda n=name, m=mode: parallel_env(n, action_mode=m)))
-    samples: list[list[float]] = [[] for _ in makers]
-    for _ in range(rounds):
-        for k, (_, _, make_env) in enumerate(makers):
-            samples[k].append(steps_per_second(make_env, steps))
-    return [
-        {"env": name, "action_mode": mode, "steps_per_s": max(rates), "rounds_steps_per_s": rates}
-        for (name, mode, _), rates in zip(makers, samples)
+    measures = [
+        lambda name=name, mode=mode, make_env=make_env: {
+            "env": name, "action_mode": mode, "steps_per_s": steps_per_second(make_env, steps)
+        }
+        for name, mode, make_env in makers
     ]
+    return best_of_rounds(measures, rounds)
 
 
 def memory_profile(steps: int, samples: int = 10) -> list[tuple[int, float]]:

@@ -53,16 +53,9 @@ def bench_rendered(steps: int, seed: int = 0, rounds: int = 1) -> list[dict]:
     Steps are timed by :func:`training.bench.steps_per_second` (random actions
     drawn before the clock starts, episodes reset when they end).
     """
-    samples: list[list[dict]] = [[] for _ in VARIANTS]
-    for _ in range(rounds):
-        for k, variant in enumerate(VARIANTS):
-            samples[k].append(_rendered_row(variant, steps, seed))
-    rows = []
-    for runs in samples:
-        best = dict(max(runs, key=lambda row: row["steps_per_s"]))
-        best["rounds_steps_per_s"] = [row["steps_per_s"] for row in runs]
-        rows.append(best)
-    return rows
+    from training.bench import best_of_rounds
+
+    return best_of_rounds([lambda variant=variant: _rendered_row(variant, steps, seed) for variant in VARIANTS], rounds)
 
 
 def _rendered_row(variant: tuple, steps: int, seed: int) -> dict:
