@@ -14,7 +14,6 @@ import tempfile
 import time
 from pathlib import Path
 
-
 from agents.learned import torch_threads
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
