@@ -1,0 +1,57 @@
+"""The reproducibility fingerprint tool (training/fingerprint.py)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from training.fingerprint import Case, fingerprint, main, serialise
+
+SLED = Case("caterpillar_sled", 120, action_mode="switching", max_cycles=50)
+
+
+def test_same_seed_same_hash_other_seed_other_hash():
+    first, again, other = fingerprint(SLED, seed=3), fingerprint(SLED, seed=3), fingerprint(SLED, seed=4)
+    assert first == again
+    assert first["episodes"] == 3  # 120 steps of 50-step episodes
+    assert other["sha256"] != first["sha256"]
+
+
+def test_serialise_tells_apart_what_compares_equal():
+    def text(value):
+        out: list[str] = []
+        serialise(value, out)
+        return "|".join(out)
+
+    assert text(0.1) != text(0.1 + 2**-56 * 3)  # one ulp apart
+    assert text(np.zeros(2, np.float32)) != text(np.zeros(2, np.float64))
+    assert text(np.zeros((2, 1))) != text(np.zeros((1, 2)))
+    assert text([1]) != text((1,)) and text(1) != text(1.0) and text(True) != text(1)
+    assert text({1, 2, 3}) == text({3, 2, 1})
+    with pytest.raises(TypeError, match="cannot fingerprint a object"):
+        text(object())
+
+
+def test_check_passes_on_its_own_output_and_fails_on_a_changed_hash(tmp_path):
+    out = tmp_path / "fp.json"
+    lines: list[str] = []
+    only = ["--only", "caterpillar_sled action_mode=switching max_cycles=250"]
+    assert main([*only, "--out", str(out)], report=lines.append) == 0
+    assert main([*only, "--check", str(out)], report=lines.append) == 0
+    assert lines[-1].startswith("1 of 1 cases identical")
+    data = json.loads(out.read_text())
+    data["fingerprints"][0]["sha256"] = "0" * 64
+    out.write_text(json.dumps(data))
+    assert main([*only, "--check", str(out)], report=lines.append) == 1
+    assert any(line.startswith("DIFFERS: caterpillar_sled") for line in lines)
+
+
+def test_bad_arguments_are_refused(tmp_path):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--only", "no such configuration"])
+    assert exit_info.value.code == 2
+    (tmp_path / "bad.json").write_text("[1, 2]")
+    with pytest.raises(SystemExit):
+        main(["--check", str(tmp_path / "bad.json")])
