@@ -229,8 +229,11 @@ class FloorTexture:
         ground = t[:2] + (-t[2] / border_dz)[:, None] * d[:, :2]
         gx0, gy0 = ground.min(axis=0)
         gx1, gy1 = ground.max(axis=0)
+        rects = self.config.textured_rects
+        if any(x0 <= gx0 and y0 <= gy0 and gx1 <= x1 and gy1 <= y1 for x0, y0, x1, y1 in rects):
+            return (0, 0, rays.shape[1], rays.shape[0])  # the floor in view is all textured
         samples = []
-        for x0, y0, x1, y1 in self.config.textured_rects:
+        for x0, y0, x1, y1 in rects:
             x0, y0, x1, y1 = max(x0, gx0), max(y0, gy0), min(x1, gx1), min(y1, gy1)
             if x0 < x1 and y0 < y1:
                 box = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])

@@ -115,13 +115,16 @@ class PixelRays:
         """Integer window ``(x0, y0, x1, y1)`` (end exclusive) around pixels ``(n, 2)``,
         grown by ``pad`` px and clipped to the image; None if it is empty or a pixel is not finite."""
         px = np.asarray(px, dtype=float)
-        if px.size == 0 or not np.isfinite(px).all():
+        if px.size == 0:
             return None
+        (lo_x, lo_y), (hi_x, hi_y) = px.min(axis=0).tolist(), px.max(axis=0).tolist()
+        if not (math.isfinite(lo_x) and math.isfinite(lo_y) and math.isfinite(hi_x) and math.isfinite(hi_y)):
+            return None  # min and max propagate a NaN; an infinity is one of them
         h, w = self.shape
-        x0 = max(int(np.floor(px[:, 0].min())) - pad, 0)
-        y0 = max(int(np.floor(px[:, 1].min())) - pad, 0)
-        x1 = min(int(np.ceil(px[:, 0].max())) + pad + 1, w)
-        y1 = min(int(np.ceil(px[:, 1].max())) + pad + 1, h)
+        x0 = max(math.floor(lo_x) - pad, 0)
+        y0 = max(math.floor(lo_y) - pad, 0)
+        x1 = min(math.ceil(hi_x) + pad + 1, w)
+        y1 = min(math.ceil(hi_y) + pad + 1, h)
         if x0 >= x1 or y0 >= y1:
             return None
         return x0, y0, x1, y1

@@ -69,6 +69,8 @@ _NEAR_M = 0.01
 #: Interlacing interpolates poses only across a gap of at most this many field periods
 #: (a longer gap, or time going back, is a new sequence: both fields show the present).
 _MAX_FIELD_GAP = 10.0
+#: Columns x, y and t of a pose T_c_m: the homography from the board plane z = 0 to C.
+_PLANE_COLUMNS = np.array([0, 1, 3])
 
 
 class RenderedCamera:
@@ -318,7 +320,7 @@ class RenderedCamera:
         following = raster.next_index
         area_px = 0.5 * abs(float(np.dot(x, y[following]) - np.dot(y, x[following])))  # shoelace
         image, A = raster.level_for(math.sqrt(area_px / raster.area_m2))
-        H_n_m = np.column_stack([R[:, 0], R[:, 1], t])
+        H_n_m = T_c_m[:3, _PLANE_COLUMNS]
         x0, y0, x1, y1 = roi
         window = np.ascontiguousarray(scene[y0:y1, x0:x1])
         cv2.remap(
