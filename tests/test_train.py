@@ -96,7 +96,7 @@ def test_resume_after_a_kill_continues_from_the_checkpoint_with_its_statistics(t
         train(config, out, callbacks=[Kill()])
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["num_timesteps"] == 256
-    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "model_000000000256.zip", "vecnormalize_000000000256.pkl"]
+    assert sorted(p.name for p in out.iterdir()) == ["logs", "manifest.json", "model_000000000256.zip", "vecnormalize_000000000256.pkl"]
     with open(out / manifest["vecnormalize"], "rb") as f:
         saved_count = float(pickle.load(f).obs_rms.count)
 
@@ -122,7 +122,7 @@ def test_a_failed_save_leaves_the_previous_checkpoint_whole(tmp_path):
     keep = KeepModel()
     config = tiny(steps=64)
     before = train(config, out, callbacks=[keep])
-    files = {p.name: p.read_bytes() for p in out.iterdir()}
+    files = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     model = keep.model
 
     def broken_save(path, *args, **kwargs):
@@ -134,7 +134,7 @@ def test_a_failed_save_leaves_the_previous_checkpoint_whole(tmp_path):
     model.num_timesteps += 64
     with pytest.raises(OSError, match="disk full"):
         save_checkpoint(out, model, config, 1.0)
-    assert {p.name: p.read_bytes() for p in out.iterdir()} == files
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == files
     assert json.loads((out / "manifest.json").read_text())["num_timesteps"] == before["num_timesteps"]
 
 
@@ -336,3 +336,19 @@ def test_moma_env_the_cli_and_the_worker_engine_do_not_import_sb3_or_torch():
             "training.cli.build_parser(); print(sorted(m for m in ('stable_baselines3', 'torch') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_sb3_metrics_go_to_one_csv_per_session_in_the_run_folder(tmp_path, monkeypatch):
+    temp = tmp_path / "system_temp"
+    temp.mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(temp))  # SB3's default logger would make SB3-<date> folders here
+    out = tmp_path / "run"
+    train(tiny(steps=64, eval_every=64), out)
+    train(tiny(steps=128, eval_every=64), out, resume=True)
+    assert list(temp.iterdir()) == []
+    first, second = sorted((out / "logs").glob("progress_*.csv"))
+    assert (first.name, second.name) == ("progress_000000000000.csv", "progress_000000000064.csv")
+    for path, end in ((first, 64), (second, 128)):
+        header, *rows = [line.split(",") for line in path.read_text().splitlines()]
+        assert {"time/total_timesteps", "eval/success_rate"} <= set(header)
+        assert rows and int(rows[-1][header.index("time/total_timesteps")]) == end

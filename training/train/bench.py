@@ -10,14 +10,12 @@ env steps per second (each env step moves the whole team one control step).
 
 from __future__ import annotations
 
-import tempfile
 import time
-from pathlib import Path
 
 from agents.learned import torch_threads
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
-from training.train.models import build_model
+from training.train.models import build_model, training_logger
 
 __all__ = ["training_fps", "bench_training"]
 
@@ -28,11 +26,11 @@ def training_fps(steps: int, envs: int, route: str = "shared", subproc: bool = F
     with torch_threads(config.torch_threads):
         venv = wrap_normalisation(make_vec_env(config, config.seed), config)
         try:
-            with tempfile.TemporaryDirectory() as out:
-                model = build_model(config, venv, Path(out))
-                start = time.perf_counter()
-                model.learn(steps)
-                elapsed = time.perf_counter() - start
+            model = build_model(config, venv)
+            model.set_logger(training_logger(None))
+            start = time.perf_counter()
+            model.learn(steps)
+            elapsed = time.perf_counter() - start
             slots_per_env_step = venv.num_envs // envs
             timesteps = int(model.num_timesteps)
         finally:

@@ -2,8 +2,8 @@
 
 Hyperparameters come from :class:`~training.train.config.TrainConfig` (network
 sizes, rollout length, batch size, learning rate, discount); the rest are SB3's
-defaults. TensorBoard logs go to ``<out>/tensorboard`` only when the
-``tensorboard`` package can be imported.
+defaults. :func:`training_logger` is where SB3's own training metrics go (never
+SB3's default of a new folder in the system's temporary directory per ``learn``).
 """
 
 from __future__ import annotations
@@ -14,11 +14,12 @@ from typing import Any
 
 import stable_baselines3
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger
 from stable_baselines3.common.vec_env import VecEnv
 
 from training.train.config import ALGORITHMS, TrainConfig
 
-__all__ = ["algorithm_class", "build_model", "tensorboard_dir"]
+__all__ = ["algorithm_class", "build_model", "training_logger"]
 
 #: Algorithms whose rollout length is ``n_steps`` per slot.
 _ON_POLICY = frozenset({"ppo", "a2c"})
@@ -29,9 +30,26 @@ def algorithm_class(algo: str) -> type[BaseAlgorithm]:
     return getattr(stable_baselines3, ALGORITHMS[algo])
 
 
-def tensorboard_dir(out: Path) -> str | None:
-    """``<out>/tensorboard`` if tensorboard is importable, else None (no TensorBoard logs)."""
-    return str(out / "tensorboard") if importlib.util.find_spec("tensorboard") is not None else None
+def training_logger(out: Path | None, start: int = 0) -> Logger:
+    """The SB3 logger of a training session that starts at timestep ``start`` in run folder ``out``.
+
+    SB3's metrics (``rollout/``, ``train/``, ``time/``, our ``eval/``) go to
+    ``<out>/logs/progress_<start>.csv``, one file per session (a resumed run adds
+    a file, it never overwrites an earlier session's), and to
+    ``<out>/tensorboard/run_<start>`` when the ``tensorboard`` package can be
+    imported (it is not a dependency). ``out=None``: a logger that writes nothing
+    (the benchmark). Close it after ``learn``.
+    """
+    if out is None:
+        return Logger(folder=None, output_formats=[])
+    logs = out / "logs"
+    logs.mkdir(parents=True, exist_ok=True)
+    formats: list[KVWriter] = [CSVOutputFormat(str(logs / f"progress_{start:012d}.csv"))]
+    if importlib.util.find_spec("tensorboard") is not None:
+        from stable_baselines3.common.logger import TensorBoardOutputFormat
+
+        formats.append(TensorBoardOutputFormat(str(out / "tensorboard" / f"run_{start:012d}")))
+    return Logger(folder=str(logs), output_formats=formats)
 
 
 def _hyperparameters(config: TrainConfig, n_slots: int) -> dict[str, Any]:
@@ -49,8 +67,9 @@ def _hyperparameters(config: TrainConfig, n_slots: int) -> dict[str, Any]:
     return kwargs
 
 
-def build_model(config: TrainConfig, venv: VecEnv, out: Path) -> BaseAlgorithm:
-    """A new model of ``config.algo`` on ``venv``, seeded with ``config.seed``, on the CPU."""
+def build_model(config: TrainConfig, venv: VecEnv) -> BaseAlgorithm:
+    """A new model of ``config.algo`` on ``venv``, seeded with ``config.seed``, on the CPU
+    (give it a :func:`training_logger` before ``learn``)."""
     cls = algorithm_class(config.algo)
     return cls(
         "MlpPolicy",
@@ -58,6 +77,5 @@ def build_model(config: TrainConfig, venv: VecEnv, out: Path) -> BaseAlgorithm:
         seed=config.seed,
         device="cpu",
         verbose=0,
-        tensorboard_log=tensorboard_dir(out),
         **_hyperparameters(config, venv.num_envs),
     )

@@ -28,7 +28,7 @@ from training.train.checkpoint import checkpoint_files, read_manifest, remove_st
 from agents.learned import torch_threads
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
-from training.train.models import algorithm_class, build_model, tensorboard_dir
+from training.train.models import algorithm_class, build_model, training_logger
 
 __all__ = ["train", "RESUMABLE_CHANGES"]
 
@@ -81,7 +81,7 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
         venv = make_vec_env(config, config.seed + done)
         stats = out / manifest["vecnormalize"] if manifest.get("vecnormalize") else None
         venv = wrap_normalisation(venv, config, stats)
-        model = algorithm_class(config.algo).load(out / manifest["model"], env=venv, device="cpu", tensorboard_log=tensorboard_dir(out))
+        model = algorithm_class(config.algo).load(out / manifest["model"], env=venv, device="cpu")
         if manifest.get("replay_buffer"):
             model.load_replay_buffer(out / manifest["replay_buffer"])
         wall_before = float(manifest["wall_time_s"])
@@ -91,7 +91,7 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
             raise ConfigError("out", f"{str(out)!r} already holds a training run; pass --resume to continue it or choose another folder")
         out.mkdir(parents=True, exist_ok=True)
         venv = wrap_normalisation(make_vec_env(config, config.seed), config)
-        model = build_model(config, venv, out)
+        model = build_model(config, venv)
         wall_before = 0.0
         records = []
     session_start = time.perf_counter()
@@ -104,13 +104,18 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
 
     evaluation = EvaluationCallback(config, out, records, wall_time)
     chain = CallbackList([CheckpointCallback(config.checkpoint_every, save), evaluation, *callbacks])
+    logger = training_logger(out, model.num_timesteps)
+    model.set_logger(logger)
     try:
         remaining = config.steps - model.num_timesteps
         if remaining > 0:
-            model.learn(remaining, callback=chain, reset_num_timesteps=not resume, progress_bar=config.progress_bar, tb_log_name="run")
+            model.learn(remaining, callback=chain, reset_num_timesteps=not resume, progress_bar=config.progress_bar)
             if config.eval_every > 0 and (not evaluation.records or evaluation.records[-1]["num_timesteps"] != model.num_timesteps):
                 evaluation.evaluate_now()
+                logger.record("time/total_timesteps", model.num_timesteps)
+                logger.dump(model.num_timesteps)  # learn has dumped its last row already
         manifest = save()
     finally:
+        logger.close()
         venv.close()
     return manifest
