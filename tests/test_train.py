@@ -352,3 +352,18 @@ def test_sb3_metrics_go_to_one_csv_per_session_in_the_run_folder(tmp_path, monke
         header, *rows = [line.split(",") for line in path.read_text().splitlines()]
         assert {"time/total_timesteps", "eval/success_rate"} <= set(header)
         assert rows and int(rows[-1][header.index("time/total_timesteps")]) == end
+
+
+@pytest.mark.parametrize("route", ["shared", "centralised"])
+def test_worker_processes_train_the_same_weights_as_one_process(tmp_path, route):
+    import torch
+
+    weights, rewards = [], []
+    for subproc in (False, True):
+        keep = KeepModel()
+        train(tiny(route=route, envs=2, subproc=subproc, steps=128), tmp_path / f"run_{subproc}", callbacks=[keep])
+        weights.append([p.detach().clone() for p in keep.model.policy.parameters()])
+        rewards.append(keep.model.rollout_buffer.rewards.copy())
+    assert len(weights[0]) == len(weights[1]) > 0
+    assert all(torch.equal(a, b) for a, b in zip(*weights))
+    assert np.array_equal(rewards[0], rewards[1]) and np.abs(rewards[0]).sum() > 0

@@ -4,7 +4,9 @@
   (K copies, one slot per UGV; worker processes with ``subproc``).
 * ``centralised`` route: K :class:`moma_env.env.centralised.CentralisedTeamEnv`
   each in SB3's ``Monitor`` (episode statistics), in ``DummyVecEnv`` or, with
-  ``subproc``, ``SubprocVecEnv``.
+  ``subproc``, ``SubprocVecEnv``. Their rewards are rounded to float32 first:
+  ``DummyVecEnv`` stores rewards as float32 and ``SubprocVecEnv`` as float64,
+  so without the rounding ``--subproc`` would train different weights.
 
 Both are seeded with ``seed`` through ``VecEnv.seed`` (slot i resets first with
 ``seed + i``); ``normalize`` adds ``VecNormalize`` (observations and rewards,
@@ -15,6 +17,10 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
+from typing import SupportsFloat
+
+import numpy as np
+from gymnasium.wrappers import TransformReward
 
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
@@ -32,9 +38,15 @@ def env_spec(config: TrainConfig) -> EnvSpec:
     return EnvSpec(config.scenario, config.env_options)
 
 
+def _float32(reward: SupportsFloat) -> float:
+    """``reward`` rounded to float32 precision (the precision of SB3's reward buffers)."""
+    return float(np.float32(reward))
+
+
 def _monitored_team_env(spec: EnvSpec) -> Monitor:
-    """One centralised team env with episode statistics (module level: picklable for workers)."""
-    return Monitor(centralised_env(spec.configuration, **spec.options))
+    """One centralised team env, rewards in float32 precision, with episode statistics
+    (module level: picklable for workers)."""
+    return Monitor(TransformReward(centralised_env(spec.configuration, **spec.options), _float32))
 
 
 def make_vec_env(config: TrainConfig, seed: int) -> VecEnv:
