@@ -39,6 +39,7 @@ import math
 from dataclasses import dataclass
 
 import cv2
+import numba
 import numpy as np
 
 from moma_env.camera.config import CameraConfig
@@ -252,17 +253,8 @@ class VisualOdometry:
             return None, np.zeros(n, dtype=bool)
         index = np.flatnonzero(valid)
         samples = self._rng.integers(0, len(index), size=(cfg.ransac_iterations, 2))
-        best = np.zeros(n, dtype=bool)
         threshold_sq = cfg.ransac_threshold_m**2
-        for i, j in samples:
-            if i == j:
-                continue
-            pair = index[[i, j]]
-            if np.sum((q[pair[0]] - q[pair[1]]) ** 2) < 4.0 * threshold_sq:
-                continue  # two points too close to fix a rotation
-            inliers = valid & (_residual_sq(p, q, fit_rigid_2d(p[pair], q[pair])) <= threshold_sq)
-            if np.count_nonzero(inliers) > np.count_nonzero(best):
-                best = inliers
+        best = _two_point_consensus(p, q, valid, index[samples], threshold_sq)
         if np.count_nonzero(best) < cfg.min_inliers:
             return None, best
         motion = fit_rigid_2d(p[best], q[best])
@@ -277,6 +269,52 @@ class VisualOdometry:
 #: block: this factor turns it into the block mean of the gradient's structure
 #: tensor's smallest eigenvalue in (gray levels / px)^2.
 _RESPONSE_SCALE = 255.0**2 / 4.0
+
+
+@numba.njit(cache=True)
+def _two_point_consensus(p: np.ndarray, q: np.ndarray, valid: np.ndarray, pairs: np.ndarray, threshold_sq: float) -> np.ndarray:
+    """RANSAC's best consensus set: the inlier mask (n,) of the largest set (the first of
+    equals) over the motions fitted to the point pairs ``pairs`` (k, 2) of indices.
+
+    ``p``, ``q``: floor points (n, 2) (m), ``q`` mapped onto ``p`` by the motion;
+    ``valid``: which may be inliers. A pair of one point twice, or of two points
+    closer than twice the threshold (too close to fix a rotation), is skipped.
+    Each motion is :func:`moma_env.geometry.fit_rigid_2d` of the pair, computed
+    with the same floating-point operations in the same order (same bits), and a
+    point is an inlier if its squared residual (as :func:`_residual_sq`) is at
+    most ``threshold_sq``.
+    """
+    n = p.shape[0]
+    best = np.zeros(n, dtype=np.bool_)
+    best_count = 0
+    inliers = np.empty(n, dtype=np.bool_)
+    for k in range(pairs.shape[0]):
+        a, b = pairs[k, 0], pairs[k, 1]
+        if a == b:
+            continue
+        gx, gy = q[a, 0] - q[b, 0], q[a, 1] - q[b, 1]
+        if gx * gx + gy * gy < 4.0 * threshold_sq:
+            continue
+        pcx, pcy = (p[a, 0] + p[b, 0]) / 2.0, (p[a, 1] + p[b, 1]) / 2.0
+        qcx, qcy = (q[a, 0] + q[b, 0]) / 2.0, (q[a, 1] + q[b, 1]) / 2.0
+        dpax, dpay, dpbx, dpby = p[a, 0] - pcx, p[a, 1] - pcy, p[b, 0] - pcx, p[b, 1] - pcy
+        dqax, dqay, dqbx, dqby = q[a, 0] - qcx, q[a, 1] - qcy, q[b, 0] - qcx, q[b, 1] - qcy
+        s_cos = (dqax * dpax + dqay * dpay) + (dqbx * dpbx + dqby * dpby)
+        s_sin = (dqax * dpay - dqay * dpax) + (dqbx * dpby - dqby * dpbx)
+        yaw = math.atan2(s_sin, s_cos)
+        c, s = math.cos(yaw), math.sin(yaw)
+        x = pcx - (c * qcx - s * qcy)
+        y = pcy - (s * qcx + c * qcy)
+        count = 0
+        for i in range(n):
+            dx = p[i, 0] - (c * q[i, 0] - s * q[i, 1] + x)
+            dy = p[i, 1] - (s * q[i, 0] + c * q[i, 1] + y)
+            inliers[i] = valid[i] and dx * dx + dy * dy <= threshold_sq
+            count += inliers[i]
+        if count > best_count:
+            best[:] = inliers
+            best_count = count
+    return best
 
 
 def _residual_sq(p: np.ndarray, q: np.ndarray, motion: tuple[float, float, float]) -> np.ndarray:
