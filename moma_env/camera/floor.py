@@ -220,9 +220,10 @@ class FloorTexture:
         """Image window ``(x0, y0, x1, y1)`` holding every textured floor pixel in view, or None.
 
         For a camera whose border rays all point down: the floor in view lies
-        within the bounding box of where those rays meet the floor; each
-        textured rectangle is clipped to that box and its border (sampled, as
-        the lens bends straight edges) projected into the image.
+        within the bounding box of where those rays meet the floor. If one
+        textured rectangle holds that box, the window is the whole image;
+        otherwise each textured rectangle is clipped to the box and its border
+        (sampled, as the lens bends straight edges) projected into the image.
         """
         R, t = T[:3, :3], T[:3, 3]
         d = np.column_stack([rays.border_xy, np.ones(len(rays.border_xy))]) @ R.T

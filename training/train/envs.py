@@ -21,7 +21,6 @@ from typing import SupportsFloat
 
 import numpy as np
 from gymnasium.wrappers import TransformReward
-
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
