@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pytest
 
-from training.fingerprint import Case, fingerprint, main, serialise
+from training.fingerprint import Case, ExperimentCase, fingerprint, main, serialise
 
 SLED = Case("caterpillar_sled", 120, action_mode="switching", max_cycles=50)
 
@@ -30,6 +31,13 @@ def test_serialise_tells_apart_what_compares_equal():
     assert text(np.zeros((2, 1))) != text(np.zeros((1, 2)))
     assert text([1]) != text((1,)) and text(1) != text(1.0) and text(True) != text(1)
     assert text({1, 2, 3}) == text({3, 2, 1})
+
+    @dataclasses.dataclass
+    class Point:
+        x: float
+        y: float
+
+    assert text(Point(1.0, 2.0)) != text(Point(2.0, 1.0)) and text(Point(1.0, 2.0)) != text((1.0, 2.0))
     with pytest.raises(TypeError, match="cannot fingerprint a object"):
         text(object())
 
@@ -55,3 +63,12 @@ def test_bad_arguments_are_refused(tmp_path):
     (tmp_path / "bad.json").write_text("[1, 2]")
     with pytest.raises(SystemExit):
         main(["--check", str(tmp_path / "bad.json")])
+
+
+def test_an_experiment_run_is_hashed_whole_and_reproducibly():
+    short = ExperimentCase("line", max_time_s=8.0)
+    first = fingerprint(short, seed=1)
+    assert first == fingerprint(short, seed=1)
+    assert first["case"] == "experiment line max_time_s=8.0"
+    assert fingerprint(short, seed=2)["sha256"] != first["sha256"]
+    assert fingerprint(ExperimentCase("line", max_time_s=9.0), seed=1)["sha256"] != first["sha256"]

@@ -6,7 +6,10 @@ training tables) has to be made again. This tool hashes seeded runs of every
 configuration, action mode and camera backend: per step the observations,
 rewards, terminations, truncations and infos (the exact bits of every float),
 ``state()``, the estimator's estimates and every device's localisation error,
-and at the end the estimator's event log. Run it before and after a change::
+and at the end the estimator's event log; and seeded runs of the paper's
+experiments (the square and the line, geometric and rendered with the visual
+odometry): every trajectory, metric, waypoint and switch time of the run
+record. Run it before and after a change::
 
     python -m training.fingerprint --out before.json      # on the old code
     python -m training.fingerprint --check before.json    # on the new code: exit 1 on any difference
@@ -18,6 +21,7 @@ A fingerprint is a property of the code *and* of the machine's floating point
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import enum
 import hashlib
 import json
@@ -28,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CASES", "Case", "fingerprint", "main", "serialise"]
+__all__ = ["CASES", "Case", "ExperimentCase", "fingerprint", "main", "serialise"]
 
 
 class Case:
@@ -43,7 +47,21 @@ class Case:
         return " ".join([self.name] + [f"{k}={v}" for k, v in sorted(self.kwargs.items())])
 
 
-def _cases() -> tuple[Case, ...]:
+class ExperimentCase:
+    """One seeded run of a paper experiment: ``run_square`` or ``run_line`` of the
+    experiment's config with ``kwargs`` (e.g. ``camera_backend``, ``max_time_s``)."""
+
+    def __init__(self, experiment: str, **kwargs) -> None:
+        self.experiment, self.kwargs = experiment, kwargs
+        self.steps = 0  # a run's length is the experiment's
+
+    @property
+    def label(self) -> str:
+        """``experiment <name>`` and the keyword arguments."""
+        return " ".join(["experiment", self.experiment] + [f"{k}={v}" for k, v in sorted(self.kwargs.items())])
+
+
+def _cases() -> tuple[Case | ExperimentCase, ...]:
     cases = []
     for name in ("top_observer", "caterpillar", "caterpillar_sled", "caterpillar_multi"):
         for mode in ("switching", "velocity"):
@@ -63,6 +81,10 @@ def _cases() -> tuple[Case, ...]:
         ),
         Case("top_observer", 40, camera_backend="rendered", observer_agent=True, observer_image=(96, 80), max_cycles=100),
         Case("caterpillar", 60, camera_backend="rendered", max_cycles=100),
+        # The paper's experiments (the README's tables): geometric runs whole, rendered ones cut short.
+        ExperimentCase("square"),
+        ExperimentCase("line"),
+        ExperimentCase("square", camera_backend="rendered", max_time_s=45.0),
     ]
     return tuple(cases)
 
@@ -78,6 +100,12 @@ def serialise(value: object, out: list[str]) -> None:
         out += ["ndarray", str(value.dtype), str(value.shape), np.ascontiguousarray(value).tobytes().hex()]
     elif isinstance(value, enum.Enum):
         out.append(repr(value))
+    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+        out.append(type(value).__name__)
+        for field in dataclasses.fields(value):
+            out.append(field.name)
+            serialise(getattr(value, field.name), out)
+        out.append("end")
     elif isinstance(value, (bool, np.bool_, int, np.integer, str, type(None))):
         out += [type(value).__name__, repr(value)]
     elif isinstance(value, (float, np.floating)):
@@ -97,12 +125,14 @@ def serialise(value: object, out: list[str]) -> None:
         raise TypeError(f"cannot fingerprint a {type(value).__name__}: {value!r}")
 
 
-def fingerprint(case: Case, seed: int = 0) -> dict:
-    """Run ``case`` with random actions from ``seed``: its hash (sha256 hex) and episode count.
+def fingerprint(case: Case | ExperimentCase, seed: int = 0) -> dict:
+    """Run ``case`` from ``seed``: its hash (sha256 hex) and episode count (1 for an experiment).
 
-    Every 37th step the action of the first live agent is left out (the env's
-    default for a missing action).
+    An env case runs random actions; every 37th step the action of the first
+    live agent is left out (the env's default for a missing action).
     """
+    if isinstance(case, ExperimentCase):
+        return _fingerprint_experiment(case, seed)
     from moma_env.env.factory import parallel_env
 
     env = parallel_env(case.name, **case.kwargs)
@@ -134,6 +164,19 @@ def fingerprint(case: Case, seed: int = 0) -> dict:
     feed([repr(event) for event in env.estimator.events])
     env.close()
     return {"case": case.label, "steps": case.steps, "episodes": episodes, "sha256": digest.hexdigest()}
+
+
+def _fingerprint_experiment(case: ExperimentCase, seed: int) -> dict:
+    """Hash of the whole record (:class:`LeapfrogRun`) of one seeded experiment run."""
+    if case.experiment == "square":
+        from training.experiments.square import SquareConfig as config_class, run_square as run
+    else:
+        from training.experiments.line import LineConfig as config_class, run_line as run
+    record = run(config_class(**case.kwargs), seed)
+    out: list[str] = []
+    serialise(record, out)
+    digest = hashlib.sha256("|".join(out).encode()).hexdigest()
+    return {"case": case.label, "steps": case.steps, "episodes": 1, "sha256": digest}
 
 
 def _compare(found: Sequence[dict], reference: Sequence[dict]) -> list[str]:
