@@ -8,6 +8,7 @@ import torch
 from gymnasium import spaces
 from stable_baselines3 import PPO
 
+from training.train.models import training_logger
 from training.train.shared_vec_env import SharedPolicyVecEnv
 from training.train.team_slots import EnvSpec
 
@@ -129,6 +130,7 @@ def test_ppo_with_a_seed_trains_reproducibly_on_the_adapter(one_torch_thread):
         try:
             model = PPO("MlpPolicy", venv, seed=seed, n_steps=16, batch_size=16, n_epochs=1, device="cpu",
                         policy_kwargs={"net_arch": [8]})
+            model.set_logger(training_logger(None))  # SB3's default would leave a folder in /tmp
             model.learn(64)
             assert model.num_timesteps == 64
             return [p.detach().clone() for p in model.policy.parameters()]
