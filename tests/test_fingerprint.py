@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from training.fingerprint import Case, ExperimentCase, fingerprint, main, serialise
+from training.fingerprint import Case, fingerprint, main, serialise
 
 SLED = Case("caterpillar_sled", 120, action_mode="switching", max_cycles=50)
 
@@ -57,6 +57,10 @@ def test_check_passes_on_its_own_output_and_fails_on_a_changed_hash(tmp_path):
 
 
 def test_bad_arguments_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="steps"):
+        Case("square", 100)
+    with pytest.raises(ValueError, match="steps"):
+        Case("top_observer")
     with pytest.raises(SystemExit) as exit_info:
         main(["--only", "no such configuration"])
     assert exit_info.value.code == 2
@@ -66,9 +70,9 @@ def test_bad_arguments_are_refused(tmp_path):
 
 
 def test_an_experiment_run_is_hashed_whole_and_reproducibly():
-    short = ExperimentCase("line", max_time_s=8.0)
+    short = Case("line", max_time_s=8.0)
     first = fingerprint(short, seed=1)
     assert first == fingerprint(short, seed=1)
     assert first["case"] == "experiment line max_time_s=8.0"
     assert fingerprint(short, seed=2)["sha256"] != first["sha256"]
-    assert fingerprint(ExperimentCase("line", max_time_s=9.0), seed=1)["sha256"] != first["sha256"]
+    assert fingerprint(Case("line", max_time_s=9.0), seed=1)["sha256"] != first["sha256"]

@@ -32,36 +32,37 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CASES", "Case", "ExperimentCase", "fingerprint", "main", "serialise"]
+__all__ = ["CASES", "Case", "fingerprint", "main", "serialise"]
+
+
+#: Cases named after these are runs of the paper's experiments, not env configurations.
+_EXPERIMENTS = ("square", "line")
 
 
 class Case:
-    """One seeded run: an environment (``parallel_env(name, **kwargs)``) and its length (steps)."""
+    """One seeded run: env configuration ``name`` (``parallel_env(name, **kwargs)``) for
+    ``steps`` random-action steps, or, when ``name`` is ``"square"`` or ``"line"``, one
+    whole run of that experiment (``SquareConfig(**kwargs)``, ``steps`` None)."""
 
-    def __init__(self, name: str, steps: int, **kwargs) -> None:
+    def __init__(self, name: str, steps: int | None = None, **kwargs) -> None:
+        if (name in _EXPERIMENTS) != (steps is None):
+            raise ValueError(f"give steps for an env configuration and none for an experiment, got {name!r} with steps={steps!r}")
         self.name, self.steps, self.kwargs = name, steps, kwargs
 
     @property
-    def label(self) -> str:
-        """``name`` and the keyword arguments, e.g. ``top_observer action_mode=velocity``."""
-        return " ".join([self.name] + [f"{k}={v}" for k, v in sorted(self.kwargs.items())])
-
-
-class ExperimentCase:
-    """One seeded run of a paper experiment: ``run_square`` or ``run_line`` of the
-    experiment's config with ``kwargs`` (e.g. ``camera_backend``, ``max_time_s``)."""
-
-    def __init__(self, experiment: str, **kwargs) -> None:
-        self.experiment, self.kwargs = experiment, kwargs
-        self.steps = 0  # a run's length is the experiment's
+    def is_experiment(self) -> bool:
+        """True for a run of a paper experiment."""
+        return self.steps is None
 
     @property
     def label(self) -> str:
-        """``experiment <name>`` and the keyword arguments."""
-        return " ".join(["experiment", self.experiment] + [f"{k}={v}" for k, v in sorted(self.kwargs.items())])
+        """The name and the keyword arguments, e.g. ``top_observer action_mode=velocity``
+        (``experiment square ...`` for an experiment)."""
+        words = (["experiment"] if self.is_experiment else []) + [self.name]
+        return " ".join(words + [f"{k}={v}" for k, v in sorted(self.kwargs.items())])
 
 
-def _cases() -> tuple[Case | ExperimentCase, ...]:
+def _cases() -> tuple[Case, ...]:
     cases = []
     for name in ("top_observer", "caterpillar", "caterpillar_sled", "caterpillar_multi"):
         for mode in ("switching", "velocity"):
@@ -82,9 +83,9 @@ def _cases() -> tuple[Case | ExperimentCase, ...]:
         Case("top_observer", 40, camera_backend="rendered", observer_agent=True, observer_image=(96, 80), max_cycles=100),
         Case("caterpillar", 60, camera_backend="rendered", max_cycles=100),
         # The paper's experiments (the README's tables): geometric runs whole, rendered ones cut short.
-        ExperimentCase("square"),
-        ExperimentCase("line"),
-        ExperimentCase("square", camera_backend="rendered", max_time_s=45.0),
+        Case("square"),
+        Case("line"),
+        Case("square", camera_backend="rendered", max_time_s=45.0),
     ]
     return tuple(cases)
 
@@ -125,13 +126,13 @@ def serialise(value: object, out: list[str]) -> None:
         raise TypeError(f"cannot fingerprint a {type(value).__name__}: {value!r}")
 
 
-def fingerprint(case: Case | ExperimentCase, seed: int = 0) -> dict:
+def fingerprint(case: Case, seed: int = 0) -> dict:
     """Run ``case`` from ``seed``: its hash (sha256 hex) and episode count (1 for an experiment).
 
     An env case runs random actions; every 37th step the action of the first
     live agent is left out (the env's default for a missing action).
     """
-    if isinstance(case, ExperimentCase):
+    if case.is_experiment:
         return _fingerprint_experiment(case, seed)
     from moma_env.env.factory import parallel_env
 
@@ -166,9 +167,9 @@ def fingerprint(case: Case | ExperimentCase, seed: int = 0) -> dict:
     return {"case": case.label, "steps": case.steps, "episodes": episodes, "sha256": digest.hexdigest()}
 
 
-def _fingerprint_experiment(case: ExperimentCase, seed: int) -> dict:
+def _fingerprint_experiment(case: Case, seed: int) -> dict:
     """Hash of the whole record (:class:`LeapfrogRun`) of one seeded experiment run."""
-    if case.experiment == "square":
+    if case.name == "square":
         from training.experiments.square import SquareConfig as config_class, run_square as run
     else:
         from training.experiments.line import LineConfig as config_class, run_line as run
