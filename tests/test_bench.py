@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import pytest
 from gymnasium import spaces
 
 from training.bench import bench_configurations, format_bench, steps_per_second
@@ -124,3 +125,16 @@ def test_step_breakdown_accounts_for_the_whole_step():
     assert all(result[k] > 0.0 for k in ("step", "camera", "estimator", "world"))
     assert result["rest"] == result["step"] - result["camera"] - result["estimator"] - result["world"]
     assert result["camera"] + result["estimator"] + result["world"] < result["step"]
+
+
+def test_step_breakdown_prints_the_target_budget_from_mpe2_in_the_same_run(capsys):
+    pytest.importorskip("mpe2")
+    from training.bench_step import TARGET_X_MPE2, main, mpe2_step_us
+
+    assert 0.0 < mpe2_step_us(steps=20) < 1e6
+    assert main(["--steps", "30"]) == 0
+    lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
+    assert {"step", "camera", "estimator", "world", "rest", "mpe2", "budget"} <= set(lines)
+    mpe2_us, budget_us = float(lines["mpe2"].split()[1]), float(lines["budget"].split()[1])
+    # Both are printed rounded to the microsecond.
+    assert abs(budget_us - mpe2_us / TARGET_X_MPE2) <= 1.0

@@ -4,8 +4,11 @@
 whole ``env.step`` under random actions (drawn before the clock starts, as in
 ``moma-env bench``) and, inside it, the calls of ``GeometricCamera.measure``,
 ``MomaEstimator.update`` and ``World.step``, by wrapping those methods of the one
-env it builds (instances only: nothing global is patched). A measurement, not an
-assertion.
+env it builds (instances only: nothing global is patched). With MPE2 installed it
+then times MPE2 ``simple_spread`` (N=3, parallel API, random actions, as in
+``moma-env bench``) in the same run and prints the per-step budget of the
+benchmark's target, five times MPE2's steps per second, beside the breakdown.
+A measurement, not an assertion.
 """
 
 from __future__ import annotations
@@ -14,7 +17,10 @@ import argparse
 import time
 from collections.abc import Callable
 
-__all__ = ["step_breakdown"]
+__all__ = ["mpe2_step_us", "step_breakdown"]
+
+#: The speed target of ``moma-env bench``: this many times MPE2 ``simple_spread``'s joint steps per second.
+TARGET_X_MPE2 = 5.0
 
 
 def _timed(owner: object, method: str, totals: dict[str, float], key: str) -> None:
@@ -76,6 +82,18 @@ def step_breakdown(scenario: str = "top_observer", steps: int = 5000, warmup: in
     return out
 
 
+def mpe2_step_us(steps: int = 5000, seed: int = 0) -> float | None:
+    """Mean microseconds per joint step of MPE2 ``simple_spread`` (N=3, parallel API,
+    random actions drawn before the clock starts); None if mpe2 is not installed."""
+    try:
+        from mpe2 import simple_spread_v3
+    except ImportError:
+        return None
+    from training.bench import steps_per_second
+
+    return 1e6 / steps_per_second(lambda: simple_spread_v3.parallel_env(N=3), steps, seed=seed)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Cost breakdown of one environment step (geometric camera).")
     parser.add_argument("--scenario", default="top_observer")
@@ -86,6 +104,12 @@ def main(argv: list[str] | None = None) -> int:
     result = step_breakdown(args.scenario, args.steps)
     for key, value in result.items():
         print(f"{key:<10}{value:8.0f} us")
+    mpe2 = mpe2_step_us(args.steps)
+    if mpe2 is None:
+        print("(mpe2 not installed: no target budget)")
+    else:
+        print(f"{'mpe2':<10}{mpe2:8.0f} us   MPE2 simple_spread N=3, same run")
+        print(f"{'budget':<10}{mpe2 / TARGET_X_MPE2:8.0f} us   per step at {TARGET_X_MPE2:g}x MPE2's steps/s (the target)")
     return 0
 
 
