@@ -133,8 +133,26 @@ def test_step_breakdown_prints_the_target_budget_from_mpe2_in_the_same_run(capsy
 
     assert 0.0 < mpe2_step_us(steps=20) < 1e6
     assert main(["--steps", "30"]) == 0
-    lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
-    assert {"step", "camera", "estimator", "world", "rest", "mpe2", "budget"} <= set(lines)
+    printed = capsys.readouterr().out.splitlines()
+    lines = {line.split()[0]: line for line in printed}
+    assert {"step", "camera", "estimator", "world", "rest", "mpe2", "budget", "skeleton"} <= set(lines)
+    skeletons = [line for line in printed if line.startswith("skeleton")]
+    assert len(skeletons) == 2 and "robots static" in skeletons[0] and "robots driven" in skeletons[1]
     mpe2_us, budget_us = float(lines["mpe2"].split()[1]), float(lines["budget"].split()[1])
     # Both are printed rounded to the microsecond.
     assert abs(budget_us - mpe2_us / TARGET_X_MPE2) <= 1.0
+
+
+def test_skeleton_step_drives_the_robots_only_when_asked(monkeypatch):
+    """The skeleton's two variants differ in what the world does: with ``mobile`` every
+    robot's body is driven at every substep, otherwise none is."""
+    from moma_env.world.ugv import UGVBody
+    from training.bench_step import skeleton_step_us
+
+    driven = []
+    original = UGVBody.drive
+    monkeypatch.setattr(UGVBody, "drive", lambda self: driven.append(self) or original(self))
+    assert skeleton_step_us(steps=5, warmup=0) > 0.0
+    assert driven == []
+    assert skeleton_step_us(steps=5, warmup=0, mobile=True) > 0.0
+    assert len(driven) > 0

@@ -8,7 +8,12 @@ env it builds (instances only: nothing global is patched). With MPE2 installed i
 then times MPE2 ``simple_spread`` (N=3, parallel API, random actions, as in
 ``moma-env bench``) in the same run and prints the per-step budget of the
 benchmark's target, five times MPE2's steps per second, beside the breakdown.
-A measurement, not an assertion.
+Last, the ``skeleton``: the cheapest step of the same shape (the env's own pymunk
+world stepped with random commands, one float32 observation array per agent
+clipped to its space, and the five PettingZoo dicts; no camera, no estimator, no
+rules, no reward terms), a floor that any design keeping this world and this API
+in Python pays: once with the robots static as ``reset`` leaves them (their bodies
+are not driven) and once with every robot mobile and driven at every substep. A measurement, not an assertion.
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ import argparse
 import time
 from collections.abc import Callable
 
-__all__ = ["mpe2_step_us", "step_breakdown"]
+__all__ = ["mpe2_step_us", "skeleton_step_us", "step_breakdown"]
 
 #: The speed target of ``moma-env bench``: this many times MPE2 ``simple_spread``'s joint steps per second.
 TARGET_X_MPE2 = 5.0
@@ -94,6 +99,64 @@ def mpe2_step_us(steps: int = 5000, seed: int = 0) -> float | None:
     return 1e6 / steps_per_second(lambda: simple_spread_v3.parallel_env(N=3), steps, seed=seed)
 
 
+def skeleton_step_us(
+    scenario: str = "top_observer", steps: int = 5000, warmup: int = 500, seed: int = 0, mobile: bool = False
+) -> float:
+    """Mean microseconds of the skeleton step of ``scenario`` (see the module docstring).
+
+    The world is the env's after ``reset(seed)``, where the robots start static (a
+    static robot ignores its command and its body is not driven); ``mobile`` makes
+    every robot mobile first. Commands (UGV body velocities up to 0.2 m/s and
+    0.2 rad/s, a small UAV command when there is a UAV) are drawn from a seeded
+    generator before the clock starts.
+    """
+    import math
+
+    import numpy as np
+
+    from moma_env.env.factory import parallel_env
+
+    env = parallel_env(scenario)
+    env.reset(seed=seed)
+    world = env.world
+    ugvs = list(world.ugv_names)
+    if mobile:
+        for name in ugvs:
+            world.set_static(name, False)
+    agents = list(env.possible_agents)
+    bounds = {a: (env.observation_space(a).low, env.observation_space(a).high) for a in agents}
+    sizes = {a: env.observation_space(a).shape[0] for a in agents}
+    rng = np.random.default_rng(seed)
+    pool = 1000
+    limits = np.array([0.2, 0.2, 0.2])
+    ugv_commands = [{u: rng.uniform(-limits, limits) for u in ugvs} for _ in range(pool)]
+    uav_commands = [rng.uniform(-0.05, 0.05, 4) if world.has_uav else None for _ in range(pool)]
+
+    def step(i: int) -> tuple[dict, dict, dict, dict, dict]:
+        world.step(ugv_commands[i % pool], uav_commands[i % pool])
+        poses = [world.ugv_pose(u) for u in ugvs]
+        features: list[float] = []
+        for x, y, yaw in poses:
+            features += [x, y, math.cos(yaw), math.sin(yaw)]
+        observations = {}
+        for a in agents:
+            n = sizes[a]
+            values = (features * (n // len(features) + 1))[:n]
+            obs = np.array(values, dtype=np.float32)
+            obs.clip(*bounds[a], out=obs)
+            observations[a] = obs
+        reward = -sum(math.hypot(x, y) for x, y, _ in poses)
+        infos = {a: {"truth": poses[0], "events": []} for a in agents}
+        return observations, {a: reward for a in agents}, {a: False for a in agents}, {a: False for a in agents}, infos
+
+    for i in range(warmup):
+        step(i)
+    start = time.perf_counter()
+    for i in range(steps):
+        step(i)
+    return (time.perf_counter() - start) / steps * 1e6
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Cost breakdown of one environment step (geometric camera).")
     parser.add_argument("--scenario", default="top_observer")
@@ -110,6 +173,9 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"{'mpe2':<10}{mpe2:8.0f} us   MPE2 simple_spread N=3, same run")
         print(f"{'budget':<10}{mpe2 / TARGET_X_MPE2:8.0f} us   per step at {TARGET_X_MPE2:g}x MPE2's steps/s (the target)")
+    for mobile, robots in ((False, "robots static"), (True, "robots driven")):
+        skeleton = skeleton_step_us(args.scenario, args.steps, mobile=mobile)
+        print(f"{'skeleton':<10}{skeleton:8.0f} us   {robots}: world.step, observation arrays, the five dicts; no camera, estimator or rules")
     return 0
 
 
