@@ -241,3 +241,32 @@ def test_ground_footprint_above_the_horizon_is_nan():
     fp = cam.ground_footprint(T_w_c)
     assert np.isnan(fp[:2]).all()  # top corners look above the horizon
     assert np.isfinite(fp[2:]).all() and (fp[2:, 0] > 0).all()  # bottom corners hit the floor ahead
+
+
+def test_view_wedge_of_a_level_forward_camera_spans_its_horizontal_field_of_view():
+    cam = PinholeCamera(CameraConfig())
+    yaw = 0.4
+    T_w_c = se2_to_se3(1.0, -2.0, yaw, 0.3) @ make_transform(R_BODY_CAM_FORWARD)
+    wedge = cam.view_wedge(T_w_c, 2.5)
+    assert wedge.shape == (10, 2) and np.isfinite(wedge).all()
+    np.testing.assert_allclose(wedge[0], [1.0, -2.0])
+    arc = wedge[1:] - wedge[0]
+    np.testing.assert_allclose(np.hypot(arc[:, 0], arc[:, 1]), 2.5)
+    bearings = np.unwrap(np.arctan2(arc[:, 1], arc[:, 0])) - yaw
+    # Left edge of the image first (image x = -y_B: the left of the robot), the optical axis in the middle.
+    assert np.all(np.diff(bearings) < 0.0)
+    assert bearings[4] == pytest.approx(0.0, abs=1e-12)
+    assert math.degrees(bearings[0] - bearings[-1]) == pytest.approx(cam.field_of_view_deg[0], rel=1e-9)
+
+
+def test_view_wedge_rows_without_a_horizontal_direction_are_nan_and_bad_range_raises():
+    cam = PinholeCamera(CameraConfig())
+    T_w_c = se2_to_se3(0.0, 0.0, 0.0, 2.0) @ make_transform(R_BODY_CAM_DOWN)
+    wedge = cam.view_wedge(T_w_c, 1.0)
+    assert np.isnan(wedge[5]).all()  # the principal point's ray points straight down
+    assert np.isfinite(np.delete(wedge, 5, axis=0)).all()
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="range_m"):
+            cam.view_wedge(T_w_c, bad)
+    with pytest.raises(ValueError, match="4x4"):
+        cam.view_wedge(np.eye(3), 1.0)

@@ -345,3 +345,17 @@ def test_compose_bad_input_raises(kwargs, match):
     args = {"top": np.zeros((50, 50, 3), np.uint8), "inset": np.zeros((10, 10, 3), np.uint8)} | kwargs
     with pytest.raises(ValueError, match=match):
         compose(**args)
+
+
+def test_overlapping_footprints_fill_their_union():
+    """Two overlapping footprints tint their overlap too (one fill per polygon, not the
+    even-odd fill of one call, which leaves the overlap empty)."""
+    empty = render_top_down(SceneView(BOUNDS), SIZE, legend=False)
+    a = np.array([[0.5, 0.5], [3.0, 0.5], [3.0, 3.0], [0.5, 3.0]])
+    b = a + 0.5
+    one = render_top_down(SceneView(BOUNDS, footprints=(a,)), SIZE, legend=False)
+    both = render_top_down(SceneView(BOUNDS, footprints=(a, b)), SIZE, legend=False)
+    m = TopDownMapping.fit(BOUNDS, SIZE)
+    u, v = np.round(m.to_pixels(np.array([2.0, 2.0]))).astype(int)  # inside both
+    assert not np.array_equal(both[v, u], empty[v, u])
+    assert np.array_equal(both[v, u], one[v, u])  # the union is tinted once, not twice

@@ -23,6 +23,8 @@ __all__ = ["PinholeCamera"]
 # units) or after 100 iterations; OpenCV's default (5 iterations) leaves errors of
 # ~1e-7 that would show up as ~1e-5 m in a PnP pose.
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-13)
+#: Rays along the principal row that outline :meth:`PinholeCamera.view_wedge`'s arc.
+_WEDGE_SAMPLES = 9
 
 
 class PinholeCamera:
@@ -63,6 +65,9 @@ class PinholeCamera:
         rays = self.undistort(np.vstack([self.sensor_corners_px, edges]))
         self._corner_rays = np.column_stack([rays[:4], np.ones(4)])
         (xl, _), (xr, _), (_, yt), (_, yb) = rays[4:]
+        # Rays (z = 1) through the row of the principal point, left edge to right edge.
+        row = np.column_stack([np.linspace(-0.5, w - 0.5, _WEDGE_SAMPLES), np.full(_WEDGE_SAMPLES, config.cy)])
+        self._row_rays = np.column_stack([self.undistort(row), np.ones(_WEDGE_SAMPLES)])
         self._fov_deg = (
             math.degrees(math.atan(xr) - math.atan(xl)),
             math.degrees(math.atan(yb) - math.atan(yt)),
@@ -142,6 +147,29 @@ class PinholeCamera:
         """Horizontal and vertical field of view (deg) through the principal point,
         edge to edge of the sensor, distortion included."""
         return self._fov_deg
+
+    def view_wedge(self, T_w_c: np.ndarray, range_m: float) -> np.ndarray:
+        """The horizontal field of view of a camera looking forward, as a floor polygon.
+
+        World ``(x, y)`` (m), ``(10, 2)``: the camera centre, then the points at
+        ``range_m`` (m) from it along the rays of the principal row (left edge of
+        the image to the right edge), each ray's direction projected on the floor.
+        What a ground robot's camera can see up to its range; for a camera looking
+        straight down, where that projection vanishes, use :meth:`ground_footprint`
+        (rows of a ray with no horizontal direction are NaN).
+        """
+        T = np.asarray(T_w_c, dtype=float)
+        if T.shape != (4, 4):
+            raise ValueError(f"T_w_c must be 4x4, got {T.shape}")
+        range_m = float(range_m)
+        if not range_m > 0.0:
+            raise ValueError(f"range_m must be > 0, got {range_m}")
+        d = (self._row_rays @ T[:3, :3].T)[:, :2]
+        norm = np.hypot(d[:, 0], d[:, 1])
+        level = norm > 1e-9  # rays with a horizontal direction (each ray has length >= 1)
+        arc = np.full(d.shape, np.nan)
+        arc[level] = T[:2, 3] + range_m * d[level] / norm[level, None]
+        return np.vstack([T[:2, 3], arc])
 
     def ground_footprint(self, T_w_c: np.ndarray, z: float = 0.0) -> np.ndarray:
         """World ``(x, y)`` (m) where the rays of the four sensor corners meet the plane ``z``.

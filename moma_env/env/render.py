@@ -350,7 +350,9 @@ def _fixed_pt(u: float, v: float, limit: float) -> tuple[int, int]:
 
 def _blend_polygons(img: np.ndarray, polys: list[np.ndarray], colour: tuple[int, int, int], alpha: float) -> None:
     """Fill fixed-point polygons with ``colour`` at opacity ``alpha``, in place,
-    touching only their bounding box."""
+    touching only their bounding box. Overlapping polygons fill their union (one
+    ``fillPoly`` per polygon: a single call would leave the overlap of two
+    polygons empty, as the holes of one shape)."""
     h, w = img.shape[:2]
     allpts = np.concatenate(polys)
     x0 = max(int(allpts[:, 0].min()) >> _SHIFT, 0)
@@ -361,7 +363,8 @@ def _blend_polygons(img: np.ndarray, polys: list[np.ndarray], colour: tuple[int,
         return
     roi = img[y0:y1, x0:x1]
     overlay = roi.copy()
-    cv2.fillPoly(overlay, polys, colour, cv2.LINE_AA, _SHIFT, (-x0 * _ONE, -y0 * _ONE))
+    for poly in polys:
+        cv2.fillPoly(overlay, [poly], colour, cv2.LINE_AA, _SHIFT, (-x0 * _ONE, -y0 * _ONE))
     cv2.addWeighted(overlay, alpha, roi, 1.0 - alpha, 0.0, dst=roi)
 
 

@@ -12,6 +12,7 @@ import math
 import os
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from moma_env.camera import BoardView, PinholeCamera
@@ -64,6 +65,10 @@ def scene_of(env: MomaParallelEnv) -> SceneView:
         if e.T_w_b is not None and e.status is not Status.LOST:
             observer_est = se3_to_se2(e.T_w_b)
         footprints.append(camera.ground_footprint(world.camera_transform(wc.uav.camera_name)))
+    for name in world.camera_names:
+        if wc.uav is None or name != wc.uav.camera_name:  # a robot's forward camera: its view up to its range
+            wedge = camera.view_wedge(world.camera_transform(name), env.scenario.camera.max_range_m)
+            footprints.append(_inside(wedge, wc.arena.bounds))
     ropes = []
     for sled in getattr(wc, "sleds", ()):
         rx, ry, ryaw = world.ugv_pose(sled.robot)
@@ -86,6 +91,18 @@ def scene_of(env: MomaParallelEnv) -> SceneView:
         time=world.time,
         info_lines=lines,
     )
+
+
+def _inside(polygon: np.ndarray, bounds: tuple[float, float, float, float]) -> np.ndarray:
+    """The part of a convex floor polygon ``(k, 2)`` (m) inside the arena ``bounds``
+    (the walls block the view beyond); rows with NaN are dropped first."""
+    finite = polygon[np.isfinite(polygon).all(axis=1)]
+    if len(finite) < 3:
+        return np.empty((0, 2))
+    xmin, ymin, xmax, ymax = bounds
+    box = np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]], dtype=np.float32)
+    area, part = cv2.intersectConvexConvex(finite.astype(np.float32), box)
+    return np.empty((0, 2)) if part is None or area <= 0.0 else part.reshape(-1, 2).astype(float)
 
 
 def _box_polygon(o) -> np.ndarray:
