@@ -11,7 +11,8 @@ list) and gets ``(H, W, 3)`` uint8 RGB arrays back.
   line (static robots slate grey, mobile robots blue); the estimate as an outline
   with its own heading line, coloured by status (green localised, orange holding,
   red lost; nothing without an estimate). Goals are crosses with a heading tick,
-  camera footprints translucent blue polygons, the observer a quadrotor marker
+  what the cameras see of the floor translucent blue polygons (overlaps filled
+  once), the observer a quadrotor marker
   (truth) and a cyan square (estimate); a legend and an info block in the corners.
 * :func:`render_camera_view` -- a synthetic image of what a camera sees: grey
   floor, white board plates with black marker squares (projected through the
@@ -217,8 +218,9 @@ class SceneView:
         goals: robot name -> goal ``(x, y, yaw)``.
         observer_true: the observer's true ``(x, y, yaw, altitude)``, or None.
         observer_est: the observer's estimated ``(x, y, yaw)``, or None.
-        footprints: camera footprints on the floor, ``(k, 2)`` world-xy polygons;
-            NaN rows (corner rays above the horizon) are dropped and a polygon
+        footprints: what each camera sees of the floor, ``(k, 2)`` world-xy polygons
+            (a downward camera's footprint, a forward camera's field of view up to
+            its range); NaN rows (rays above the horizon) are dropped and a polygon
             with fewer than 3 finite rows is not drawn.
         ropes: sled ropes as ``((x0, y0), (x1, y1))`` segments.
         time: simulation time (s), shown in the info block.
@@ -559,7 +561,7 @@ _LEGEND = (
     ("est. holding", "ring", STATUS_COLOURS["holding"]),
     ("est. lost", "ring", STATUS_COLOURS["lost"]),
     ("goal", "cross", _GOAL),
-    ("camera footprint", "square", _FOOTPRINT),
+    ("camera view", "square", _FOOTPRINT),
     ("observer truth / est.", "square", _OBSERVER_EST),
 )
 
