@@ -73,6 +73,15 @@ class CentralisedTeamEnv(gym.Env):
                 k += n
         return out
 
+    def action_masks(self) -> np.ndarray:
+        """Flat boolean mask over the ``MultiDiscrete`` team action (switching mode): the
+        agents' :meth:`MomaParallelEnv.action_mask` side by side in ``possible_agents``
+        order, the one-dimensional form sb3-contrib's ``MaskablePPO`` asks an env for.
+        Each agent's part assumes the other agents keep their state."""
+        if not self._discrete:
+            raise ValueError("action masks need the MultiDiscrete team action of action_mode='switching'")
+        return np.concatenate([self.parallel_env.action_mask(a) for a in self._agents]).astype(bool)
+
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
         obs, infos = self.parallel_env.reset(seed=seed, options=options)

@@ -86,6 +86,9 @@ class EnvConfig:
             usual vector) and ``"image"`` (``Box(0, 255, (height, width, 1),
             uint8)``, the latest rendered frame downscaled). Needs the rendered
             backend and the observer as an agent.
+        action_masks: in ``switching`` mode, add ``"action_mask"`` to every UGV
+            agent's ``infos`` (see :meth:`MomaParallelEnv.action_mask`). Off by
+            default: it costs a motion-rules check per UGV and step.
     """
 
     action_mode: str = "switching"
@@ -96,6 +99,7 @@ class EnvConfig:
     render: RenderConfig | None = None
     floor: FloorConfig | None = None
     observer_image: tuple[int, int] | None = None
+    action_masks: bool = False
 
     def __post_init__(self) -> None:
         check_choice("env.action_mode", self.action_mode, ACTION_MODES)
@@ -127,6 +131,10 @@ class EnvConfig:
                 raise ConfigError("env.observer_image", "needs camera_backend='rendered' (the geometric camera has no image)")
             if not self.observer_is_agent:
                 raise ConfigError("env.observer_image", "needs the observer to be an agent (observer_agent=True)")
+
+        check_bool("env.action_masks", self.action_masks)
+        if self.action_masks and self.action_mode != "switching":
+            raise ConfigError("env.action_masks", "exist only for the discrete actions of action_mode='switching'")
 
     @property
     def observer_is_agent(self) -> bool:

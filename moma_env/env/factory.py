@@ -69,13 +69,14 @@ def parallel_env(
     render: RenderConfig | Mapping[str, Any] | None = None,
     floor: FloorConfig | Mapping[str, Any] | None = None,
     observer_image: tuple[int, int] | None = None,
+    action_masks: bool = False,
     **overrides: Any,
 ) -> MomaParallelEnv:
     """The PettingZoo parallel env of ``configuration`` (see the module docstring).
 
-    ``camera_backend``, ``render``, ``floor`` and ``observer_image`` are the
-    :class:`EnvConfig` fields of the same names (``render`` and ``floor`` may be
-    mappings of their fields).
+    ``camera_backend``, ``render``, ``floor``, ``observer_image`` and
+    ``action_masks`` are the :class:`EnvConfig` fields of the same names
+    (``render`` and ``floor`` may be mappings of their fields).
     """
     if rewards is None:
         rewards = RewardConfig()
@@ -94,6 +95,7 @@ def parallel_env(
         render=render,
         floor=floor,
         observer_image=observer_image,
+        action_masks=action_masks,
     )
     return MomaParallelEnv(
         scenario_factory(configuration, random_scenarios, **overrides),

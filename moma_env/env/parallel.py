@@ -23,7 +23,8 @@ Actions (chosen by ``EnvConfig.action_mode``):
   at the leg's end the robot stops and is declared static). A robot towing a
   sled has ``Discrete(3)``: 2 holds the robot and reels the sled in (sled
   mobile until the rope is at its minimum or the sled is stuck, then static). The observer, if an agent, keeps the velocity
-  Box; otherwise its tracking controller flies it.
+  Box; otherwise its tracking controller flies it. With ``EnvConfig.action_masks``
+  every UGV's ``infos`` carry ``"action_mask"`` (:meth:`MomaParallelEnv.action_mask`).
 """
 
 from __future__ import annotations
@@ -683,7 +684,46 @@ class MomaParallelEnv(ParallelEnv):
         if sled is not None:
             info["sled_truth"] = self._truth[sled]
             info["sled_localisation_error"] = _none_if_nan(self._errors[sled])
+        if self.config.action_masks:
+            info["action_mask"] = self.action_mask(agent)
         return info
+
+    def action_mask(self, agent: str) -> np.ndarray:
+        """Which switching actions of UGV ``agent`` the motion rules would grant at the next step.
+
+        An ``int8`` array over the agent's ``Discrete`` actions (the form
+        ``Discrete.sample(mask=...)`` takes), 1 where the action's requests would
+        all be granted if it were the only change requested (every other agent
+        keeping its current state), as of the last ``reset`` or ``step``:
+
+        * 0, hold: always 1 (becoming static is always granted);
+        * 1, advance: 1 if the robot is mobile already, else if
+          :meth:`MotionRules.check_mobile` grants it (dwell time over, every
+          mover still localisable from a static reference in the latest frame);
+        * 2, reel the towed sled in: 1 if the sled is mobile already, else if the
+          robot is static and the rules grant the sled; from a mobile robot it is
+          0 (the robot stops first, which restarts the dwell).
+
+        A mask, not a rule: masked actions may still be sent, and are refused
+        and reported in ``infos`` as usual.
+        """
+        space = self._action_spaces[self._checked_agent(agent)]
+        if not isinstance(space, spaces.Discrete) or agent == OBSERVER:
+            raise ValueError(f"action masks are for the UGVs' switching actions; {agent!r} has {space}")
+        mask = np.ones(space.n, dtype=np.int8)
+        t = self.world.time
+        references = {n for n, e in self._est.items() if e.phase is Phase.REFERENCE}
+        if agent not in self._mobile:
+            mask[1] = self.rules.check_mobile(agent, t, self._mobile, references, self._detections) is None
+        sled = self._tows.get(agent)
+        if sled is not None and sled not in self._mobile:
+            if agent not in self._mobile:
+                mask[2] = self.rules.check_mobile(sled, t, self._mobile, references, self._detections) is None
+            elif self.rules.dwell_s <= 0.0:  # no dwell: the robot stops, then the sled is judged
+                mask[2] = self.rules.check_mobile(sled, t, self._mobile - {agent}, references, self._detections) is None
+            else:
+                mask[2] = 0
+        return mask
 
     # ------------------------------------------------------------------ state, render
     def state(self) -> np.ndarray:
