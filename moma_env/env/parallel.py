@@ -334,7 +334,7 @@ class MomaParallelEnv(ParallelEnv):
         for device, want_mobile in wants.items():
             if want_mobile and device not in self._mobile:
                 if references is None:
-                    references = {n for n, e in self._est.items() if e.phase is Phase.REFERENCE}
+                    references = self._reference_devices()
                 reason = self.rules.check_mobile(device, t, self._mobile, references, self._detections)
                 agent = self._agent_of(device)
                 if reason is None:
@@ -378,6 +378,10 @@ class MomaParallelEnv(ParallelEnv):
         if self.render_mode == "human":
             self.render()
         return observations, rewards, terminations, truncations, infos
+
+    def _reference_devices(self) -> set[str]:
+        """Devices the estimator holds as frozen references, as of its last update (a new set)."""
+        return {n for n, e in self._est.items() if e.phase is Phase.REFERENCE}
 
     def _agent_of(self, device: str) -> str:
         return self._towed_by.get(device, device)
@@ -712,7 +716,7 @@ class MomaParallelEnv(ParallelEnv):
             raise ValueError(f"action masks are for the UGVs' switching actions; {agent!r} has {space}")
         mask = np.ones(space.n, dtype=np.int8)
         t = self.world.time
-        references = {n for n, e in self._est.items() if e.phase is Phase.REFERENCE}
+        references = self._reference_devices()
         if agent not in self._mobile:
             mask[1] = self.rules.check_mobile(agent, t, self._mobile, references, self._detections) is None
         sled = self._tows.get(agent)
