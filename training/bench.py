@@ -31,7 +31,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["steps_per_second", "best_of_rounds", "bench_configurations", "memory_profile", "resident_mb"]
+__all__ = ["steps_per_second", "best_of_rounds", "mpe2_reference", "bench_configurations", "memory_profile", "resident_mb"]
 
 
 def resident_mb() -> float:
@@ -85,6 +85,16 @@ def best_of_rounds(measures: Sequence[Callable[[], dict]], rounds: int) -> list[
     return rows
 
 
+def mpe2_reference() -> Callable[[], Any] | None:
+    """The benchmarks' reference: a constructor of MPE2 ``simple_spread`` (N=3, the
+    parallel API), or None if mpe2 is not installed."""
+    try:
+        from mpe2 import simple_spread_v3
+    except ImportError:
+        return None
+    return lambda: simple_spread_v3.parallel_env(N=3)
+
+
 def bench_configurations(steps: int, rounds: int = 1, include_mpe2: bool = False) -> list[dict]:
     """Steps per second of every configuration in both action modes (and of MPE2
     ``simple_spread`` N=3 first, if ``include_mpe2`` and mpe2 is installed), in
@@ -93,13 +103,9 @@ def bench_configurations(steps: int, rounds: int = 1, include_mpe2: bool = False
     from moma_env.scenarios import CONFIGURATIONS
 
     makers: list[tuple[str, str, Callable[[], Any]]] = []
-    if include_mpe2:
-        try:
-            from mpe2 import simple_spread_v3
-        except ImportError:
-            pass
-        else:
-            makers.append(("mpe2 simple_spread", "N=3", lambda: simple_spread_v3.parallel_env(N=3)))
+    make_mpe2 = mpe2_reference() if include_mpe2 else None
+    if make_mpe2 is not None:
+        makers.append(("mpe2 simple_spread", "N=3", make_mpe2))
     for name in CONFIGURATIONS:
         for mode in ("switching", "velocity"):
             makers.append((name, mode, lambda n=name, m=mode: parallel_env(n, action_mode=m)))

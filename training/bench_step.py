@@ -13,7 +13,8 @@ world stepped with random commands, one float32 observation array per agent
 clipped to its space, and the five PettingZoo dicts; no camera, no estimator, no
 rules, no reward terms), a floor that any design keeping this world and this API
 in Python pays: once with the robots static as ``reset`` leaves them (their bodies
-are not driven) and once with every robot mobile and driven at every substep. A measurement, not an assertion.
+are not driven) and once with every robot mobile and driven at every substep.
+A measurement, not an assertion.
 """
 
 from __future__ import annotations
@@ -90,13 +91,10 @@ def step_breakdown(scenario: str = "top_observer", steps: int = 5000, warmup: in
 def mpe2_step_us(steps: int = 5000, seed: int = 0) -> float | None:
     """Mean microseconds per joint step of MPE2 ``simple_spread`` (N=3, parallel API,
     random actions drawn before the clock starts); None if mpe2 is not installed."""
-    try:
-        from mpe2 import simple_spread_v3
-    except ImportError:
-        return None
-    from training.bench import steps_per_second
+    from training.bench import mpe2_reference, steps_per_second
 
-    return 1e6 / steps_per_second(lambda: simple_spread_v3.parallel_env(N=3), steps, seed=seed)
+    make_mpe2 = mpe2_reference()
+    return None if make_mpe2 is None else 1e6 / steps_per_second(make_mpe2, steps, seed=seed)
 
 
 def skeleton_step_us(
