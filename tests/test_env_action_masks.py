@@ -111,3 +111,11 @@ def test_pettingzoo_checkers_pass_with_masks_in_infos(name):
 
     parallel_api_test(parallel_env(name, action_masks=True), num_cycles=40)
     api_test(aec_env(name, action_masks=True), num_cycles=20)
+
+
+def test_an_observer_agent_gets_no_mask():
+    env = parallel_env("top_observer", action_masks=True, observer_agent=True)
+    _, infos = env.reset(seed=0)
+    _, _, _, _, infos = env.step({a: env.action_space(a).sample() for a in env.agents})
+    assert "action_mask" not in infos["observer"]
+    assert all(infos[a]["action_mask"].shape == (2,) for a in env.agents if a != "observer")

@@ -267,7 +267,7 @@ class MomaParallelEnv(ParallelEnv):
         self._prev_goal_distance = self._goal_distances()
         self._prev_contacts: frozenset = frozenset()
         observations = self._observations()
-        infos = {a: self._info(a, [], 0.0) for a in self.agents}
+        infos = self._infos({}, 0.0)
         return observations, infos
 
     def _board_mount(self, device: str) -> np.ndarray:
@@ -372,7 +372,7 @@ class MomaParallelEnv(ParallelEnv):
         rewards = {a: reward for a in self.agents}
         terminations = {a: done for a in self.agents}
         truncations = {a: truncate and not done for a in self.agents}
-        infos = {a: self._info(a, events[a], reward, collisions) for a in self.agents}
+        infos = self._infos(events, reward, collisions)
         if done or truncate:
             self.agents = []
         if self.render_mode == "human":
@@ -688,9 +688,18 @@ class MomaParallelEnv(ParallelEnv):
         if sled is not None:
             info["sled_truth"] = self._truth[sled]
             info["sled_localisation_error"] = _none_if_nan(self._errors[sled])
-        if self.config.action_masks:
-            info["action_mask"] = self.action_mask(agent)
         return info
+
+    def _infos(self, events: Mapping[str, list[str]], reward: float, collisions: int = 0) -> dict[str, dict]:
+        """Every agent's info (:meth:`_info`; ``events`` by agent, none if left out), with
+        the UGVs' action masks when ``EnvConfig.action_masks`` is on."""
+        infos = {a: self._info(a, events.get(a, []), reward, collisions) for a in self.agents}
+        if self.config.action_masks:
+            references = self._reference_devices()
+            for agent in self.agents:
+                if agent != OBSERVER:
+                    infos[agent]["action_mask"] = self._action_mask(agent, references)
+        return infos
 
     def action_mask(self, agent: str) -> np.ndarray:
         """Which switching actions of UGV ``agent`` the motion rules would grant at the next step.
@@ -714,9 +723,12 @@ class MomaParallelEnv(ParallelEnv):
         space = self._action_spaces[self._checked_agent(agent)]
         if not isinstance(space, spaces.Discrete) or agent == OBSERVER:
             raise ValueError(f"action masks are for the UGVs' switching actions; {agent!r} has {space}")
-        mask = np.ones(space.n, dtype=np.int8)
+        return self._action_mask(agent, self._reference_devices())
+
+    def _action_mask(self, agent: str, references: set[str]) -> np.ndarray:
+        """:meth:`action_mask` of a UGV agent, given the estimator's reference devices."""
+        mask = np.ones(self._action_spaces[agent].n, dtype=np.int8)
         t = self.world.time
-        references = self._reference_devices()
         if agent not in self._mobile:
             mask[1] = self.rules.check_mobile(agent, t, self._mobile, references, self._detections) is None
         sled = self._tows.get(agent)
