@@ -31,7 +31,15 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["steps_per_second", "best_of_rounds", "mpe2_reference", "bench_configurations", "memory_profile", "resident_mb"]
+__all__ = [
+    "steps_per_second",
+    "best_of_rounds",
+    "mpe2_reference",
+    "bench_configurations",
+    "memory_profile",
+    "resident_mb",
+    "time_calls",
+]
 
 
 def resident_mb() -> float:
@@ -44,6 +52,25 @@ def resident_mb() -> float:
         import resource
 
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
+
+
+def time_calls(owner: object, method: str, totals: dict[str, float], key: str) -> None:
+    """Replace ``owner.method`` by a wrapper that adds the wall time (s) of each call to
+    ``totals[key]``. Only the instance ``owner`` is changed (nothing global is patched);
+    an instance already wrapped is left alone."""
+    inner: Callable = getattr(owner, method)
+    if getattr(inner, "_timed", False):
+        return
+
+    def wrapper(*args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return inner(*args, **kwargs)
+        finally:
+            totals[key] += time.perf_counter() - start
+
+    wrapper._timed = True  # type: ignore[attr-defined]
+    setattr(owner, method, wrapper)
 
 
 def steps_per_second(make_env: Callable[[], Any], steps: int, seed: int = 0, pool: int = 1000) -> float:

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable
 
 __all__ = ["mpe2_step_us", "skeleton_step_us", "step_breakdown"]
 
@@ -29,27 +28,10 @@ __all__ = ["mpe2_step_us", "skeleton_step_us", "step_breakdown"]
 TARGET_X_MPE2 = 5.0
 
 
-def _timed(owner: object, method: str, totals: dict[str, float], key: str) -> None:
-    """Replace ``owner.method`` (on the instance) by a wrapper adding its wall time to
-    ``totals[key]``; an instance already wrapped is left alone."""
-    inner: Callable = getattr(owner, method)
-    if getattr(inner, "_timed", False):
-        return
-
-    def wrapper(*args, **kwargs):
-        start = time.perf_counter()
-        try:
-            return inner(*args, **kwargs)
-        finally:
-            totals[key] += time.perf_counter() - start
-
-    wrapper._timed = True  # type: ignore[attr-defined]
-    setattr(owner, method, wrapper)
-
-
 def step_breakdown(scenario: str = "top_observer", steps: int = 5000, warmup: int = 500, seed: int = 0) -> dict[str, float]:
     """Mean microseconds per step: ``step`` and its ``camera``, ``estimator``, ``world`` and ``rest``."""
     from moma_env.env.factory import parallel_env
+    from training.bench import time_calls
 
     env = parallel_env(scenario)
     env.reset(seed=seed)
@@ -58,9 +40,9 @@ def step_breakdown(scenario: str = "top_observer", steps: int = 5000, warmup: in
     def instrument() -> None:
         # reset() may build a new estimator or world: wrap whatever the env holds now.
         for camera in env._cameras.values():
-            _timed(camera, "measure", totals, "camera")
-        _timed(env.estimator, "update", totals, "estimator")
-        _timed(env.world, "step", totals, "world")
+            time_calls(camera, "measure", totals, "camera")
+        time_calls(env.estimator, "update", totals, "estimator")
+        time_calls(env.world, "step", totals, "world")
 
     instrument()
     agents = list(env.possible_agents)
