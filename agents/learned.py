@@ -30,6 +30,11 @@ seed gives the same episode. A policy whose deterministic mode stalls (a state
 that repeats and whose most likely action is to hold) keeps moving when
 sampling.
 
+A model that takes action masks (sb3-contrib's ``MaskablePPO``, ``moma-env
+train --algo maskable_ppo``) acts only among the actions the motion rules would
+grant at the next step, read from the env given to ``reset``
+(``MomaParallelEnv.action_mask``, as in training); it still reads no ``infos``.
+
 The network runs on ``torch_threads`` threads (default 1, as in training):
 a 64x64 network on a batch of a few robots gains nothing from more, and on a
 busy machine torch's default two threads made ``moma-env evaluate`` about 5x
@@ -98,14 +103,28 @@ def read_manifest(directory: str | Path) -> dict[str, Any]:
 
 
 def _sb3_class(name: str):
+    """The algorithm class named ``name`` in Stable-Baselines3, else in sb3-contrib."""
     try:
         import stable_baselines3
     except ImportError as err:  # pragma: no cover - the train extra is installed in CI
         raise TrainingDirError(f"loading a trained policy needs stable-baselines3 (the 'train' extra): {err}") from None
     cls = getattr(stable_baselines3, name, None)
     if cls is None:
-        raise TrainingDirError(f"stable-baselines3 has no algorithm {name!r}")
+        try:
+            import sb3_contrib
+        except ImportError:  # pragma: no cover - the train extra is installed in CI
+            sb3_contrib = None
+        cls = getattr(sb3_contrib, name, None)
+    if cls is None:
+        raise TrainingDirError(f"neither stable-baselines3 nor sb3-contrib has an algorithm {name!r}")
     return cls
+
+
+def _uses_action_masks(model: Any) -> bool:
+    """Whether ``model.predict`` takes ``action_masks`` (sb3-contrib's MaskablePPO)."""
+    import inspect
+
+    return "action_masks" in inspect.signature(model.predict).parameters
 
 
 @contextmanager
@@ -125,7 +144,8 @@ class LearnedPolicy:
     """A trained model acting for every UGV agent (see the module docstring).
 
     Args:
-        model: a Stable-Baselines3 model (``predict(obs, deterministic=True)``).
+        model: a Stable-Baselines3 model (``predict(obs, deterministic=True)``;
+            with an ``action_masks`` argument, masks are given).
         route: ``"shared"`` or ``"centralised"``.
         action_mode: the env action mode it was trained in.
         normalise: maps a batch of raw observations to the model's inputs
@@ -163,6 +183,8 @@ class LearnedPolicy:
             raise ValueError(f"deterministic must be a bool, got {deterministic!r}")
         self.deterministic = deterministic
         self._sampler = np.random.default_rng(0)
+        self._masked = _uses_action_masks(model)
+        self._env: MomaParallelEnv | None = None
 
     @property
     def env_options(self) -> dict[str, Any]:
@@ -205,6 +227,7 @@ class LearnedPolicy:
         if OBSERVER in env.possible_agents:
             raise ValueError("the policy was trained with the observer flown by its tracking controller: build the env with observer_agent=False")
         self._agents = list(env.possible_agents)
+        self._env = env
         expected = self.model.observation_space.shape
         if self.route == "centralised":
             self._team = CentralisedTeamEnv(env)
@@ -214,18 +237,19 @@ class LearnedPolicy:
         if got != expected:
             raise ValueError(f"the model expects observations of shape {expected}; this env gives {got}")
 
-    def _predict(self, batch: np.ndarray) -> np.ndarray:
+    def _predict(self, batch: np.ndarray, masks: np.ndarray | None = None) -> np.ndarray:
         if self._normalise is not None:
             batch = self._normalise(batch)
+        extra = {} if masks is None else {"action_masks": masks}
         with torch_threads(self.torch_threads):
             if self.deterministic:
-                actions, _ = self.model.predict(batch, deterministic=True)
+                actions, _ = self.model.predict(batch, deterministic=True, **extra)
                 return actions
             import torch
 
             with torch.random.fork_rng(devices=[]):
                 torch.manual_seed(int(self._sampler.integers(2**63)))
-                actions, _ = self.model.predict(batch, deterministic=False)
+                actions, _ = self.model.predict(batch, deterministic=False, **extra)
         return actions
 
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
@@ -236,10 +260,15 @@ class LearnedPolicy:
         if self.route == "centralised":
             assert self._team is not None, "call reset(env) first"
             team = self._team.team_observation(observations)[None, :]
-            return self._team.agent_actions(self._predict(team)[0])
+            masks = self._team.action_masks()[None, :] if self._masked else None
+            return self._team.agent_actions(self._predict(team, masks)[0])
         agents = [a for a in self._agents if a in observations]
         batch = np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents])
-        actions = self._predict(batch)
+        masks = None
+        if self._masked:
+            assert self._env is not None, "call reset(env) first"
+            masks = np.stack([self._env.action_mask(a) for a in agents]).astype(bool)
+        actions = self._predict(batch, masks)
         if self._discrete:
             return {a: int(actions[k]) for k, a in enumerate(agents)}
         return {a: np.asarray(actions[k], dtype=np.float32) for k, a in enumerate(agents)}

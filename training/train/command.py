@@ -33,7 +33,7 @@ def add_train_parser(sub, int_at_least) -> argparse.ArgumentParser:
     defaults = {f.name: f.default for f in dataclasses.fields(TrainConfig) if f.default is not dataclasses.MISSING}
     tr = sub.add_parser("train", help="train a coordination policy with Stable-Baselines3")
     tr.add_argument("--scenario", required=True, help="configuration name (top_observer, caterpillar, caterpillar_sled, caterpillar_multi)")
-    tr.add_argument("--algo", choices=sorted(ALGORITHMS), default=defaults["algo"], help="algorithm (default ppo; dqn: switching + shared; sac, td3: velocity)")
+    tr.add_argument("--algo", choices=sorted(ALGORITHMS), default=defaults["algo"], help="algorithm (default ppo; dqn: switching + shared; maskable_ppo: switching, needs sb3-contrib; sac, td3: velocity)")
     tr.add_argument("--steps", type=int_at_least(1, "step count"), default=defaults["steps"],
                     help="total timesteps: env steps (centralised) or agent steps (shared) (default %(default)s)")
     tr.add_argument("--envs", type=int_at_least(1, "env count"), default=defaults["envs"], help="env copies K (default %(default)s)")

@@ -30,12 +30,18 @@ from moma_env.config import ConfigError, check_bool, check_choice, check_count, 
 from moma_env.env.config import ACTION_MODES, RewardConfig
 from moma_env.scenarios import CONFIGURATIONS
 
-__all__ = ["ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "BOX_ONLY", "TrainConfig", "reward_overrides"]
+__all__ = ["ALGORITHMS", "CONTRIB_ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "TrainConfig", "reward_overrides"]
 
-#: Algorithms by CLI name -> Stable-Baselines3 class name.
-ALGORITHMS = {"ppo": "PPO", "a2c": "A2C", "dqn": "DQN", "sac": "SAC", "td3": "TD3"}
+#: Algorithms by CLI name -> Stable-Baselines3 (or sb3-contrib) class name.
+ALGORITHMS = {"ppo": "PPO", "a2c": "A2C", "dqn": "DQN", "sac": "SAC", "td3": "TD3", "maskable_ppo": "MaskablePPO"}
+#: Algorithms whose class is in sb3-contrib rather than Stable-Baselines3.
+CONTRIB_ALGORITHMS = frozenset({"maskable_ppo"})
 #: Algorithms that need a single ``Discrete`` action (switching mode, shared route).
 DISCRETE_ONLY = frozenset({"dqn"})
+#: Algorithms that act through the env's action masks (switching mode, either route):
+#: PPO whose invalid actions (requests the motion rules would refuse, see
+#: ``MomaParallelEnv.action_mask``) get zero probability.
+MASKED = frozenset({"maskable_ppo"})
 #: Algorithms that need a ``Box`` action (velocity mode).
 BOX_ONLY = frozenset({"sac", "td3"})
 #: Training routes (see the module docstring).
@@ -48,7 +54,8 @@ class TrainConfig:
 
     Attributes:
         scenario: configuration name (``"top_observer"``, ...).
-        algo: a key of :data:`ALGORITHMS`.
+        algo: a key of :data:`ALGORITHMS` (``maskable_ppo``: sb3-contrib's
+            MaskablePPO, the switching mode's actions masked by the motion rules).
         steps: total SB3 timesteps (env steps on the centralised route, agent
             steps on the shared route).
         envs: number of env copies K.
@@ -142,6 +149,8 @@ class TrainConfig:
             raise ConfigError(
                 "algo", f"{self.algo} needs one discrete action per slot: use --action-mode switching --route shared"
             )
+        if self.algo in MASKED and self.action_mode != "switching":
+            raise ConfigError("algo", f"{self.algo} masks discrete actions: use --action-mode switching")
         if self.algo in BOX_ONLY and self.action_mode != "velocity":
             raise ConfigError("algo", f"{self.algo} needs continuous actions: use --action-mode velocity")
 

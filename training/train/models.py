@@ -17,16 +17,20 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger
 from stable_baselines3.common.vec_env import VecEnv
 
-from training.train.config import ALGORITHMS, TrainConfig
+from training.train.config import ALGORITHMS, CONTRIB_ALGORITHMS, TrainConfig
 
 __all__ = ["algorithm_class", "build_model", "training_logger"]
 
-#: Algorithms whose rollout length is ``n_steps`` per slot.
-_ON_POLICY = frozenset({"ppo", "a2c"})
+#: Algorithms trained with PPO's hyperparameters.
+_PPO_LIKE = frozenset({"ppo", "maskable_ppo"})
 
 
 def algorithm_class(algo: str) -> type[BaseAlgorithm]:
-    """The SB3 class of a CLI algorithm name."""
+    """The SB3 (or sb3-contrib) class of a CLI algorithm name."""
+    if algo in CONTRIB_ALGORITHMS:
+        import sb3_contrib
+
+        return getattr(sb3_contrib, ALGORITHMS[algo])
     return getattr(stable_baselines3, ALGORITHMS[algo])
 
 
@@ -55,7 +59,7 @@ def training_logger(out: Path | None, start: int = 0) -> Logger:
 def _hyperparameters(config: TrainConfig, n_slots: int) -> dict[str, Any]:
     net = list(config.net_arch)
     kwargs: dict[str, Any] = {"learning_rate": config.learning_rate, "gamma": config.gamma}
-    if config.algo == "ppo":
+    if config.algo in _PPO_LIKE:
         rollout = config.n_steps * n_slots
         kwargs |= {"n_steps": config.n_steps, "batch_size": min(config.batch_size, rollout), "n_epochs": 5, "ent_coef": config.ent_coef,
                    "policy_kwargs": {"net_arch": {"pi": net, "vf": net}}}

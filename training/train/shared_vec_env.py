@@ -17,6 +17,11 @@ auto-resets and each of its slots' infos carries ``terminal_observation``,
 first slot's seed ``s + k*N`` at the next ``reset()``, and every later layout
 comes from that copy's seeded generator: same seed, same rollouts.
 
+Action masks (switching mode): :meth:`SharedPolicyVecEnv.action_masks` gives
+one row per slot, what the motion rules would grant that robot at the next step
+(``MomaParallelEnv.action_mask``), and ``env_method("action_masks")`` returns
+those rows, which is how sb3-contrib's ``MaskablePPO`` asks a VecEnv for them.
+
 This adapter lives in ``training/`` rather than ``moma_env/``: it subclasses
 SB3's ``VecEnv``, and SB3 is an optional extra that ``import moma_env`` must
 not need.
@@ -29,11 +34,15 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 from training.train.team_slots import EnvSpec, TeamSlots, worker
 
-__all__ = ["SharedPolicyVecEnv", "default_start_method"]
+__all__ = ["ACTION_MASKS", "SharedPolicyVecEnv", "default_start_method"]
+
+#: The method through which sb3-contrib's MaskablePPO asks a VecEnv for every slot's mask.
+ACTION_MASKS = "action_masks"
 
 
 class _LocalCopy:
@@ -210,8 +219,29 @@ class SharedPolicyVecEnv(VecEnv):
         self._per_slot("setattr", (attr_name, value), indices)
 
     def env_method(self, method_name: str, *method_args, indices: VecEnvIndices = None, **method_kwargs) -> list[Any]:
-        """Call a method of the parallel envs behind the slots."""
+        """Call a method of the parallel envs behind the slots; ``"action_masks"``
+        (no arguments) gives each slot its own row of :meth:`action_masks`."""
+        if method_name == ACTION_MASKS and not method_args and not method_kwargs:
+            masks = self.action_masks()
+            return [masks[i] for i in self._get_indices(indices)]
         return self._per_slot("call", (method_name, method_args, method_kwargs), indices)
+
+    def has_attr(self, attr_name: str) -> bool:
+        """Whether the parallel envs have ``attr_name``; ``"action_masks"`` in the switching mode."""
+        if attr_name == ACTION_MASKS:
+            return isinstance(self.action_space, spaces.Discrete)
+        return super().has_attr(attr_name)
+
+    def action_masks(self) -> np.ndarray:
+        """(num_envs, n_actions) bool: per slot, the actions the motion rules would grant
+        its robot at the next step if it were the only change (switching mode only)."""
+        if not isinstance(self.action_space, spaces.Discrete):
+            raise ValueError(f"action masks need the switching mode's discrete actions; the slots act in {self.action_space}")
+        rows = []
+        for copy in self._copies:  # one at a time, as _per_slot: an error leaves no answer owed
+            copy.send("masks", None)
+            rows.append(copy.receive())
+        return np.concatenate(rows)
 
     def env_is_wrapped(self, wrapper_class: type, indices: VecEnvIndices = None) -> list[bool]:
         """The copies are bare parallel envs: never wrapped."""

@@ -27,6 +27,7 @@ command        payload                     result
 ``getattr``    attribute name              that attribute of the parallel env
 ``setattr``    ``(name, value)``           None
 ``call``       ``(method, args, kwargs)``  the parallel env method's return value
+``masks``      None                        :meth:`TeamSlots.action_masks`
 ``close``      None                        None; then the worker exits
 =============  ==========================  ===========================================
 """
@@ -141,6 +142,11 @@ class TeamSlots:
         dones = np.full(self.n_slots, done, dtype=bool)
         return obs, rewards_out, dones, out_infos
 
+    def action_masks(self) -> np.ndarray:
+        """(N, n_actions) bool, one row per slot: the actions the motion rules would
+        grant its robot at the next step (``MomaParallelEnv.action_mask``; switching mode)."""
+        return np.stack([self.env.action_mask(agent) for agent in self.agents]).astype(bool)
+
     def handle(self, command: str, payload: Any) -> Any:
         """Execute one protocol command (see the module docstring)."""
         if command == "step":
@@ -157,6 +163,8 @@ class TeamSlots:
         if command == "call":
             method, args, kwargs = payload
             return getattr(self.env, method)(*args, **kwargs)
+        if command == "masks":
+            return self.action_masks()
         if command == "close":
             self.env.close()
             return None
