@@ -152,3 +152,19 @@ def test_masks_change_what_the_policy_does():
         observations, *_ = env.step({a: int(rng.integers(0, env.action_space(a).n)) for a in agents})
     assert unmasked_forbidden > 0
     venv.close()
+
+
+def test_masked_training_is_reproducible(tmp_path):
+    # Same settings, same weights bit for bit (the masks come from the seeded envs).
+    import torch
+
+    weights = []
+    for name in ("a", "b"):
+        keep = KeepModel()
+        train(tiny(steps=128), tmp_path / name, callbacks=[keep])
+        weights.append(keep.model.policy.state_dict())
+    assert weights[0].keys() == weights[1].keys()
+    assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])
+    keep = KeepModel()
+    train(tiny(steps=128, seed=1), tmp_path / "c", callbacks=[keep])
+    assert not all(torch.equal(weights[0][k], keep.model.policy.state_dict()[k]) for k in weights[0])
