@@ -56,7 +56,7 @@ from gymnasium import spaces
 from moma_env.env.centralised import CentralisedTeamEnv
 from moma_env.env.parallel import OBSERVER, MomaParallelEnv
 
-__all__ = ["LearnedPolicy", "TrainingDirError", "read_manifest", "MANIFEST", "MANIFEST_FORMAT"]
+__all__ = ["LearnedPolicy", "TrainingDirError", "read_manifest", "sb3_class", "MANIFEST", "MANIFEST_FORMAT"]
 
 #: Name of the manifest in a training output folder.
 MANIFEST = "manifest.json"
@@ -102,8 +102,13 @@ def read_manifest(directory: str | Path) -> dict[str, Any]:
     return manifest
 
 
-def _sb3_class(name: str):
-    """The algorithm class named ``name`` in Stable-Baselines3, else in sb3-contrib."""
+def sb3_class(name: str):
+    """The algorithm class named ``name`` (``"PPO"``, ``"MaskablePPO"``, ...) in
+    Stable-Baselines3, else in sb3-contrib.
+
+    Raises:
+        TrainingDirError: neither package has it (or Stable-Baselines3 is missing).
+    """
     try:
         import stable_baselines3
     except ImportError as err:  # pragma: no cover - the train extra is installed in CI
@@ -209,7 +214,7 @@ class LearnedPolicy:
         trained_on = config.get("scenario")
         if configuration is not None and trained_on != configuration:
             raise TrainingDirError(f"{str(directory)!r} was trained on {trained_on!r}, not {configuration!r}")
-        model = _sb3_class(manifest["sb3_class"]).load(directory / manifest["model"], device="cpu")
+        model = sb3_class(manifest["sb3_class"]).load(directory / manifest["model"], device="cpu")
         normalise = None
         if manifest.get("vecnormalize"):
             with open(directory / manifest["vecnormalize"], "rb") as f:

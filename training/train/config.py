@@ -30,12 +30,10 @@ from moma_env.config import ConfigError, check_bool, check_choice, check_count, 
 from moma_env.env.config import ACTION_MODES, RewardConfig
 from moma_env.scenarios import CONFIGURATIONS
 
-__all__ = ["ALGORITHMS", "CONTRIB_ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "TrainConfig", "reward_overrides"]
+__all__ = ["ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "TrainConfig", "reward_overrides"]
 
 #: Algorithms by CLI name -> Stable-Baselines3 (or sb3-contrib) class name.
 ALGORITHMS = {"ppo": "PPO", "a2c": "A2C", "dqn": "DQN", "sac": "SAC", "td3": "TD3", "maskable_ppo": "MaskablePPO"}
-#: Algorithms whose class is in sb3-contrib rather than Stable-Baselines3.
-CONTRIB_ALGORITHMS = frozenset({"maskable_ppo"})
 #: Algorithms that need a single ``Discrete`` action (switching mode, shared route).
 DISCRETE_ONLY = frozenset({"dqn"})
 #: Algorithms that act through the env's action masks (switching mode, either route):

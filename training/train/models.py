@@ -12,12 +12,12 @@ import importlib.util
 from pathlib import Path
 from typing import Any
 
-import stable_baselines3
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger
 from stable_baselines3.common.vec_env import VecEnv
 
-from training.train.config import ALGORITHMS, CONTRIB_ALGORITHMS, TrainConfig
+from agents.learned import sb3_class
+from training.train.config import ALGORITHMS, TrainConfig
 
 __all__ = ["algorithm_class", "build_model", "training_logger"]
 
@@ -27,11 +27,7 @@ _PPO_LIKE = frozenset({"ppo", "maskable_ppo"})
 
 def algorithm_class(algo: str) -> type[BaseAlgorithm]:
     """The SB3 (or sb3-contrib) class of a CLI algorithm name."""
-    if algo in CONTRIB_ALGORITHMS:
-        import sb3_contrib
-
-        return getattr(sb3_contrib, ALGORITHMS[algo])
-    return getattr(stable_baselines3, ALGORITHMS[algo])
+    return sb3_class(ALGORITHMS[algo])
 
 
 def training_logger(out: Path | None, start: int = 0) -> Logger:
