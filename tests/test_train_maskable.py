@@ -168,3 +168,15 @@ def test_masked_training_is_reproducible(tmp_path):
     keep = KeepModel()
     train(tiny(steps=128, seed=1), tmp_path / "c", callbacks=[keep])
     assert not all(torch.equal(weights[0][k], keep.model.policy.state_dict()[k]) for k in weights[0])
+
+
+def test_algorithm_classes_come_from_sb3_then_sb3_contrib():
+    from stable_baselines3 import PPO
+
+    from agents.learned import TrainingDirError, sb3_class
+    from training.train.models import algorithm_class
+
+    assert sb3_class("PPO") is PPO and sb3_class("MaskablePPO") is MaskablePPO
+    assert algorithm_class("maskable_ppo") is MaskablePPO and algorithm_class("ppo") is PPO
+    with pytest.raises(TrainingDirError, match="'NoSuchPPO'"):
+        sb3_class("NoSuchPPO")
