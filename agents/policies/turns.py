@@ -13,7 +13,8 @@ next candidate is tried; when every candidate is set aside, they are all
 retried. A leg that stalls (the mover's estimated pose has not changed by
 ``stall_m`` / ``stall_rad`` for ``stall_s``: it is pushing against another
 robot or an obstacle on its straight path, or it is lost and waits) is ended by
-holding, and the turn passes, so the robot in the way can move on.
+holding, and the turn passes, so the robot in the way can move on; so is a leg
+the env ends as blocked (``leg_blocked:<device>``, after 1 s without progress).
 """
 
 from __future__ import annotations
@@ -179,6 +180,9 @@ class TurnTakingPolicy:
                         return
         if self._moving and (f"leg_done:{turn.device}" in events or f"static:{turn.device}" in events):
             self._end_turn(done=True)
+        elif self._moving and f"leg_blocked:{turn.device}" in events:
+            self.stalls += 1  # the env stopped it (blocked): the turn passes, as after a stall seen here
+            self._end_turn(done=False)
 
     def _end_turn(self, done: bool) -> None:
         if done:

@@ -20,7 +20,10 @@ Actions (chosen by ``EnvConfig.action_mode``):
   its limits).
 * ``switching``: a UGV sends ``Discrete(2)``: 0 hold (be static), 1 advance (be
   mobile and drive the next leg towards its goal with the built-in controller;
-  at the leg's end the robot stops and is declared static). A robot towing a
+  at the leg's end the robot stops and is declared static, event
+  ``leg_done:<robot>``; a robot that comes no closer to the leg's end for 1 s,
+  blocked by a static robot, an obstacle or a wall, stops there and is declared
+  static, event ``leg_blocked:<robot>``). A robot towing a
   sled has ``Discrete(3)``: 2 holds the robot and reels the sled in (sled
   mobile until the rope is at its minimum or the sled is stuck, then static). The observer, if an agent, keeps the velocity
   Box; otherwise its tracking controller flies it. With ``EnvConfig.action_masks``
@@ -57,6 +60,14 @@ __all__ = ["MomaParallelEnv", "OBSERVER"]
 OBSERVER = "observer"
 #: A reeled sled whose rope has not shortened for this long (s) is declared static.
 _REEL_STALL_S = 1.0
+#: A leg of the switching mode whose robot has come no closer to the leg's end for this
+#: long (s), while localised, is blocked (by a static robot, an obstacle, a wall): the
+#: robot stops and is declared static. The controller's speed floor (2 cm/s) makes a
+#: free robot close in by far more than the thresholds below in that time.
+_LEG_STALL_S = 1.0
+#: Closer by more than this (m) in position, or (rad) in heading, counts as progress.
+_LEG_PROGRESS_M = 0.005
+_LEG_PROGRESS_RAD = 0.01
 
 ScenarioFactory = Callable[[np.random.Generator | None], Scenario]
 
@@ -235,6 +246,7 @@ class MomaParallelEnv(ParallelEnv):
         self._legs: dict[str, tuple[float, float, float]] = {}
         self._reeling: set[str] = set()
         self._reel_progress: dict[str, tuple[float, float]] = {}  # sled -> (shortest rope m, when s)
+        self._leg_progress: dict[str, tuple[float, float, float]] = {}  # robot -> (closest m, rad, when s)
         self._reached_goal: set[str] = set()
         self._static_count: dict[str, int] = {}
         self._refused_total = 0
@@ -435,6 +447,7 @@ class MomaParallelEnv(ParallelEnv):
         self.estimator.set_static(device, True, t)
         self._mobile.discard(device)
         self._legs.pop(device, None)
+        self._leg_progress.pop(device, None)
         if device in self._sleds:
             self.world.set_reel(device, 0.0)
             self._reeling.discard(device)
@@ -453,6 +466,18 @@ class MomaParallelEnv(ParallelEnv):
                 self.world.set_reel(device, 1.0)
             else:
                 self._legs[device] = self._next_leg(device)
+                self._leg_progress[device] = (math.inf, math.inf, t)
+
+    def _leg_blocked(self, device: str, pose: tuple[float, float, float], leg: tuple[float, float, float], t: float) -> bool:
+        """Note how far ``device`` (localised at ``pose``) is from the end of its ``leg`` at
+        time ``t`` (s); True if it has come no closer for ``_LEG_STALL_S``."""
+        distance = math.hypot(leg[0] - pose[0], leg[1] - pose[1])
+        heading = abs(wrap_angle(leg[2] - pose[2]))
+        closest, aligned, since = self._leg_progress.get(device, (math.inf, math.inf, t))
+        if distance < closest - _LEG_PROGRESS_M or heading < aligned - _LEG_PROGRESS_RAD:
+            closest, aligned, since = min(distance, closest), min(heading, aligned), t
+            self._leg_progress[device] = (closest, aligned, since)
+        return t - since > _LEG_STALL_S
 
     def _next_leg(self, device: str) -> tuple[float, float, float]:
         """Target of the next advance: at most ``leg_length`` towards the goal, from the estimate."""
@@ -495,10 +520,16 @@ class MomaParallelEnv(ParallelEnv):
             e = self._est[device]
             if pose is None or e.status is not Status.LOCALISED:
                 commands[device] = np.zeros(3)  # wait where it is until it is localised again
+                closest, aligned, _ = self._leg_progress.get(device, (math.inf, math.inf, t))
+                self._leg_progress[device] = (closest, aligned, t)  # waiting is not being blocked
                 continue
             if self._follower.reached(pose, leg):
                 self._make_static(device, t)
                 events[self._agent_of(device)].append(f"leg_done:{device}")
+                commands[device] = np.zeros(3)
+            elif self._leg_blocked(device, pose, leg, t):
+                self._make_static(device, t)
+                events[self._agent_of(device)].append(f"leg_blocked:{device}")
                 commands[device] = np.zeros(3)
             else:
                 commands[device] = self._follower.command(pose, leg)
