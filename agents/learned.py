@@ -272,7 +272,8 @@ class LearnedPolicy:
         masks = None
         if self._masked:
             assert self._env is not None, "call reset(env) first"
-            masks = np.stack([self._env.action_mask(a) for a in agents]).astype(bool)
+            every = self._env.action_masks()
+            masks = np.stack([every[a] for a in agents]).astype(bool)
         actions = self._predict(batch, masks)
         if self._discrete:
             return {a: int(actions[k]) for k, a in enumerate(agents)}

@@ -119,3 +119,21 @@ def test_an_observer_agent_gets_no_mask():
     _, _, _, _, infos = env.step({a: env.action_space(a).sample() for a in env.agents})
     assert "action_mask" not in infos["observer"]
     assert all(infos[a]["action_mask"].shape == (2,) for a in env.agents if a != "observer")
+
+
+def test_all_masks_at_once_are_each_agents_mask():
+    env = parallel_env("caterpillar_sled", random_scenarios=True, observer_agent=False, max_cycles=60)
+    env.reset(seed=2)
+    rng = np.random.default_rng(0)
+    for _ in range(60):
+        if not env.agents:
+            break
+        every = env.action_masks()
+        assert sorted(every) == sorted(env.possible_agents)
+        for agent, mask in every.items():
+            np.testing.assert_array_equal(mask, env.action_mask(agent))
+        env.step({a: int(rng.integers(0, env.action_space(a).n)) for a in env.agents})
+    with pytest.raises(ValueError, match="switching"):
+        velocity = parallel_env("top_observer", action_mode="velocity")
+        velocity.reset(seed=0)
+        velocity.action_masks()

@@ -80,7 +80,8 @@ class CentralisedTeamEnv(gym.Env):
         Each agent's part assumes the other agents keep their state."""
         if not self._discrete:
             raise ValueError("action masks need the MultiDiscrete team action of action_mode='switching'")
-        return np.concatenate([self.parallel_env.action_mask(a) for a in self._agents]).astype(bool)
+        masks = self.parallel_env.action_masks()
+        return np.concatenate([masks[a] for a in self._agents]).astype(bool)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)

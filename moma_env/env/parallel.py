@@ -726,11 +726,19 @@ class MomaParallelEnv(ParallelEnv):
         the UGVs' action masks when ``EnvConfig.action_masks`` is on."""
         infos = {a: self._info(a, events.get(a, []), reward, collisions) for a in self.agents}
         if self.config.action_masks:
-            references = self._reference_devices()
+            masks = self.action_masks()
             for agent in self.agents:
                 if agent != OBSERVER:
-                    infos[agent]["action_mask"] = self._action_mask(agent, references)
+                    infos[agent]["action_mask"] = masks[agent]
         return infos
+
+    def action_masks(self) -> dict[str, np.ndarray]:
+        """:meth:`action_mask` of every UGV agent of ``possible_agents`` (switching mode),
+        the estimator's reference set read once for all of them."""
+        if self.config.action_mode != "switching":
+            raise ValueError(f"action masks are for the switching mode's actions; this env is in {self.config.action_mode!r} mode")
+        references = self._reference_devices()
+        return {a: self._action_mask(a, references) for a in self.possible_agents if a != OBSERVER}
 
     def action_mask(self, agent: str) -> np.ndarray:
         """Which switching actions of UGV ``agent`` the motion rules would grant at the next step.

@@ -145,7 +145,8 @@ class TeamSlots:
     def action_masks(self) -> np.ndarray:
         """(N, n_actions) bool, one row per slot: the actions the motion rules would
         grant its robot at the next step (``MomaParallelEnv.action_mask``; switching mode)."""
-        return np.stack([self.env.action_mask(agent) for agent in self.agents]).astype(bool)
+        masks = self.env.action_masks()
+        return np.stack([masks[agent] for agent in self.agents]).astype(bool)
 
     def handle(self, command: str, payload: Any) -> Any:
         """Execute one protocol command (see the module docstring)."""
