@@ -473,7 +473,7 @@ class MomaParallelEnv(ParallelEnv):
         time ``t`` (s); True if it has come no closer for ``_LEG_STALL_S``."""
         distance = math.hypot(leg[0] - pose[0], leg[1] - pose[1])
         heading = abs(wrap_angle(leg[2] - pose[2]))
-        closest, aligned, since = self._leg_progress.get(device, (math.inf, math.inf, t))
+        closest, aligned, since = self._leg_progress[device]
         if distance < closest - _LEG_PROGRESS_M or heading < aligned - _LEG_PROGRESS_RAD:
             closest, aligned, since = min(distance, closest), min(heading, aligned), t
             self._leg_progress[device] = (closest, aligned, since)
@@ -520,7 +520,7 @@ class MomaParallelEnv(ParallelEnv):
             e = self._est[device]
             if pose is None or e.status is not Status.LOCALISED:
                 commands[device] = np.zeros(3)  # wait where it is until it is localised again
-                closest, aligned, _ = self._leg_progress.get(device, (math.inf, math.inf, t))
+                closest, aligned, _ = self._leg_progress[device]
                 self._leg_progress[device] = (closest, aligned, t)  # waiting is not being blocked
                 continue
             if self._follower.reached(pose, leg):
