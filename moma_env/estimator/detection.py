@@ -28,6 +28,12 @@ class Detection:
         marker_ids: ids of the markers whose corners are in ``corners_px``.
         time: acquisition time of the image (s).
         reprojection_error_px: RMS reprojection error of the pose (px), or NaN.
+        covariance: 6x6 covariance of the error of ``T_c_m`` (m^2, rad^2, m rad),
+            or None when the source gives none. The error is expressed in the
+            camera frame C, translation first, as a ROS ``PoseWithCovariance``:
+            ``T_c_m(true) = [exp([dtheta]x) R, t + dt]`` with ``(dt, dtheta)``
+            zero-mean of this covariance (rotation perturbed on the left, i.e.
+            about the axes of C; translation additive).
     """
 
     camera_id: str
@@ -37,6 +43,7 @@ class Detection:
     marker_ids: tuple[int, ...]
     time: float
     reprojection_error_px: float = float("nan")
+    covariance: np.ndarray | None = None
 
     @property
     def n_markers(self) -> int:
