@@ -13,7 +13,7 @@ simulation or real robots.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -81,13 +81,20 @@ class LeapfrogSchedule:
         """Index of the current leg."""
         return self._index
 
-    def step(self, time: float, poses: dict[str, Pose2D | None]) -> tuple[dict[str, np.ndarray], list[StateChange]]:
+    def step(
+        self, time: float, poses: dict[str, Pose2D | None], ready: Callable[[str], bool] | None = None
+    ) -> tuple[dict[str, np.ndarray], list[StateChange]]:
         """Commands and declarations for this control step.
 
         Args:
             time: current time (s).
             poses: estimated planar pose of each robot, None where the estimate
                 is not fresh (the mover then waits where it is).
+            ready: ``ready(robot)``: whether a static robot's switch window is
+                ready (``MomaEstimator.window_ready``); the next leg starts
+                only once the dwell is over and every other robot is ready, so
+                that the mover always leaves a frozen reference behind. None:
+                the dwell alone decides.
 
         Returns:
             Body-frame velocity commands for every robot and the state changes to
@@ -99,7 +106,8 @@ class LeapfrogSchedule:
             return commands, changes
         leg = self.legs[self._index]
         if not self._moving:
-            if time >= self._dwell_until:
+            others_ready = ready is None or all(ready(name) for name in self.robots if name != leg.robot)
+            if time >= self._dwell_until and others_ready:
                 self._moving = True
                 changes.append(StateChange(leg.robot, static=False))
             return commands, changes

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from moma_env.env.rules import REFUSED_DWELL, REFUSED_NO_REFERENCE, MotionRules
+from moma_env.env.rules import REFUSED_DWELL, REFUSED_NO_REFERENCE, REFUSED_WINDOW, MotionRules
 from moma_env.estimator import Detection
 
 
@@ -53,3 +53,16 @@ def test_caterpillar_moves_in_turns():
     assert rules.check_mobile("ugv_0", 1.0, set(), both, []) == REFUSED_NO_REFERENCE
     # A device the estimator has not frozen yet is no reference.
     assert rules.check_mobile("ugv_1", 1.0, set(), {"ugv_1"}, frame) == REFUSED_NO_REFERENCE
+
+
+def test_a_reference_still_collecting_its_window_means_wait():
+    rules = top_rules()
+    frame = [det("uav/camera", 0), det("uav/camera", 1)]
+    # ugv_1 stopped and is settling: ugv_0 needs it, so the answer is "window" (wait), not "no_reference".
+    assert rules.check_mobile("ugv_0", 5.0, set(), {"ugv_0"}, frame, settling={"ugv_1"}) == REFUSED_WINDOW
+    assert rules.check_mobile("ugv_0", 5.0, set(), {"ugv_0", "ugv_1"}, frame) is None
+    # A settling device that would not help either way does not turn the refusal into "window".
+    assert rules.check_mobile("ugv_0", 5.0, set(), {"ugv_0"}, frame, settling={"ugv_2"}) == REFUSED_NO_REFERENCE
+    # The dwell is judged first.
+    rules.note_static(4.5)
+    assert rules.check_mobile("ugv_0", 5.0, set(), {"ugv_0"}, frame, settling={"ugv_1"}) == REFUSED_DWELL

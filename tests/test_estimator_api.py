@@ -281,33 +281,56 @@ def test_settling_window_freezes_when_full_and_reports_its_mean():
     np.testing.assert_allclose(est.camera_pose("down"), expected, atol=1e-12)
 
 
-def test_mobile_declaration_freezes_settling_robots_first():
+def test_mobile_declaration_freezes_only_ready_settling_robots():
     est = MomaEstimator(EstimatorConfig(window=25, gate=None))
+    assert est.config.min_window == 10
     est.add_robot("a", boards={0: BOARD_TOP}, static=True, initial_pose=T_A)
     est.add_robot("b", boards={1: BOARD_TOP}, static=False, initial_pose=T_B)
     T_C = g.se2_to_se3(-0.5, 0.4, 1.0)
     est.add_robot("c", boards={2: BOARD_TOP}, static=False, initial_pose=T_C)
     est.add_robot("uav", cameras={"down": CAM_DOWN}, static=False)
     est.set_static("b", True, 0.0)
-    for k in range(1, 4):  # b gets 3 samples; c is not seen at all
+    for k in range(1, 13):  # b gets 12 samples (>= min_window); c is not seen at all
         est.update(k * DT, [detection(0, T_A, k * DT), detection(1, T_B, k * DT)])
-    est.set_static("c", True, 0.12)
+        assert est.window_ready("b") is (k >= 10)
+    t = 12 * DT
+    est.set_static("c", True, t)
     assert est.estimate("c").status is Status.HOLDING and est.estimate("c").n_window == 0
-    est.set_static("a", False, 0.12)
+    assert not est.window_ready("c") and est.window_ready("a") and not est.window_ready("uav")
+    est.set_static("a", False, t)
     b, c, a = est.estimate("b"), est.estimate("c"), est.estimate("a")
-    assert (b.phase, b.n_window) == (Phase.REFERENCE, 3)
+    assert (b.phase, b.n_window) == (Phase.REFERENCE, 12)
     np.testing.assert_allclose(b.T_w_b, T_B, atol=1e-12)
-    assert (c.phase, c.n_window, c.status) == (Phase.REFERENCE, 0, Status.LOCALISED)
-    np.testing.assert_array_equal(c.T_w_b, T_C)  # frozen at its last fresh pose
-    assert (a.phase, a.status, a.last_fresh_time) == (Phase.MOBILE, Status.LOCALISED, 0.12)
+    # c has no window sample: it stays settling, is no reference, and its pose is not called fresh.
+    assert (c.phase, c.n_window, c.status) == (Phase.SETTLING, 0, Status.HOLDING)
+    assert (a.phase, a.status, a.last_fresh_time) == (Phase.MOBILE, Status.LOCALISED, t)
     frozen = {(e.robot, e.n_samples) for e in est.events if e.kind == "frozen"}
-    assert frozen == {("b", 3), ("c", 0)}
+    assert frozen == {("b", 12)}
     assert est.events[-1].kind == "mobile" and est.events[-1].robot == "a"
     # Repeating a declaration does nothing.
     n = len(est.events)
-    est.set_static("a", False, 0.12)
-    est.set_static("b", True, 0.12)
+    est.set_static("a", False, t)
+    est.set_static("b", True, t)
     assert len(est.events) == n
+
+
+def test_mobile_declaration_leaves_a_short_window_settling():
+    est = MomaEstimator(EstimatorConfig(window=25, gate=None))
+    T_C = g.se2_to_se3(-0.5, 0.4, 1.0)
+    est.add_robot("a", boards={0: BOARD_TOP}, static=True, initial_pose=T_A)
+    est.add_robot("b", boards={1: BOARD_TOP}, static=False, initial_pose=T_B)
+    est.add_robot("c", boards={2: BOARD_TOP}, static=True, initial_pose=T_C)
+    est.add_robot("uav", cameras={"down": CAM_DOWN}, static=False)
+    est.set_static("b", True, 0.0)
+    for k in range(1, 4):  # 3 samples < min_window
+        est.update(k * DT, [detection(0, T_A, k * DT), detection(1, T_B, k * DT)])
+    est.set_static("a", False, 3 * DT)
+    assert est.estimate("b").phase is Phase.SETTLING and not est.window_ready("b")
+    # It goes on collecting, now through c, and is frozen when its window is full.
+    for k in range(4, 4 + 22):
+        est.update(k * DT, [detection(2, T_C, k * DT), detection(1, T_B, k * DT)])
+    assert [(e.robot, e.n_samples) for e in est.events if e.kind == "frozen"] == [("b", 25)]
+    np.testing.assert_allclose(est.estimate("b").T_w_b, T_B, atol=1e-12)
 
 
 def test_settle_delay_ignores_early_samples():
@@ -357,21 +380,47 @@ def test_gate_start_needs_three_consistent_samples():
     np.testing.assert_allclose(est.estimate("b").T_w_b, T_B, atol=1e-12)
 
 
+def at(x: float, y: float, z: float, R: np.ndarray | None = None) -> np.ndarray:
+    return g.make_transform(R, [x, y, z])
+
+
 def test_gate_unit_behaviour():
     gate = OutlierGate(OutlierGateConfig())
     assert not gate.has_history
-    assert [gate.accept((0.0, 0.0, 0.0), 0.0), gate.accept((0.01, 0.01, 0.0), 0.04)] == [False, False]
-    assert gate.accept((0.02, 0.0, 0.01), 0.08)  # pairwise L1 <= 0.04
+    assert [gate.accept(at(0.0, 0.0, 0.0), 0.0), gate.accept(at(0.01, 0.01, 0.0), 0.04)] == [False, False]
+    assert gate.accept(at(0.02, 0.0, 0.01), 0.08)  # pairwise L1 <= 0.04
     assert gate.has_history
-    assert not gate.accept((0.2, 0.0, 0.0), 0.12)  # 0.19 from the mean of the 3
-    assert gate.accept((0.1, 0.0, 0.0), 0.16)  # 0.09 from it
+    assert not gate.accept(at(0.2, 0.0, 0.0), 0.12)  # 0.19 from the mean of the 3
+    assert gate.accept(at(0.1, 0.0, 0.0), 0.16)  # 0.09 from it
     # After a gap longer than reset_after_s, history is forgotten: a restart is needed.
-    assert not gate.accept((1.0, 1.0, 0.0), 1.5)
-    assert not gate.accept((1.0, 1.0, 0.0), 1.54)
-    assert gate.accept((1.0, 1.0, 0.0), 1.58)
-    gate.reset(seed=(5.0, 5.0, 0.0), time=2.0)
-    assert gate.accept((5.1, 5.0, 0.0), 2.04)
-    assert not gate.accept((5.0, 5.3, 0.0), 2.08)
+    assert not gate.accept(at(1.0, 1.0, 0.0), 1.5)
+    assert not gate.accept(at(1.0, 1.0, 0.0), 1.54)
+    assert gate.accept(at(1.0, 1.0, 0.0), 1.58)
+    gate.reset(seed=at(5.0, 5.0, 0.0), time=2.0)
+    assert gate.accept(at(5.1, 5.0, 0.0), 2.04)
+    assert not gate.accept(at(5.0, 5.3, 0.0), 2.08)
+
+
+def test_gate_rejects_a_rotation_jump_whose_position_is_within_tolerance():
+    cfg = OutlierGateConfig()
+    gate = OutlierGate(cfg)
+    gate.reset(seed=at(0.0, 0.0, 0.3), time=0.0)
+    flipped = at(0.05, 0.0, 0.3, g.rot_y(1.5 * cfg.jump_tolerance_rad))  # 5 cm: the position alone passes
+    assert not gate.accept(flipped, 0.04)
+    assert gate.accept(at(0.05, 0.0, 0.3, g.rot_y(0.5 * cfg.jump_tolerance_rad)), 0.08)
+    # The start needs rotations pairwise within start_tolerance_rad too.
+    gate = OutlierGate(cfg)
+    twist = g.rot_x(1.2 * cfg.start_tolerance_rad)
+    assert [gate.accept(at(0.0, 0.0, 0.0), 0.0), gate.accept(at(0.0, 0.0, 0.0, twist), 0.04)] == [False, False]
+    assert not gate.accept(at(0.0, 0.0, 0.0), 0.08)
+    assert not gate.accept(at(0.0, 0.0, 0.0), 0.12)  # the twisted one is still among the last 3
+    assert gate.accept(at(0.0, 0.0, 0.0), 0.16)
+
+
+def test_gate_config_names_rotation_fields():
+    for name in ("start_tolerance_rad", "jump_tolerance_rad"):
+        with pytest.raises(ConfigError, match=f"estimator.gate.{name}"):
+            OutlierGateConfig(**{name: 0.0})
 
 
 @settings(max_examples=60, deadline=None)
@@ -384,11 +433,11 @@ def test_gate_accepts_every_smooth_stream_after_a_consistent_start(steps, start)
     gate = OutlierGate(OutlierGateConfig())
     p = np.array(start)
     for _ in range(3):
-        last = gate.accept(tuple(p), 0.0)
+        last = gate.accept(at(*p), 0.0)
     assert last
     for k, step in enumerate(steps, start=1):
         p = p + np.array(step) / 3.0  # mean-of-3 lag: at most 2 steps behind
-        assert gate.accept(tuple(p), 0.04 * k)
+        assert gate.accept(at(*p, g.rot_z(0.05 * k)), 0.04 * k)
 
 
 # --------------------------------------------------------------------------- properties
@@ -424,7 +473,7 @@ def test_zero_noise_chain_recovers_truth_for_any_geometry(r1, t1, r2, t2, r3, t3
 
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.tuples(rotvecs, vectors), min_size=1, max_size=12), rotvecs, vectors)
-def test_switch_window_mean_is_geometry_mean_pose(perturbations, r0, t0):
+def test_switch_window_mean_is_geometry_mean_pose_of_its_inliers(perturbations, r0, t0):
     base = pose(r0, t0)
     poses = [base @ pose(np.array(r) * 0.02, np.array(t) * 0.02) for r, t in perturbations]
     window = SwitchWindow(len(poses))
@@ -432,12 +481,35 @@ def test_switch_window_mean_is_geometry_mean_pose(perturbations, r0, t0):
         assert not window.full
         window.append(T)
     assert window.full and len(window) == len(poses)
-    np.testing.assert_allclose(window.mean(), g.mean_pose(poses), atol=1e-12)
+    inliers = window.inliers()
+    assert 1 <= len(inliers) <= len(poses)
+    if len(poses) <= 2:
+        assert inliers == list(range(len(poses)))
+    np.testing.assert_allclose(window.mean(), g.mean_pose([poses[i] for i in inliers]), atol=1e-12)
     with pytest.raises(ValueError, match="already holds"):
         window.append(base)
     window.clear()
     with pytest.raises(ValueError, match="empty"):
         window.mean()
+
+
+def test_switch_window_mean_is_not_dragged_by_flipped_samples():
+    rng = np.random.default_rng(5)
+    truth = g.make_transform(g.rot_z(0.7), [1.0, -0.5, 0.35])
+    window = SwitchWindow(25)
+    poses = []
+    for k in range(25):
+        if k in (3, 11, 19):  # the other planar-PnP pose: tilted by twice the viewing angle, shifted
+            T = truth @ g.make_transform(g.rot_x(0.35), [0.0, 0.12, 0.0])
+        else:
+            T = truth @ pose(rng.normal(0.0, 0.005, 3), rng.normal(0.0, 0.003, 3))
+        poses.append(T)
+        window.append(T)
+    assert sorted(set(range(25)) - set(window.inliers())) == [3, 11, 19]
+    robust, plain = window.mean(), g.mean_pose(poses)
+    assert np.linalg.norm(robust[:3, 3] - truth[:3, 3]) < 0.003
+    assert np.linalg.norm(plain[:3, 3] - truth[:3, 3]) > 0.01
+    assert g.rotation_angle(robust[:3, :3].T @ truth[:3, :3]) < 0.005
 
 
 

@@ -133,6 +133,9 @@ class TopObserverRun:
             self.step()
         for k in range(n_switches):
             mover = self.names[k % self.n_robots]
+            # The owner waits until every other robot's window is ready (as the env's rules do).
+            while not all(self.est.window_ready(n) for n in self.names if n != mover):
+                self.step()
             self.est.set_static(mover, False, self.t)
             x0, y0, yaw0 = g.se3_to_se2(self.truth[mover])
             x1 = float(np.clip(x0 + self.rng.uniform(-0.4, 0.4), -0.5, 1.5))

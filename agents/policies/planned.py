@@ -7,7 +7,7 @@ the plan's turns in order. In each turn
 1. every device holds (mobile request -1, zero velocity) until the dwell is over
    (the observation feature ``dwell_remaining`` is 0);
 2. the turn's device requests mobile until the env reports ``mobile:<device>``
-   (refusals, ``dwell`` or ``no_reference``, are simply retried);
+   (refusals, ``dwell``, ``window`` or ``no_reference``, are simply retried);
 3. a robot follows the turn's waypoints with a
    :class:`~moma_env.control.WaypointFollower` on its ESTIMATED pose
    (``infos[agent]["estimate"]``), stopping while its estimate is not

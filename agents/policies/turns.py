@@ -7,7 +7,7 @@ dwell is over, request it until the env reports ``mobile:<device>``, keep it
 until ``leg_done:<device>``, then pick the next move. Subclasses only say which
 move comes next (:meth:`TurnTakingPolicy._next_moves`).
 
-Refusals never deadlock the cycle: a ``dwell`` refusal is retried; a move
+Refusals never deadlock the cycle: a ``dwell`` or ``window`` refusal is retried; a move
 refused with ``no_reference`` for longer than ``give_up_s`` is set aside and the
 next candidate is tried; when every candidate is set aside, they are all
 retried. A leg that stalls (the mover's estimated pose has not changed by

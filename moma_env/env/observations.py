@@ -15,11 +15,12 @@ UGV ``ugv_k`` (one block per other device, in the order of ``devices``):
 ==================  ==========================================================
 own pose            x, y, cos(yaw), sin(yaw), valid
 own state           static (1 if declared static), status one-hot
-                    (localised, holding, lost), and the uncertainty proxies:
-                    staleness (age of the last fresh estimate / lost_after,
-                    clipped to 1), window fill (switch window samples / window
-                    size), switches (static declarations so far / 100, clipped:
-                    MOMA's error grows with them, not with time)
+                    (localised, holding, lost), staleness (age of the last
+                    fresh estimate / lost_after, clipped to 1), and the
+                    estimator's uncertainty: position standard deviation
+                    (root of the trace of the position covariance) / 0.1 m and
+                    heading standard deviation / 0.1 rad, clipped to 1 (1 also
+                    without an estimate)
 goal                dx, dy in the robot's estimated body frame, cos(dyaw),
                     sin(dyaw), distance / 2R, has_goal
 timing              time since the last switch / 5 s (clipped), dwell remaining
@@ -32,7 +33,7 @@ sled (towing only)  rope length / max rope
 ==================  ==========================================================
 
 Observer ``observer``: own pose (x, y, cos, sin, valid), altitude estimate / 4 m,
-status one-hot, then per device: seen, x/z and y/z of its board in the camera
+status one-hot, position and heading standard deviations (scaled as a UGV's), then per device: seen, x/z and y/z of its board in the camera
 frame (clipped to [-2, 2]), depth z / 4 m (clipped to [0, 2]); then timing.
 """
 
@@ -53,7 +54,9 @@ __all__ = ["Feature", "ObservationLayout", "describe", "STATUS_ORDER"]
 STATUS_ORDER = (Status.LOCALISED, Status.HOLDING, Status.LOST)
 _SWITCH_HORIZON_S = 5.0
 _ALTITUDE_SCALE_M = 4.0
-_SWITCH_SCALE = 100.0
+#: Scales of the position (m) and heading (rad) standard deviations in observations.
+_POSITION_STD_SCALE_M = 0.1
+_HEADING_STD_SCALE_RAD = 0.1
 #: Status -> its one-hot, in STATUS_ORDER.
 _ONE_HOT = {status: tuple(1.0 if status is s else 0.0 for s in STATUS_ORDER) for status in Status}
 
@@ -81,6 +84,18 @@ def _status_features(prefix: str) -> list[Feature]:
     return [Feature(f"{prefix}.status.{s.name.lower()}", 0.0, 1.0) for s in STATUS_ORDER]
 
 
+def _uncertainty_features(prefix: str) -> list[Feature]:
+    return [Feature(f"{prefix}.position_std", 0.0, 1.0), Feature(f"{prefix}.heading_std", 0.0, 1.0)]
+
+
+def uncertainty(position_std_m: float, heading_std_rad: float) -> list[float]:
+    """The two uncertainty features: standard deviations over their scales, clipped
+    to [0, 1]; NaN (no estimate) is 1."""
+    p = position_std_m / _POSITION_STD_SCALE_M
+    h = heading_std_rad / _HEADING_STD_SCALE_RAD
+    return [p if p < 1.0 else 1.0, h if h < 1.0 else 1.0]  # NaN compares False: 1.0
+
+
 def _timing_features() -> list[Feature]:
     return [Feature("time_since_switch", 0.0, 1.0), Feature("dwell_remaining", 0.0, 1.0)]
 
@@ -92,8 +107,7 @@ def ugv_features(devices: Sequence[str], me: str, tows_sled: bool) -> list[Featu
         Feature("own.static", 0.0, 1.0),
         *_status_features("own"),
         Feature("own.staleness", 0.0, 1.0),
-        Feature("own.window_fill", 0.0, 1.0),
-        Feature("own.switches", 0.0, 1.0),
+        *_uncertainty_features("own"),
     ]
     feats += [
         Feature("goal.dx", -2.0, 2.0),
@@ -124,7 +138,7 @@ def ugv_features(devices: Sequence[str], me: str, tows_sled: bool) -> list[Featu
 
 def observer_features(devices: Sequence[str]) -> list[Feature]:
     """Feature list of the observer."""
-    feats = _pose_features("own") + [Feature("own.altitude", 0.0, 2.0), *_status_features("own")]
+    feats = _pose_features("own") + [Feature("own.altitude", 0.0, 2.0), *_status_features("own"), *_uncertainty_features("own")]
     for d in devices:
         feats += [
             Feature(f"{d}.seen", 0.0, 1.0),
@@ -154,9 +168,9 @@ class DeviceSnapshot:
     status: Status
     static: bool
     staleness: float  # in [0, 1]
-    window_fill: float  # in [0, 1]
+    position_std_m: float  # root of the trace of the position covariance (m), NaN without one
+    heading_std_rad: float  # heading standard deviation (rad), NaN without one
     seen: bool
-    switches: int  # times the device was frozen as a reference since the reset
 
 
 class ObservationLayout:
@@ -229,7 +243,8 @@ class ObservationLayout:
         self._abs_pose(out, pose)
         out.append(1.0 if me.static else 0.0)
         out += _ONE_HOT[me.status]
-        out += [me.staleness, me.window_fill, min(1.0, me.switches / _SWITCH_SCALE)]
+        out.append(me.staleness)
+        out += uncertainty(me.position_std_m, me.heading_std_rad)
         two_r = 2.0 * self._r
         if pose is not None:
             x, y, yaw = pose
@@ -261,15 +276,19 @@ class ObservationLayout:
         pose: tuple[float, float, float] | None,
         altitude: float | None,
         status: Status,
+        std: tuple[float, float],
         board_in_camera: Mapping[str, np.ndarray],
         since_switch: float,
         dwell_remaining: float,
     ) -> np.ndarray:
-        """Observation vector of the observer; ``board_in_camera``: device -> board position in C (m)."""
+        """Observation vector of the observer; ``std``: its position and heading standard
+        deviations (m, rad; NaN without an estimate); ``board_in_camera``: device -> board
+        position in C (m)."""
         out: list[float] = []
         self._abs_pose(out, pose)
         out.append(0.0 if altitude is None else altitude / _ALTITUDE_SCALE_M)
         out += _ONE_HOT[status]
+        out += uncertainty(*std)
         for d in self.devices:
             p = board_in_camera.get(d)
             if p is None or p[2] <= 0.0:

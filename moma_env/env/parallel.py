@@ -248,7 +248,6 @@ class MomaParallelEnv(ParallelEnv):
         self._reel_progress: dict[str, tuple[float, float]] = {}  # sled -> (shortest rope m, when s)
         self._leg_progress: dict[str, tuple[float, float, float]] = {}  # robot -> (closest m, rad, when s)
         self._reached_goal: set[str] = set()
-        self._static_count: dict[str, int] = {}
         self._refused_total = 0
         self._switches_total = 0
 
@@ -342,12 +341,12 @@ class MomaParallelEnv(ParallelEnv):
                 events[self._agent_of(device)].append(f"static:{device}")
         # The references as of the last update: making a device static this step
         # only starts its settling, so no device became a reference since.
-        references = None
+        references = settling = None
         for device, want_mobile in wants.items():
             if want_mobile and device not in self._mobile:
                 if references is None:
-                    references = self._reference_devices()
-                reason = self.rules.check_mobile(device, t, self._mobile, references, self._detections)
+                    references, settling = self._reference_devices()
+                reason = self.rules.check_mobile(device, t, self._mobile, references, self._detections, settling)
                 agent = self._agent_of(device)
                 if reason is None:
                     self._make_mobile(device, t)
@@ -391,9 +390,19 @@ class MomaParallelEnv(ParallelEnv):
             self.render()
         return observations, rewards, terminations, truncations, infos
 
-    def _reference_devices(self) -> set[str]:
-        """Devices the estimator holds as frozen references, as of its last update (a new set)."""
-        return {n for n, e in self._est.items() if e.phase is Phase.REFERENCE}
+    def _reference_devices(self) -> tuple[set[str], set[str]]:
+        """Static devices as the rules see them, as of the estimator's last update (new sets):
+        those whose pose others may rely on after a switch (frozen references and ready
+        switch windows), and those still collecting their window."""
+        ready: set[str] = set()
+        settling: set[str] = set()
+        for device in self._devices:
+            phase = self._est[device].phase
+            if phase is Phase.REFERENCE:
+                ready.add(device)
+            elif phase is Phase.SETTLING:
+                (ready if self.estimator.window_ready(device) else settling).add(device)
+        return ready, settling
 
     def _agent_of(self, device: str) -> str:
         return self._towed_by.get(device, device)
@@ -442,7 +451,6 @@ class MomaParallelEnv(ParallelEnv):
         return wants
 
     def _make_static(self, device: str, t: float) -> None:
-        self._static_count[device] = self._static_count.get(device, 0) + 1
         self.world.set_static(device, True)
         self.estimator.set_static(device, True, t)
         self._mobile.discard(device)
@@ -648,7 +656,6 @@ class MomaParallelEnv(ParallelEnv):
         for d in self._detections:
             seen.add(self._board_owner[d.board_id])
             seen.add(self._camera_owner[d.camera_id])
-        window = self.scenario.estimator.window
         lost_after = self.scenario.estimator.lost_after_s
         t = self.world.time
         snaps = {}
@@ -656,9 +663,8 @@ class MomaParallelEnv(ParallelEnv):
             e = self._est[device]
             pose = None if e.status is Status.LOST else self._est_planar[device]
             age = 1.0 if e.last_fresh_time is None else min(1.0, (t - e.last_fresh_time) / lost_after)
-            fill = e.n_window / window if e.phase is Phase.SETTLING else (1.0 if e.phase is Phase.REFERENCE else 0.0)
             snaps[device] = DeviceSnapshot(
-                pose, e.status, device not in self._mobile, age, min(1.0, fill), device in seen, self._static_count.get(device, 0)
+                pose, e.status, device not in self._mobile, age, e.position_std_m, e.heading_std_rad, device in seen
             )
         return snaps
 
@@ -685,7 +691,8 @@ class MomaParallelEnv(ParallelEnv):
             pose = None if e.T_w_b is None or e.status is Status.LOST else se3_to_se2(e.T_w_b)
             altitude = None if pose is None else float(e.T_w_b[2, 3])
             in_cam = {self._board_owner[d.board_id]: d.T_c_m[:3, 3] for d in self._detections if d.camera_id == uav.camera_name}
-            obs[OBSERVER] = self.layout.observer(pose, altitude, e.status, in_cam, since, dwell_left)
+            std = (e.position_std_m, e.heading_std_rad)
+            obs[OBSERVER] = self.layout.observer(pose, altitude, e.status, std, in_cam, since, dwell_left)
             if self.config.observer_image is not None:
                 image = self._cameras[uav.camera_name].last_image
                 obs[OBSERVER] = observer_observation(obs[OBSERVER], image, self.config.observer_image)
@@ -701,11 +708,18 @@ class MomaParallelEnv(ParallelEnv):
             else:
                 d = e.T_w_b[:3, 3] - np.array([s.x, s.y, s.z])
                 err = math.sqrt(d.dot(d))  # what np.linalg.norm computes for a vector
-            return {"truth": (s.x, s.y, s.yaw, s.z), "status": e.status.name.lower(), "localisation_error": err, "events": events}
+            return {
+                "truth": (s.x, s.y, s.yaw, s.z),
+                "status": e.status.name.lower(),
+                "covariance": e.covariance,
+                "localisation_error": err,
+                "events": events,
+            }
         e = self._est[agent]
         info = {
             "truth": self._truth[agent],
             "estimate": self._est_planar[agent],
+            "covariance": e.covariance,
             "localisation_error": _none_if_nan(self._errors[agent]),
             "status": e.status.name.lower(),
             "static": agent not in self._mobile,
@@ -737,8 +751,8 @@ class MomaParallelEnv(ParallelEnv):
         the estimator's reference set read once for all of them."""
         if self.config.action_mode != "switching":
             raise ValueError(f"action masks are for the switching mode's actions; this env is in {self.config.action_mode!r} mode")
-        references = self._reference_devices()
-        return {a: self._action_mask(a, references) for a in self.possible_agents if a != OBSERVER}
+        references, settling = self._reference_devices()
+        return {a: self._action_mask(a, references, settling) for a in self.possible_agents if a != OBSERVER}
 
     def action_mask(self, agent: str) -> np.ndarray:
         """Which switching actions of UGV ``agent`` the motion rules would grant at the next step.
@@ -762,20 +776,21 @@ class MomaParallelEnv(ParallelEnv):
         space = self._action_spaces[self._checked_agent(agent)]
         if not isinstance(space, spaces.Discrete) or agent == OBSERVER:
             raise ValueError(f"action masks are for the UGVs' switching actions; {agent!r} has {space}")
-        return self._action_mask(agent, self._reference_devices())
+        return self._action_mask(agent, *self._reference_devices())
 
-    def _action_mask(self, agent: str, references: set[str]) -> np.ndarray:
-        """:meth:`action_mask` of a UGV agent, given the estimator's reference devices."""
+    def _action_mask(self, agent: str, references: set[str], settling: set[str]) -> np.ndarray:
+        """:meth:`action_mask` of a UGV agent, given :meth:`_reference_devices`."""
         mask = np.ones(self._action_spaces[agent].n, dtype=np.int8)
         t = self.world.time
+        check = self.rules.check_mobile
         if agent not in self._mobile:
-            mask[1] = self.rules.check_mobile(agent, t, self._mobile, references, self._detections) is None
+            mask[1] = check(agent, t, self._mobile, references, self._detections, settling) is None
         sled = self._tows.get(agent)
         if sled is not None and sled not in self._mobile:
             if agent not in self._mobile:
-                mask[2] = self.rules.check_mobile(sled, t, self._mobile, references, self._detections) is None
+                mask[2] = check(sled, t, self._mobile, references, self._detections, settling) is None
             elif self.rules.dwell_s <= 0.0:  # no dwell: the robot stops, then the sled is judged
-                mask[2] = self.rules.check_mobile(sled, t, self._mobile - {agent}, references, self._detections) is None
+                mask[2] = check(sled, t, self._mobile - {agent}, references, self._detections, settling) is None
             else:
                 mask[2] = 0
         return mask

@@ -12,10 +12,14 @@ request to become static is always granted (the world locks the device). A
 request to become mobile is granted only if
 
 * the dwell time has passed since the last device became static (rule 3: the
-  estimator averages its switch window meanwhile), and
+  estimator averages its switch window meanwhile),
 * after the switch every mobile device, the requester included, stays
   localisable from a static reference other than itself, as observed in the
-  latest camera frame (rules 1 and 2).
+  latest camera frame (rules 1 and 2), and
+* the references it needs hold a frozen pose or a ready switch window (the
+  estimator's ``window_ready``): a device still collecting its window is no
+  reference yet, and a request that needs it is refused with ``window``
+  (wait), not ``no_reference``.
 
 A refused request is reported, never raised: the caller puts the reason in
 ``infos``.
@@ -27,11 +31,12 @@ from collections.abc import Iterable, Mapping, Sequence
 
 from moma_env.estimator import Detection
 
-__all__ = ["MotionRules", "REFUSED_DWELL", "REFUSED_NO_REFERENCE"]
+__all__ = ["MotionRules", "REFUSED_DWELL", "REFUSED_NO_REFERENCE", "REFUSED_WINDOW"]
 
 #: Refusal reasons, as reported in ``infos``.
 REFUSED_DWELL = "dwell"
 REFUSED_NO_REFERENCE = "no_reference"
+REFUSED_WINDOW = "window"
 
 
 class MotionRules:
@@ -75,6 +80,7 @@ class MotionRules:
         mobile: Iterable[str],
         references: Iterable[str],
         detections: Sequence[Detection],
+        settling: Iterable[str] = (),
     ) -> str | None:
         """None if ``device`` may become mobile now, else the refusal reason.
 
@@ -82,23 +88,30 @@ class MotionRules:
             device: the requester (currently static).
             time: now (s).
             mobile: devices that are mobile now.
-            references: devices the estimator holds as frozen static references.
+            references: static devices whose pose another may rely on after the
+                switch: frozen references and devices whose switch window is
+                ready (the estimator's ``window_ready``).
             detections: the latest camera frame.
+            settling: static devices still collecting their switch window; the
+                request is refused with ``window`` if it would be granted with
+                them as references.
         """
         if time < self._last_static_time + self.dwell_s - 1e-9:
             return REFUSED_DWELL
-        refs = set(references)
-        refs.discard(device)
         movers = set(mobile)
         movers.add(device)
-        refs -= movers
+        if self._all_localisable(movers, set(references) - movers, detections):
+            return None
+        waiting = set(settling) - movers
+        if waiting and self._all_localisable(movers, (set(references) | waiting) - movers, detections):
+            return REFUSED_WINDOW
+        return REFUSED_NO_REFERENCE
+
+    def _all_localisable(self, movers: set[str], refs: set[str], detections: Sequence[Detection]) -> bool:
         if not refs:
-            return REFUSED_NO_REFERENCE
+            return False
         located = self._located_cameras(refs, detections)
-        for mover in movers:
-            if not self._localisable(mover, refs, located, detections):
-                return REFUSED_NO_REFERENCE
-        return None
+        return all(self._localisable(mover, refs, located, detections) for mover in movers)
 
     def _located_cameras(self, refs: set[str], detections: Sequence[Detection]) -> set[str]:
         located = {camera for camera, owner in self._camera_owner.items() if owner in refs}

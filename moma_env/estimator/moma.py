@@ -21,6 +21,12 @@ from moma_env.estimator.errors import (
 )
 from moma_env.estimator.gate import OutlierGate
 from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
+from moma_env.estimator.uncertainty import (
+    LinearError,
+    compose_jacobians,
+    inverse_jacobian,
+    upright_projection_jacobian,
+)
 from moma_env.estimator.window import SwitchWindow
 from moma_env.geometry import invert, mean_pose, upright_body_from_mount
 
@@ -30,7 +36,9 @@ _MOBILE = Phase.MOBILE
 _SETTLING = Phase.SETTLING
 _REFERENCE = Phase.REFERENCE
 
-#: Tolerances when checking that a given mount or pose is a rigid transform.
+#: Largest deviation of a detection's rotation block from orthonormality (and of its last row).
+_ROTATION_TOLERANCE = 1e-6
+_EYE3 = np.eye(3)
 
 
 class _Robot:
@@ -52,8 +60,11 @@ class _Robot:
         "static_since",
         "gate",
         "board_world",
+        "board_world_J",
         "camera_world",
         "plane_z",
+        "covariance",
+        "ref_key",
     )
 
     def __init__(
@@ -61,7 +72,7 @@ class _Robot:
         name: str,
         board_mounts: dict[int, np.ndarray],
         camera_mounts: dict[str, np.ndarray],
-        window: int,
+        window: SwitchWindow,
         gate: OutlierGate | None,
         plane_z: float | None,
     ):
@@ -76,12 +87,15 @@ class _Robot:
         self.status = Status.LOST
         self.last_fresh_time: float | None = None
         self.lost_logged = False
-        self.window = SwitchWindow(window)
+        self.window = window  # samples with their LinearError payloads
         self.n_frozen = 0
         self.static_since = 0.0
         self.gate = gate
         self.board_world: dict[int, np.ndarray] = {}  # board_id -> T_w_m, REFERENCE only
-        self.camera_world: dict[str, np.ndarray] = {}  # camera_id -> T_w_c, REFERENCE only
+        self.board_world_J: dict[int, np.ndarray] = {}  # board_id -> d e(T_w_m) / d e(T_w_b), REFERENCE only
+        self.camera_world: dict[str, tuple[np.ndarray, LinearError]] = {}  # camera_id -> T_w_c and its error
+        self.covariance: np.ndarray | None = None  # 6x6 of the reported pose (uncertainty module's convention)
+        self.ref_key: int | None = None  # key of the frozen pose's error in the joint covariance, REFERENCE only
 
 
 class MomaEstimator:
@@ -110,8 +124,12 @@ class MomaEstimator:
         self._robots: dict[str, _Robot] = {}
         self._board_owner: dict[int, _Robot] = {}
         self._camera_owner: dict[str, _Robot] = {}
-        self._reference_cameras: dict[str, np.ndarray] = {}  # T_w_c of cameras on REFERENCE robots
-        self._camera_poses: dict[str, np.ndarray] = {}  # T_w_c located in the last update
+        # T_w_c and its error, of cameras on REFERENCE robots / located in the last update.
+        self._reference_cameras: dict[str, tuple[np.ndarray, LinearError]] = {}
+        self._camera_poses: dict[str, tuple[np.ndarray, LinearError]] = {}
+        # Joint covariance of the errors of the frozen poses still in use, by pair of keys.
+        self._joint: dict[tuple[int, int], np.ndarray] = {}
+        self._next_key = 0
         self._events: list[SwitchEvent] = []
         self._time: float | None = None
 
@@ -155,14 +173,42 @@ class MomaEstimator:
         else:
             n_window = 0
         pose = r.pose
-        return RobotEstimate(r.name, None if pose is None else pose.copy(), r.status, phase, r.last_fresh_time, n_window)
+        if pose is None:
+            return RobotEstimate(r.name, None, r.status, phase, r.last_fresh_time, n_window, None)
+        cov = r.covariance
+        return RobotEstimate(r.name, pose.copy(), r.status, phase, r.last_fresh_time, n_window, None if cov is None else cov.copy())
 
     def camera_pose(self, camera_id: str) -> np.ndarray | None:
         """``T_w_c`` (4x4 copy) of a camera located in the last update, else None."""
         if camera_id not in self._camera_owner:
             raise UnknownCameraError(camera_id, self._camera_owner)
-        T = self._camera_poses.get(camera_id)
-        return None if T is None else T.copy()
+        located = self._camera_poses.get(camera_id)
+        return None if located is None else located[0].copy()
+
+    def camera_covariance(self, camera_id: str) -> np.ndarray | None:
+        """6x6 covariance of :meth:`camera_pose` (world frame, the convention of
+        :mod:`moma_env.estimator.uncertainty`), None if the camera was not located."""
+        if camera_id not in self._camera_owner:
+            raise UnknownCameraError(camera_id, self._camera_owner)
+        located = self._camera_poses.get(camera_id)
+        return None if located is None else located[1].covariance(self._joint)
+
+    def window_ready(self, name: str) -> bool:
+        """Whether robot ``name`` holds a pose another robot may rely on after a switch.
+
+        True for a REFERENCE, and for a SETTLING robot whose window holds at
+        least ``min_window`` inlier samples (it is frozen when another robot is
+        declared mobile); False otherwise (a MOBILE robot, or one still
+        collecting its window: declaring another robot mobile now leaves it
+        settling, not a reference).
+        """
+        r = self._robot(name)
+        if r.phase is _REFERENCE:
+            return True
+        return r.phase is _SETTLING and self._window_full_enough(r)
+
+    def _window_full_enough(self, r: _Robot) -> bool:
+        return len(r.window) >= self._config.min_window and len(r.window.inliers()) >= self._config.min_window
 
     # ------------------------------------------------------------ declarations
     def add_robot(
@@ -240,18 +286,20 @@ class MomaEstimator:
         cfg = self._config
         gate = OutlierGate(cfg.gate) if cfg.gate is not None and cfg.gate.enabled else None
         plane_z = (0.0 if pose is None else float(pose[2, 3])) if planar else None
-        r = _Robot(name, board_mounts, camera_mounts, cfg.window, gate, plane_z)
+        window = SwitchWindow(cfg.window, cfg.window_outlier_k, cfg.window_floor_m, cfg.window_floor_rad)
+        r = _Robot(name, board_mounts, camera_mounts, window, gate, plane_z)
         r.pose = pose
         if pose is not None:
+            r.covariance = np.zeros((6, 6))
             r.last_fresh_time = t
             r.status = Status.LOCALISED
             if gate is not None:
-                gate.reset(seed=(pose[0, 3], pose[1, 3], pose[2, 3]), time=t)
+                gate.reset(seed=pose, time=t)
         if static:
             r.phase = _SETTLING
             r.static_since = t
             if pose is not None:
-                self._freeze(r, t, 0, log=False)
+                self._freeze(r, t, LinearError(), 0, log=False)
 
         self._time = t
         self._robots[name] = r
@@ -264,11 +312,14 @@ class MomaEstimator:
         """The owner declares robot ``name`` static (True) or mobile (False) at ``time`` (s).
 
         Static: a MOBILE robot starts SETTLING with an empty window; its last
-        fresh pose stays its reported pose until a window sample arrives.
-        Mobile: first every other SETTLING robot is frozen, from its window
-        samples if it has any, else at its last fresh pose (so a reference
-        always exists); then the robot leaves REFERENCE / SETTLING and is
-        tracked at every update. Repeating the current declaration does nothing.
+        fresh pose stays its reported pose (and its status ages as usual: a
+        LOST robot stays LOST) until a window sample arrives.
+        Mobile: first every other SETTLING robot whose window is ready
+        (:meth:`window_ready`) is frozen from its window; one that is not stays
+        SETTLING and is no reference until its window fills, so a pose that is
+        not fresh never becomes a reference. Then the robot leaves REFERENCE /
+        SETTLING and is tracked at every update. Repeating the current
+        declaration does nothing.
         """
         r = self._robot(name)
         if not isinstance(static, bool):
@@ -285,19 +336,22 @@ class MomaEstimator:
         if r.phase is _MOBILE:
             return
         for other in self._robots.values():
-            if other is not r and other.phase is _SETTLING and other.pose is not None:
-                self._freeze(other, t, len(other.window))
+            if other is not r and other.phase is _SETTLING and self._window_full_enough(other):
+                self._freeze_window(other, t)
         pose_valid_now = r.phase is _REFERENCE or len(r.window) > 0
         if r.phase is _REFERENCE:
             for camera_id in r.camera_world:
                 del self._reference_cameras[camera_id]
             r.board_world = {}
+            r.board_world_J = {}
             r.camera_world = {}
+            r.ref_key = None
             if r.gate is not None:
-                r.gate.reset(seed=(r.pose[0, 3], r.pose[1, 3], r.pose[2, 3]), time=t)  # type: ignore[index]
+                r.gate.reset(seed=r.pose, time=t)
         r.phase = _MOBILE
         r.window.clear()
         r.n_frozen = 0
+        self._forget_unused_keys()
         if pose_valid_now:
             r.last_fresh_time = t
             r.status = Status.LOCALISED
@@ -308,30 +362,21 @@ class MomaEstimator:
         """Process one camera frame (the detections of every camera) taken at ``time`` (s).
 
         Raises (before changing any state):
+            TypeError: ``detections`` is not an iterable of :class:`Detection`.
             UnknownCameraError / UnknownBoardError: an id no robot carries.
-            ValueError: a ``T_c_m`` that is not a finite 4x4 array, or ``time``
-                not finite or going backwards.
+            ValueError: a ``T_c_m`` that is not a finite rigid transform (4x4,
+                rotation block orthonormal with determinant +1, last row
+                ``(0, 0, 0, 1)``), a ``covariance`` that is not a finite
+                symmetric 6x6 array with a non-negative diagonal, one board
+                detected twice by one camera in the frame (a detector reports a
+                board once per image), or ``time`` not a finite number or going
+                backwards.
         """
         t = self._checked_time(time)
+        by_camera = self._checked_detections(detections)
         camera_owner = self._camera_owner
         board_owner = self._board_owner
-        by_camera: dict[str, list[Detection]] = {}
-        for d in detections:
-            camera_id = d.camera_id
-            if camera_id not in camera_owner:
-                raise UnknownCameraError(camera_id, camera_owner)
-            if d.board_id not in board_owner:
-                raise UnknownBoardError(d.board_id, board_owner)
-            T_c_m = d.T_c_m
-            if not isinstance(T_c_m, np.ndarray) or T_c_m.shape != (4, 4) or not all_finite(T_c_m):
-                raise ValueError(
-                    f"detection of board {d.board_id} by camera {camera_id!r}: T_c_m must be a finite 4x4 array"
-                )
-            group = by_camera.get(camera_id)
-            if group is None:
-                by_camera[camera_id] = [d]
-            else:
-                group.append(d)
+        joint = self._joint
         self._time = t
 
         # 1. Cameras: on a reference robot from its frozen pose, else from the
@@ -342,52 +387,77 @@ class MomaEstimator:
                 continue
             own = camera_owner[camera_id]
             located: list[np.ndarray] = []
+            errors: list[LinearError] = []
             for d in group:
                 ref = board_owner[d.board_id]
                 if ref.phase is _REFERENCE and ref is not own:
-                    located.append(ref.board_world[d.board_id] @ invert(d.T_c_m))  # T_w_m @ T_m_c
+                    T_w_m = ref.board_world[d.board_id]
+                    T_m_c = invert(d.T_c_m)
+                    J_ref, J_meas = compose_jacobians(T_w_m, T_m_c)
+                    error = LinearError({ref.ref_key: J_ref @ ref.board_world_J[d.board_id]})
+                    errors.append(error.plus_noise(J_meas @ inverse_jacobian(d.T_c_m), d.covariance))
+                    located.append(T_w_m @ T_m_c)
             if located:
-                camera_poses[camera_id] = located[0] if len(located) == 1 else mean_pose(located)
+                camera_poses[camera_id] = (located[0] if len(located) == 1 else mean_pose(located), LinearError.mean(errors))
 
         # 2. Samples of the non-reference robots: boards seen by located cameras,
         #    and robots carrying a located camera.
-        samples: dict[_Robot, list[np.ndarray]] = {}
+        samples: dict[_Robot, list[tuple[np.ndarray, LinearError]]] = {}
         for camera_id, group in by_camera.items():
-            T_w_c = camera_poses.get(camera_id)
-            if T_w_c is None:
+            located_camera = camera_poses.get(camera_id)
+            if located_camera is None:
                 continue
+            T_w_c, camera_error = located_camera
             own = camera_owner[camera_id]
             for d in group:
                 r = board_owner[d.board_id]
                 if r.phase is not _REFERENCE and r is not own:
+                    T_w_m = T_w_c @ d.T_c_m
+                    J_cam, J_meas = compose_jacobians(T_w_c, d.T_c_m)
                     if r.plane_z is None:
-                        sample = T_w_c @ d.T_c_m @ r.board_inverses[d.board_id]  # T_w_c @ T_c_m @ T_m_b
+                        T_m_b = r.board_inverses[d.board_id]
+                        sample = T_w_m @ T_m_b
+                        A = compose_jacobians(T_w_m, T_m_b)[0]
                     else:
-                        sample = upright_body_from_mount(T_w_c @ d.T_c_m, r.board_mounts[d.board_id], r.plane_z)
-                    samples.setdefault(r, []).append(sample)
-        for camera_id, T_w_c in camera_poses.items():
+                        mount = r.board_mounts[d.board_id]
+                        sample = upright_body_from_mount(T_w_m, mount, r.plane_z)
+                        A = upright_projection_jacobian(T_w_m, mount)
+                    error = camera_error.transformed(A @ J_cam).plus_noise(A @ J_meas, d.covariance)
+                    samples.setdefault(r, []).append((sample, error))
+        for camera_id, (T_w_c, camera_error) in camera_poses.items():
             r = camera_owner[camera_id]
             if r.phase is not _REFERENCE:
                 if r.plane_z is None:
-                    sample = T_w_c @ r.camera_inverses[camera_id]  # T_w_c @ T_c_b
+                    T_c_b = r.camera_inverses[camera_id]
+                    sample = T_w_c @ T_c_b
+                    A = compose_jacobians(T_w_c, T_c_b)[0]
                 else:
-                    sample = upright_body_from_mount(T_w_c, r.camera_mounts[camera_id], r.plane_z)
-                samples.setdefault(r, []).append(sample)
+                    mount = r.camera_mounts[camera_id]
+                    sample = upright_body_from_mount(T_w_c, mount, r.plane_z)
+                    A = upright_projection_jacobian(T_w_c, mount)
+                samples.setdefault(r, []).append((sample, camera_error.transformed(A)))
 
         measured: set[_Robot] = set()
         settle_delay = self._config.settle_delay_s
-        for r, poses in samples.items():
-            T = poses[0] if len(poses) == 1 else mean_pose(poses)
-            if r.gate is not None and not r.gate.accept(T[:3, 3].tolist(), t):
+        for r, pairs in samples.items():
+            if len(pairs) == 1:
+                T, error = pairs[0]
+            else:
+                T = mean_pose([pose for pose, _ in pairs])
+                error = LinearError.mean([e for _, e in pairs])
+            if r.gate is not None and not r.gate.accept(T, t):
                 continue
             if r.phase is _MOBILE:
                 r.pose = T
+                r.covariance = error.covariance(joint)
                 measured.add(r)
             elif t - r.static_since >= settle_delay:  # SETTLING
-                r.window.append(T)
-                r.pose = r.window.mean()
-                if r.window.full:
-                    self._freeze(r, t, len(r.window))
+                window = r.window
+                window.append(T, error)
+                r.pose = window.mean()
+                r.covariance = LinearError.mean(window.payloads(window.inliers())).covariance(joint)
+                if window.full:
+                    self._freeze_window(r, t)
 
         # 3. Status.
         lost_after = self._config.lost_after_s
@@ -406,6 +476,54 @@ class MomaEstimator:
         self._camera_poses = camera_poses
 
     # ---------------------------------------------------------------- helpers
+    def _checked_detections(self, detections: Iterable[Detection]) -> dict[str, list[Detection]]:
+        """The detections grouped by camera, after every check of :meth:`update`."""
+        if detections is None or isinstance(detections, (str, bytes, Detection)) or not isinstance(detections, Iterable):
+            raise TypeError(f"detections must be an iterable of Detection, got {type(detections).__name__}")
+        camera_owner = self._camera_owner
+        board_owner = self._board_owner
+        by_camera: dict[str, list[Detection]] = {}
+        for i, d in enumerate(detections):
+            if not isinstance(d, Detection):
+                raise TypeError(f"detections[{i}] must be a Detection, got {type(d).__name__}")
+            camera_id = d.camera_id
+            if camera_id not in camera_owner:
+                raise UnknownCameraError(camera_id, camera_owner)
+            if d.board_id not in board_owner:
+                raise UnknownBoardError(d.board_id, board_owner)
+            what = f"detection of board {d.board_id} by camera {camera_id!r}"
+            T_c_m = d.T_c_m
+            if not isinstance(T_c_m, np.ndarray) or T_c_m.shape != (4, 4) or not all_finite(T_c_m):
+                raise ValueError(f"{what}: T_c_m must be a finite 4x4 array")
+            R = T_c_m[:3, :3]
+            if (
+                np.abs(R.T @ R - _EYE3).max() > _ROTATION_TOLERANCE
+                or np.linalg.det(R) <= 0.0
+                or np.abs(T_c_m[3] - (0.0, 0.0, 0.0, 1.0)).max() > _ROTATION_TOLERANCE
+            ):
+                raise ValueError(
+                    f"{what}: T_c_m must be a rigid transform (rotation block orthonormal within "
+                    f"{_ROTATION_TOLERANCE:g}, determinant +1, last row (0, 0, 0, 1)); "
+                    f"got determinant {np.linalg.det(R):.6g}"
+                )
+            cov = d.covariance
+            if cov is not None and (
+                not isinstance(cov, np.ndarray)
+                or cov.shape != (6, 6)
+                or not all_finite(cov)
+                or np.abs(cov - cov.T).max() > 1e-9 * max(1.0, float(np.abs(cov).max()))
+                or (np.diag(cov) < 0.0).any()
+            ):
+                raise ValueError(f"{what}: covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
+            group = by_camera.get(camera_id)
+            if group is None:
+                by_camera[camera_id] = [d]
+            else:
+                if any(other.board_id == d.board_id for other in group):
+                    raise ValueError(f"{what}: the board is detected twice in one frame by the same camera")
+                group.append(d)
+        return by_camera
+
     def _robot(self, name: str) -> _Robot:
         r = self._robots.get(name)
         if r is None:
@@ -421,7 +539,9 @@ class MomaEstimator:
         return value
 
     def _checked_time(self, time: float) -> float:
-        """``time`` as a float if finite and not before the last time, else ValueError."""
+        """``time`` as a float if a finite real number not before the last time, else ValueError."""
+        if isinstance(time, (str, bytes, bool)) or time is None:
+            raise ValueError(f"time must be a number (s), got {time!r}")
         try:
             t = float(time)
         except (TypeError, ValueError):
@@ -439,16 +559,63 @@ class MomaEstimator:
             r.lost_logged = False
             self._events.append(SwitchEvent(t, r.name, "relocalised", 0))
 
-    def _freeze(self, r: _Robot, t: float, n_samples: int, *, log: bool = True) -> None:
-        """Make a robot with a pose a reference at its current pose (window mean or last fresh pose)."""
+    def _freeze_window(self, r: _Robot, t: float) -> None:
+        """Freeze a SETTLING robot at the mean of its window's inliers."""
+        window = r.window
+        index = window.inliers()
+        r.pose = window.mean()
+        self._freeze(r, t, LinearError.mean(window.payloads(index)), len(index))
+
+    def _freeze(self, r: _Robot, t: float, error: LinearError, n_samples: int, *, log: bool = True) -> None:
+        """Make a robot a reference at its current pose, whose error is ``error``.
+
+        The frozen pose's error gets a new key in the joint covariance, with its
+        cross-covariances to every frozen pose still in use.
+        """
         pose = r.pose
         assert pose is not None
+        joint = self._joint
+        key = self._next_key
+        self._next_key += 1
+        others = {a for a, _ in joint}
+        own = error.covariance(joint)
+        for other in others:
+            C = error.cross(joint, other)
+            joint[(key, other)] = C
+            joint[(other, key)] = C.T
+        joint[(key, key)] = own
         r.phase = _REFERENCE
+        r.ref_key = key
+        r.covariance = own
         r.n_frozen = n_samples
         r.window.clear()
-        r.board_world = {board_id: pose @ T_b_m for board_id, T_b_m in r.board_mounts.items()}
-        r.camera_world = {camera_id: pose @ T_b_c for camera_id, T_b_c in r.camera_mounts.items()}
+        r.board_world = {}
+        r.board_world_J = {}
+        for board_id, T_b_m in r.board_mounts.items():
+            r.board_world[board_id] = pose @ T_b_m
+            r.board_world_J[board_id] = compose_jacobians(pose, T_b_m)[0]
+        r.camera_world = {
+            camera_id: (pose @ T_b_c, LinearError({key: compose_jacobians(pose, T_b_c)[0]}))
+            for camera_id, T_b_c in r.camera_mounts.items()
+        }
         self._reference_cameras.update(r.camera_world)
         self._mark_fresh(r, t)
+        self._forget_unused_keys(keep=key)
         if log:
             self._events.append(SwitchEvent(t, r.name, "frozen", n_samples))
+
+    def _forget_unused_keys(self, keep: int | None = None) -> None:
+        """Drop from the joint covariance the frozen poses that no reference, window
+        sample or located camera depends on (``keep``: a key to keep regardless)."""
+        used: set[int] = {keep} if keep is not None else set()
+        for r in self._robots.values():
+            if r.phase is _REFERENCE:
+                used.add(r.ref_key)  # type: ignore[arg-type]
+            elif r.phase is _SETTLING:
+                for error in r.window.payloads():
+                    used.update(error.references())
+        for _, error in self._camera_poses.values():
+            used.update(error.references())
+        joint = self._joint
+        for pair in [pair for pair in joint if pair[0] not in used or pair[1] not in used]:
+            del joint[pair]

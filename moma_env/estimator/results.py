@@ -54,8 +54,16 @@ class RobotEstimate:
         phase: MOBILE, SETTLING or REFERENCE.
         last_fresh_time: last time (s) the pose was fresh, None if never.
         n_window: samples in the switch window: collected so far while
-            SETTLING, averaged into the frozen pose while REFERENCE (0 for an
-            initial pose or a pose frozen without samples), 0 while MOBILE.
+            SETTLING, averaged into the frozen pose while REFERENCE (the
+            inliers of the window; 0 for an initial pose), 0 while MOBILE.
+        covariance: 6x6 covariance of the error of ``T_w_b`` (a copy; None
+            without a pose), in the world frame W, translation first, rotation
+            perturbed on the left (the convention of
+            :mod:`moma_env.estimator.uncertainty`, a ROS ``PoseWithCovariance``):
+            position in ``[:3, :3]`` (m^2), heading in ``[5, 5]`` (rad^2). It is
+            the covariance of the pose when it was last fresh: a HOLDING robot
+            that moves is further off than it says. Zero for an initial pose
+            (it defines W).
     """
 
     name: str
@@ -64,6 +72,24 @@ class RobotEstimate:
     phase: Phase
     last_fresh_time: float | None
     n_window: int
+    covariance: np.ndarray | None = None
+
+    @property
+    def position_std_m(self) -> float:
+        """Root of the trace of the position covariance (m): the RMS distance of the
+        true position from the estimate; NaN without a covariance."""
+        cov = self.covariance
+        if cov is None:
+            return float("nan")
+        return float(np.sqrt(max(0.0, cov[0, 0] + cov[1, 1] + cov[2, 2])))
+
+    @property
+    def heading_std_rad(self) -> float:
+        """Standard deviation of the heading (rotation about the world z axis, rad); NaN without a covariance."""
+        cov = self.covariance
+        if cov is None:
+            return float("nan")
+        return float(np.sqrt(max(0.0, cov[5, 5])))
 
 
 @dataclass(frozen=True)

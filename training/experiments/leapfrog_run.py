@@ -436,7 +436,7 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
         for name in (MAIN, BUDDY):
             est = estimator.estimate(name)
             poses[name] = se3_to_se2(est.T_w_b) if est.status is Status.LOCALISED and est.T_w_b is not None else None
-        ugv_commands, changes = schedule.step(world.time, poses)
+        ugv_commands, changes = schedule.step(world.time, poses, estimator.window_ready)
         for change in changes:
             world.set_static(change.robot, change.static)
             estimator.set_static(change.robot, change.static, world.time)

@@ -1,0 +1,165 @@
+"""First-order uncertainty of poses through MOMA's chain of transforms.
+
+Convention (the one of :class:`~moma_env.estimator.detection.Detection` and of a
+ROS ``PoseWithCovariance``): the error of an estimate ``T_a_b = [R, t]`` of frame
+b in frame a is the 6-vector ``e = (dt, dtheta)`` (m, rad), translation first,
+with ``T_true = [exp([dtheta]x) R, t + dt]``: the rotation is perturbed on the
+left, about the axes of frame a, and the translation additively in frame a. A
+pose in the world frame W thus has its position covariance in the top-left 3x3
+block and its heading (yaw) variance at ``[5, 5]``.
+
+The functions return the Jacobians of the error of a composition, an inverse or
+an upright projection with respect to the errors of their inputs. They are
+exact to first order (checked against finite differences in the tests).
+
+:class:`LinearError` is the error of one estimate as a linear function of the
+errors of the frozen reference robots it was computed from, plus independent
+fresh noise (the detections of this frame)::
+
+    e = sum_s J[s] @ e_s + n,   n ~ N(0, Q)
+
+which keeps the correlations a chain creates: every sample of a switch window
+shares the reference's error, which averaging does not reduce, while the fresh
+noise averages down.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+
+import numpy as np
+
+__all__ = [
+    "skew",
+    "compose_jacobians",
+    "inverse_jacobian",
+    "upright_projection_jacobian",
+    "LinearError",
+]
+
+
+def skew(v: Sequence[float] | np.ndarray) -> np.ndarray:
+    """The 3x3 matrix ``[v]x`` with ``[v]x @ w = v x w``."""
+    x, y, z = float(v[0]), float(v[1]), float(v[2])
+    return np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0)))
+
+
+def compose_jacobians(T_x_y: np.ndarray, T_y_z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians ``(J_A, J_B)`` of the error of ``T_x_z = T_x_y @ T_y_z``.
+
+    ``e(T_x_z) = J_A @ e(T_x_y) + J_B @ e(T_y_z)``, where ``e(T_x_y)`` is in
+    frame x and ``e(T_y_z)`` in frame y (6x6 each)::
+
+        J_A = [[I, -[R_x_y t_y_z]x], [0, I]]      J_B = [[R_x_y, 0], [0, R_x_y]]
+    """
+    R = T_x_y[:3, :3]
+    J_A = np.eye(6)
+    J_A[:3, 3:] = -skew(R @ T_y_z[:3, 3])
+    J_B = np.zeros((6, 6))
+    J_B[:3, :3] = R
+    J_B[3:, 3:] = R
+    return J_A, J_B
+
+
+def inverse_jacobian(T_x_y: np.ndarray) -> np.ndarray:
+    """Jacobian of the error of ``T_y_x = inv(T_x_y)`` (frame y) with respect to that of ``T_x_y`` (frame x)::
+
+        [[-R^T, [t_y_x]x R^T], [0, -R^T]]    with R = R_x_y, t_y_x = -R^T t_x_y
+    """
+    Rt = T_x_y[:3, :3].T
+    t_inv = -Rt @ T_x_y[:3, 3]
+    J = np.zeros((6, 6))
+    J[:3, :3] = -Rt
+    J[:3, 3:] = skew(t_inv) @ Rt
+    J[3:, 3:] = -Rt
+    return J
+
+
+def upright_projection_jacobian(T_w_x: np.ndarray, T_b_x: np.ndarray) -> np.ndarray:
+    """Jacobian of :func:`moma_env.geometry.upright_body_from_mount`'s error.
+
+    The projection keeps the yaw of ``R_w_x @ R_b_x^T`` and places the body so
+    that the mount lands on the measured x, y; height, roll and pitch are fixed,
+    so rows 2, 3 and 4 of the Jacobian are zero. Input: the error of ``T_w_x``
+    (world frame); output: the error of the upright ``T_w_b`` (world frame).
+    """
+    R0 = T_w_x[:3, :3] @ T_b_x[:3, :3].T
+    cx, cy, cz = R0[0, 0], R0[1, 0], R0[2, 0]
+    h2 = cx * cx + cy * cy
+    yaw = np.arctan2(cy, cx)
+    c, s = float(np.cos(yaw)), float(np.sin(yaw))
+    tx, ty = float(T_b_x[0, 3]), float(T_b_x[1, 3])
+    # d yaw / d dtheta for R = exp([dtheta]x) R0, yaw = atan2(R[1, 0], R[0, 0]).
+    dyaw = np.array((-cz * cx / h2, -cz * cy / h2, 1.0))
+    J = np.zeros((6, 6))
+    J[0, 0] = 1.0
+    J[1, 1] = 1.0
+    J[0, 3:] = (s * tx + c * ty) * dyaw
+    J[1, 3:] = -(c * tx - s * ty) * dyaw
+    J[5, 3:] = dyaw
+    return J
+
+
+class LinearError:
+    """The error of one estimate: ``e = sum_s J[s] @ e_s + n``, ``n ~ N(0, Q)`` (6-vectors).
+
+    Attributes:
+        J: reference name -> 6x6 Jacobian with respect to that reference robot's
+            error (world frame). Treated as read-only.
+        Q: 6x6 covariance of the fresh noise, independent of every reference.
+    """
+
+    __slots__ = ("J", "Q")
+
+    def __init__(self, J: Mapping[str, np.ndarray] | None = None, Q: np.ndarray | None = None):
+        self.J = dict(J) if J else {}
+        self.Q = np.zeros((6, 6)) if Q is None else Q
+
+    @classmethod
+    def of_reference(cls, name: str) -> LinearError:
+        """The error of a frozen reference robot's own pose."""
+        return cls({name: np.eye(6)})
+
+    def transformed(self, A: np.ndarray) -> LinearError:
+        """The error ``A @ e``."""
+        return LinearError({s: A @ J for s, J in self.J.items()}, A @ self.Q @ A.T)
+
+    def plus_noise(self, A: np.ndarray, covariance: np.ndarray | None) -> LinearError:
+        """A new error: this one plus ``A @ n`` for fresh noise ``n`` of ``covariance`` (None: no noise)."""
+        if covariance is None:
+            return LinearError(self.J, self.Q)
+        return LinearError(self.J, self.Q + A @ covariance @ A.T)
+
+    @staticmethod
+    def mean(errors: Sequence[LinearError]) -> LinearError:
+        """The error of the mean of estimates with these errors, their fresh noises independent."""
+        n = len(errors)
+        if n == 1:
+            return errors[0]
+        J: dict[str, np.ndarray] = {}
+        Q = np.zeros((6, 6))
+        for e in errors:
+            for s, Js in e.J.items():
+                J[s] = J[s] + Js if s in J else Js.copy()
+            Q += e.Q
+        return LinearError({s: Js / n for s, Js in J.items()}, Q / (n * n))
+
+    def covariance(self, P: Mapping[tuple[str, str], np.ndarray]) -> np.ndarray:
+        """6x6 covariance, given the joint covariance ``P[(s, r)]`` of the references' errors."""
+        S = self.Q.copy()
+        items = list(self.J.items())
+        for s, Js in items:
+            for r, Jr in items:
+                S += Js @ P[(s, r)] @ Jr.T
+        return 0.5 * (S + S.T)
+
+    def cross(self, P: Mapping[tuple[str, str], np.ndarray], other: str) -> np.ndarray:
+        """6x6 covariance ``E[e e_other^T]`` with reference ``other``'s error (fresh noise is independent of it)."""
+        C = np.zeros((6, 6))
+        for s, Js in self.J.items():
+            C += Js @ P[(s, other)]
+        return C
+
+    def references(self) -> Iterable[str]:
+        """The references this error depends on."""
+        return self.J.keys()
