@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from moma_env.camera import PNP_METHODS, BoardView, CameraConfig, GeometricCamera
+from moma_env.camera import PNP_METHODS, BoardView, CameraConfig, GeometricCamera, up_in_board
 from moma_env.geometry import R_BODY_BOARD_UP, R_BODY_CAM_DOWN, make_transform, rot_x, rot_y, se2_to_se3
 from moma_env.markers import board_for_robot
 
@@ -46,7 +46,7 @@ def _scene(n_boards: int, rng: np.random.Generator) -> tuple[list[np.ndarray], l
     boards = []
     for i, (x, y, yaw) in enumerate(_BOARD_SLOTS[:n_boards]):
         T_w_m = se2_to_se3(x, y, yaw, _BOARD_HEIGHT_M) @ make_transform(R_BODY_BOARD_UP)
-        boards.append(BoardView(i, board_for_robot(i), T_w_m))
+        boards.append(BoardView(i, board_for_robot(i), T_w_m, up_in_board(make_transform(R_BODY_BOARD_UP))))
     poses = []
     for _ in range(_N_POSES):
         x, y = rng.uniform(-0.05, 0.05, 2)

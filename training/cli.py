@@ -3,6 +3,7 @@
 Subcommands:
     experiment square   the paper's 1 m square: table, figure, TUM files, JSON, CSV.
     experiment line     the paper's 4.6 m line, forward-back-forward: keypoint table, figures, JSON, CSV.
+    experiment flips    how often a nearly face-on board's pose comes out flipped, per pose rule.
     bench               environment steps per second against MPE2, memory over a long run.
     evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
     train               train a coordination policy with Stable-Baselines3 (training/train/).
@@ -60,6 +61,12 @@ def build_parser() -> argparse.ArgumentParser:
     ln.add_argument("--passes", type=_int_at_least(1, "pass count"), default=3, help="passes, alternately forward and back (default 3)")
     ln.add_argument("--switches-per-pass", type=_int_at_least(1, "switch count"), default=6, help="keypoints per pass (default 6)")
     ln.set_defaults(handler=_run_experiment)
+
+    fl = exp_sub.add_parser("flips", help="flip rate of a board at 3 m with 1 px noise, per pose rule and tilt (docs/pnp.md)")
+    fl.add_argument("--views", type=_int_at_least(1, "view count"), default=1000, help="random views per tilt (default 1000)")
+    fl.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the views and the noise (default 0)")
+    fl.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
+    fl.set_defaults(handler=_run_flips)
 
     bench = sub.add_parser("bench", help="steps per second of every environment against MPE2, and memory over a long run")
     bench.add_argument("--steps", type=_int_at_least(100, "step count"), default=5000, help="random-action steps per row (default 5000)")
@@ -167,6 +174,19 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     else:
         print(format_table(result))
         print("\n" + "\n".join(f"{kind}: {path}" for kind, path in paths.items()) + f"\nwall time: {wall:.1f} s")
+    return 0
+
+
+def _run_flips(args: argparse.Namespace) -> int:
+    from training.experiments.flip_rate import FlipConfig, flip_rates, format_flip_table
+
+    start = time.perf_counter()
+    result = flip_rates(FlipConfig(views=args.views, seed=args.seed))
+    wall = time.perf_counter() - start
+    if args.json:
+        print(json.dumps(result | {"wall_time_s": wall}, indent=2))
+    else:
+        print(format_flip_table(result) + f"\n\nwall time: {wall:.1f} s")
     return 0
 
 

@@ -16,8 +16,8 @@ Imports only geometry, config, markers and the estimator's Detection type (no
 physics), so it can be used on its own.
 """
 
-from moma_env.camera.backend import BoardView, CameraBackend, OcclusionQuery
-from moma_env.camera.config import PNP_METHODS, CameraConfig
+from moma_env.camera.backend import BoardView, CameraBackend, OcclusionQuery, up_in_board
+from moma_env.camera.config import PNP_METHODS, PNP_SIGMA_SOURCES, POSE_DISAMBIGUATIONS, CameraConfig
 from moma_env.camera.factory import CAMERA_BACKENDS, make_camera
 from moma_env.camera.floor import FloorConfig, FloorTexture
 from moma_env.camera.floor_camera import FloorCamera
@@ -42,8 +42,11 @@ __all__ = [
     "GeometricCamera",
     "OcclusionQuery",
     "PNP_METHODS",
+    "PNP_SIGMA_SOURCES",
+    "POSE_DISAMBIGUATIONS",
     "PinholeCamera",
     "apply_occlusion",
     "marker_visibility",
+    "up_in_board",
     "visible_markers",
 ]

@@ -27,7 +27,7 @@ from moma_env.config import all_finite
 from moma_env.estimator.detection import Detection
 from moma_env.markers import BoardLayout
 
-__all__ = ["BoardView", "CameraBackend", "OcclusionQuery", "as_pose"]
+__all__ = ["BoardView", "CameraBackend", "OcclusionQuery", "as_pose", "up_in_board"]
 
 #: ``occluded(p_w_from, p_w_to) -> bool``: True if the line of sight between two
 #: world points (m, shape (3,)) is blocked, e.g. by a pymunk segment query.
@@ -44,6 +44,17 @@ def as_pose(T: object, name: str) -> np.ndarray:
     return T
 
 
+def up_in_board(T_b_m: object) -> np.ndarray:
+    """World up in the board frame M, as declared by the board's mount ``T_b_m`` (4x4, M in B).
+
+    For a board on a body that stays upright (a ground robot or sled on the
+    floor: ``z_B = z_W``), whatever its position and yaw: ``R_b_m^T e_z``, the
+    third row of the mount's rotation. Face-up boards give ``(0, 0, 1)``.
+    """
+    T = as_pose(T_b_m, "T_b_m")
+    return T[2, :3].copy()
+
+
 @dataclass(frozen=True, slots=True)
 class BoardView:
     """A board in the scene, as the camera backends see it.
@@ -53,11 +64,18 @@ class BoardView:
         layout: marker layout (ids and corners in the board frame M).
         T_w_m: 4x4 pose of the board frame M in the world W (m). Stored as a
             float array without copying; do not mutate it while the view is in use.
+            The true pose: the backends use it to make the measurement only.
+        up_m: world up ``z_W`` expressed in M (unit 3-vector) as the board's
+            mount declares it (:func:`up_in_board`), not from the true pose: the
+            prior the backends use to resolve the planar flip ambiguity
+            (``CameraConfig.pose_disambiguation``). None (default): not known
+            (the lower reprojection cost decides).
     """
 
     board_id: int
     layout: BoardLayout
     T_w_m: np.ndarray
+    up_m: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -67,6 +85,15 @@ class BoardView:
         if not isinstance(self.layout, BoardLayout):
             raise TypeError(f"layout must be a BoardLayout, got {type(self.layout).__name__}")
         object.__setattr__(self, "T_w_m", as_pose(self.T_w_m, "T_w_m"))
+        if self.up_m is not None:
+            up = np.asarray(self.up_m, dtype=float)
+            if up.shape != (3,) or not all_finite(up):
+                raise ValueError(f"up_m must be a finite 3-vector, got {self.up_m!r}")
+            if abs(float(up @ up) - 1.0) > 1e-6:
+                raise ValueError(f"up_m must be a unit vector, got norm {float(np.sqrt(up @ up))!r}")
+            up = up.copy()
+            up.setflags(write=False)
+            object.__setattr__(self, "up_m", up)
 
 
 @runtime_checkable

@@ -24,11 +24,15 @@ from moma_env.config import (
     check_range,
 )
 
-__all__ = ["CameraConfig", "PNP_METHODS"]
+__all__ = ["CameraConfig", "PNP_METHODS", "POSE_DISAMBIGUATIONS", "PNP_SIGMA_SOURCES"]
 
 #: PnP methods a camera may use: ``PLANAR_LM`` (:mod:`moma_env.camera.planar_pnp`)
 #: or OpenCV's (names of ``cv2.SOLVEPNP_*`` without the prefix).
 PNP_METHODS = ("PLANAR_LM", "IPPE", "ITERATIVE", "SQPNP")
+#: How a camera chooses between the two poses of the planar ambiguity (see ``CameraConfig``).
+POSE_DISAMBIGUATIONS = ("upright", "min_cost")
+#: Where the corner noise of a detection's covariance comes from (see ``CameraConfig``).
+PNP_SIGMA_SOURCES = ("auto", "noise_px", "residuals")
 
 
 def _check_positive_int(field: str, value: object) -> int:
@@ -71,6 +75,36 @@ class CameraConfig:
             with IPPE), ``"ITERATIVE"`` (IPPE, then OpenCV's Levenberg-Marquardt)
             or ``"IPPE"`` (OpenCV's closed form for planar targets). All are exact
             without noise.
+        pose_disambiguation: how the camera chooses between the two poses of the
+            planar ambiguity (the "flip": see ``docs/pnp.md``). ``"upright"``
+            (default): both are refined with the upright prior in the cost (the
+            maximum a posteriori pose) and the more probable one is kept: the board's up direction as its mount declares
+            it (``BoardView.up_m``) against world up in C from the camera's attitude,
+            weighed against the reprojection cost (see
+            :func:`moma_env.camera.kernels.solve_boards`); boards without
+            ``up_m`` get the lower cost. With an OpenCV ``pnp_method`` the OpenCV
+            pose and its mirror image are both refined by the same
+            Levenberg-Marquardt first. ``"min_cost"``: the lower reprojection
+            cost (the OpenCV methods: OpenCV's own pose), the rule before the prior.
+        upright_prior_deg: standard deviation (deg, > 0) of the angle between a
+            board's up direction as its mount declares it and as it really is
+            (robot tilt on the floor, mount tolerance); the camera's
+            ``attitude_noise_deg`` is added to it in quadrature.
+        attitude_noise_deg: standard deviation (deg, >= 0) of the error of the
+            camera's knowledge of gravity (IMU / attitude estimate, or the mount
+            of a robot camera), simulated as a random rotation of world up in C,
+            drawn once per ``measure`` call after the corner noise. 0 (default)
+            draws nothing.
+        pnp_sigma_source: the corner noise std ``sigma`` (px) of each
+            detection's covariance ``sigma^2 inv(J^T J)``: ``"noise_px"`` (the
+            configured noise), ``"residuals"`` (estimated per board from the
+            chosen pose's residuals, ``sqrt(cost / (2 n - 6))`` for n corners, at
+            least ``pnp_sigma_floor_px``) or ``"auto"`` (default: ``noise_px`` for
+            the geometric backend, ``residuals`` for the rendered one, whose
+            noise is in the image).
+        pnp_sigma_floor_px: smallest estimated corner noise std (px, >= 0): a
+            board whose corners happen to fit almost exactly is not reported as
+            certain.
     """
 
     width: int = 720
@@ -87,6 +121,11 @@ class CameraConfig:
     min_range_m: float = 0.1
     max_range_m: float = 8.0
     pnp_method: str = "PLANAR_LM"
+    pose_disambiguation: str = "upright"
+    upright_prior_deg: float = 3.0
+    attitude_noise_deg: float = 0.0
+    pnp_sigma_source: str = "auto"
+    pnp_sigma_floor_px: float = 0.1
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "width", _check_positive_int("camera.width", self.width))
@@ -121,6 +160,11 @@ class CameraConfig:
                 "camera.max_range_m", f"must exceed min_range_m={self.min_range_m}, got {self.max_range_m!r}"
             )
         check_choice("camera.pnp_method", self.pnp_method, PNP_METHODS)
+        check_choice("camera.pose_disambiguation", self.pose_disambiguation, POSE_DISAMBIGUATIONS)
+        check_positive("camera.upright_prior_deg", self.upright_prior_deg)
+        check_non_negative("camera.attitude_noise_deg", self.attitude_noise_deg)
+        check_choice("camera.pnp_sigma_source", self.pnp_sigma_source, PNP_SIGMA_SOURCES)
+        check_non_negative("camera.pnp_sigma_floor_px", self.pnp_sigma_floor_px)
 
     def _validated_dist(self) -> tuple[float, float, float, float, float]:
         try:

@@ -33,6 +33,12 @@ details make that hold over every visible pose:
 The reprojection error of a detection is the root mean square, over its corners,
 of the pixel distance between the measured corners and the corners reprojected
 with the estimated pose (with distortion).
+
+Every detection carries the first-order covariance of its pose, and the pose is
+chosen between the two of the planar ambiguity by ``CameraConfig.pose_disambiguation``
+(see :func:`moma_env.camera.kernels.solve_boards` and ``docs/pnp.md``); the
+camera's attitude gives world up in C (``T_w_c``'s rotation, perturbed by
+``attitude_noise_deg``), each ``BoardView.up_m`` the board's.
 """
 
 from __future__ import annotations
@@ -47,9 +53,10 @@ import numpy as np
 from moma_env.camera.backend import BoardView, OcclusionQuery, as_pose
 from moma_env.camera.config import CameraConfig
 from moma_env.camera.pinhole import PinholeCamera
-from moma_env.camera.kernels import camera_parameters, project_boards, reprojection_sq, solve_boards, undistort_points
+from moma_env.camera.kernels import camera_parameters, project_boards, solve_boards, solve_settings, undistort_points
 from moma_env.camera.visibility import apply_occlusion
 from moma_env.estimator.detection import Detection
+from moma_env.geometry import rotvec_to_matrix
 from moma_env.markers import BoardLayout
 
 __all__ = ["GeometricCamera"]
@@ -125,6 +132,23 @@ class GeometricCamera:
         self._refine_lm = config.pnp_method == "ITERATIVE"
         self._geometries: dict[tuple[int, ...], _BoardSetGeometry] = {}
         self._parameters = camera_parameters(self.camera)
+        cfg = self.config
+        self._upright = cfg.pose_disambiguation == "upright"
+        self._prior_rad = math.radians(math.hypot(cfg.upright_prior_deg, cfg.attitude_noise_deg))
+        self._attitude_noise_rad = math.radians(cfg.attitude_noise_deg)
+        self._sigma_px = math.nan if cfg.pnp_sigma_source == "residuals" else cfg.noise_px
+        self._settings = solve_settings(self._upright, self._sigma_px, cfg.pnp_sigma_floor_px, self._prior_rad)
+
+    def up_in_camera(self, T_w_c: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """World up in C (unit 3-vector) as the camera knows it from ``T_w_c`` (4x4, validated).
+
+        The third row of ``R_w_c``, turned by a random rotation vector of std
+        ``attitude_noise_deg`` per axis (three draws from ``rng``) if that is > 0.
+        """
+        up = T_w_c[2, :3].copy()
+        if self._attitude_noise_rad > 0.0:
+            up = rotvec_to_matrix(rng.standard_normal(3) * self._attitude_noise_rad) @ up
+        return up
 
     def measure(
         self,
@@ -182,11 +206,13 @@ class GeometricCamera:
             noise = rng.standard_normal(px.shape)
             noise *= self.config.noise_px
             px += noise
+        up_c = self.up_in_camera(T_w_c, rng)
         seen = [b for b, k in enumerate(counts) if k]
         bounds = [0]
         for b in seen:
             bounds.append(bounds[-1] + 4 * counts[b])
-        T, rms = self.solve_boards(obj, px, np.array(bounds, dtype=np.int64))
+        up_m = board_up_rows([boards[b] for b in seen])
+        T, rms, cov = self.solve_boards(obj, px, np.array(bounds, dtype=np.int64), up_m, up_c)
 
         detections = []
         for i, b in enumerate(seen):
@@ -197,11 +223,22 @@ class GeometricCamera:
             first, end = bounds[i], bounds[i + 1]
             all_seen = counts[b] == len(layout.marker_ids)
             ids = layout.marker_ids if all_seen else tuple(compress(layout.marker_ids, visible_rows[b]))
-            detections.append(Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, rms_b))
+            detections.append(
+                Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, rms_b, finite_or_none(cov[i]))
+            )
         return detections
 
-    def solve_boards(self, obj: np.ndarray, px: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Board poses from measured corners, with the configured ``pnp_method``.
+    def solve_boards(
+        self,
+        obj: np.ndarray,
+        px: np.ndarray,
+        starts: np.ndarray,
+        up_m: np.ndarray | None = None,
+        up_c: np.ndarray | None = None,
+        sigma_px: float | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Board poses and their covariances from measured corners, with the configured
+        ``pnp_method`` and ``pose_disambiguation``.
 
         The PnP step of every backend (the rendered camera calls it on the corners
         its detector found).
@@ -211,37 +248,47 @@ class GeometricCamera:
                 each board's corners in the plane ``z_M = 0``.
             px: (n, 2) float64 their measured pixels (with lens distortion).
             starts: (K + 1,) int64: board ``k`` owns rows ``starts[k]:starts[k + 1]``.
+            up_m: (K, 3) world up in each board's frame M (:attr:`BoardView.up_m`;
+                NaN rows: unknown), or None: unknown for all (the lower cost decides).
+            up_c: (3,) world up in C (unit vector); needed with ``up_m``.
+            sigma_px: corner noise std (px) of the covariances; NaN: estimated
+                from each board's residuals; None: from ``pnp_sigma_source``
+                (``auto`` is ``noise_px`` here).
 
         Returns:
-            ``(T, rms)``: (K, 4, 4) poses ``T_c_m`` and (K,) RMS reprojection
-            errors (px), NaN for a board that could not be solved.
+            ``(T, rms, cov)``: (K, 4, 4) poses ``T_c_m``, (K,) RMS reprojection
+            errors (px), NaN for a board that could not be solved, and (K, 6, 6)
+            covariances (camera frame C, translation first; see
+            :class:`~moma_env.estimator.detection.Detection`).
         """
         n_boards = len(starts) - 1
         T = np.zeros((n_boards, 4, 4))
         rms = np.empty(n_boards)
-        if self._first_solver is None:
-            solve_boards(obj, px, starts, self._parameters, T, rms)
-        else:
-            self._solve_with_opencv(obj, px, starts, T, rms)
-        return T, rms
+        cov = np.empty((n_boards, 6, 6))  # written for every solved board
+        if up_m is None:
+            up_m = np.full((n_boards, 3), np.nan)
+            up_c = np.full(3, np.nan)
+        elif up_c is None:
+            raise ValueError("up_c (world up in C) is needed with up_m")
+        settings = self._settings
+        if sigma_px is not None:
+            settings = solve_settings(self._upright, float(sigma_px), self.config.pnp_sigma_floor_px, self._prior_rad)
+        given = np.zeros(n_boards, dtype=bool)
+        use_given = self._first_solver is not None
+        if use_given:
+            given[:] = self._solve_with_opencv(obj, px, starts, T)
+        solve_boards(obj, px, starts, self._parameters, up_m, up_c, settings, use_given, given, T, rms, cov)
+        return T, rms, cov
 
-    def _solve_with_opencv(
-        self, obj: np.ndarray, px: np.ndarray, starts: np.ndarray, T: np.ndarray, rms: np.ndarray
-    ) -> None:
-        """Like :func:`~moma_env.camera.kernels.solve_boards`, with OpenCV's solvePnP
-        (methods IPPE, ITERATIVE, SQPNP): poses into ``T``, RMS errors (NaN: failed) into ``rms``."""
+    def _solve_with_opencv(self, obj: np.ndarray, px: np.ndarray, starts: np.ndarray, T: np.ndarray) -> list[bool]:
+        """OpenCV's solvePnP (methods IPPE, ITERATIVE, SQPNP) of every board: poses into ``T``;
+        per board, True if it was solved."""
         xy = np.empty_like(px)
         undistort_points(px, self._parameters, xy)
         bounds = starts.tolist()
         spans = [(i, i, bounds[i], bounds[i + 1], None) for i in range(len(bounds) - 1)]
         T[:, 2:, 3] = 1.0  # a board whose solve fails stays at R = 0, t = (0, 0, 1)
-        solved = self._solve(obj.reshape(-1, 1, 3), xy.reshape(-1, 1, 2), spans, T)
-        for i, ok in enumerate(solved):
-            first, end = bounds[i], bounds[i + 1]
-            if ok:
-                rms[i] = math.sqrt(reprojection_sq(T[i], obj[first:end], px[first:end], self._parameters) / (end - first))
-            else:
-                rms[i] = math.nan
+        return self._solve(obj.reshape(-1, 1, 3), xy.reshape(-1, 1, 2), spans, T)
 
     def _solve(
         self, object_points: np.ndarray, image_xy: np.ndarray, spans: list[tuple], T: np.ndarray
@@ -332,6 +379,20 @@ class GeometricCamera:
             geo = _BoardSetGeometry(tuple(b.layout for b in boards))
             self._geometries[key] = geo
         return geo
+
+
+def board_up_rows(boards: Sequence[BoardView]) -> np.ndarray:
+    """(K, 3) the boards' ``up_m``, NaN rows for boards without one."""
+    rows = np.full((len(boards), 3), np.nan)
+    for k, board in enumerate(boards):
+        if board.up_m is not None:
+            rows[k] = board.up_m
+    return rows
+
+
+def finite_or_none(cov: np.ndarray) -> np.ndarray | None:
+    """The covariance ``cov`` (not copied) if it is finite, else None (a singular solve)."""
+    return cov if math.isfinite(float(cov.sum())) else None
 
 
 def _finite(rvec: np.ndarray, tvec: np.ndarray) -> bool:

@@ -18,15 +18,31 @@ import math
 import numba
 import numpy as np
 
-from moma_env.camera.planar_pnp import solve_planar_pnp_kernel
+from moma_env.camera.planar_pnp import (
+    pose_information,
+    refine_pose,
+    refine_two_starts,
+    solve_planar_pnp_candidates,
+    spd_inverse,
+)
 from moma_env.camera.pinhole import PinholeCamera
 
-__all__ = ["camera_parameters", "project_boards", "undistort_points", "solve_boards", "reprojection_sq"]
+__all__ = [
+    "camera_parameters",
+    "pixel_weights",
+    "project_boards",
+    "reprojection_sq",
+    "solve_boards",
+    "solve_settings",
+    "undistort_points",
+]
 
 # Indices into the parameter vector.
 _FX, _FY, _CX, _CY, _K1, _K2, _P1, _P2, _K3 = range(9)
 _LO, _HI_U, _HI_V, _MIN_SIDE_SQ, _MIN_RANGE, _MAX_RANGE_SQ, _COS_MAX, _FOLD_R2 = range(9, 17)
 _N_PARAMETERS = 17
+# Indices into the settings vector of solve_boards (see solve_settings).
+_UPRIGHT, _SIGMA, _SIGMA_FLOOR, _PRIOR = range(4)
 #: Undistortion stops when an iteration moves a point by less than this (normalised units) ...
 _UNDISTORT_TOLERANCE = 1e-15
 #: ... or after this many iterations (each contracts the error by ~|k1| r^2, a few percent).
@@ -208,28 +224,203 @@ def reprojection_sq(T: np.ndarray, obj: np.ndarray, px: np.ndarray, p: np.ndarra
     return total
 
 
+def solve_settings(upright: bool, sigma_px: float, sigma_floor_px: float, prior_rad: float) -> np.ndarray:
+    """The settings vector of :func:`solve_boards`.
+
+    Args:
+        upright: choose between the two poses of the planar ambiguity with the
+            upright prior (else: the lower reprojection cost).
+        sigma_px: corner noise std (px), or NaN to estimate it per board from the
+            chosen pose's residuals, ``sqrt(cost / (2 n - 6))`` (n corners; a board
+            with a single marker has 2 degrees of freedom left).
+        sigma_floor_px: smallest estimated std (px); unused with a given ``sigma_px``.
+        prior_rad: std of the angle between a board's up direction as its mount
+            declares it and as the camera's attitude predicts it (rad), > 0.
+    """
+    return np.array([1.0 if upright else 0.0, sigma_px, sigma_floor_px, prior_rad])
+
+
+@numba.njit(cache=True)
+def pixel_weights(xy: np.ndarray, p: np.ndarray, W: np.ndarray) -> None:
+    """Per corner, the 2x2 Jacobian of the pixel with respect to the undistorted
+    normalised coordinates ``xy`` (n, 2), ``diag(fx, fy) @ D``, row-major into ``W`` (n, 4).
+
+    ``D`` is the Jacobian of the distortion (k1, k2, p1, p2, k3) at the point:
+    a normalised residual ``e`` is the pixel residual ``W_i e`` to first order.
+    """
+    fx = p[_FX]
+    fy = p[_FY]
+    k1 = p[_K1]
+    k2 = p[_K2]
+    k3 = p[_K3]
+    p1 = p[_P1]
+    p2 = p[_P2]
+    for i in range(xy.shape[0]):
+        x = xy[i, 0]
+        y = xy[i, 1]
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        dradial = k1 + r2 * (2.0 * k2 + 3.0 * r2 * k3)  # d radial / d r2
+        W[i, 0] = fx * (radial + 2.0 * x * x * dradial + 2.0 * p1 * y + 6.0 * p2 * x)
+        W[i, 1] = fx * (2.0 * x * y * dradial + 2.0 * p1 * x + 2.0 * p2 * y)
+        W[i, 2] = fy * (2.0 * x * y * dradial + 2.0 * p1 * x + 2.0 * p2 * y)
+        W[i, 3] = fy * (radial + 2.0 * y * y * dradial + 6.0 * p1 * y + 2.0 * p2 * x)
+
+
+@numba.njit(cache=True)
+def _skip_second(candidates: np.ndarray, costs: np.ndarray, prior: np.ndarray) -> bool:
+    """True if candidate 1 need not be refined with the prior: it is candidate 0
+    (both starts reached the same minimum), or its cost exceeds candidate 0's
+    posterior cost at its present pose (its posterior minimum is at least its
+    pixel cost, the minimum of its basin)."""
+    same = True
+    for i in range(3):
+        for j in range(4):
+            if abs(candidates[0, i, j] - candidates[1, i, j]) > 1e-9:
+                same = False
+    if same:
+        return True
+    lam = prior[0]
+    s2 = 0.0
+    for i in range(3):  # |up_c x R up_m|^2 at candidate 0
+        j1 = (i + 1) % 3
+        j2 = (i + 2) % 3
+        u1 = candidates[0, j1, 0] * prior[1] + candidates[0, j1, 1] * prior[2] + candidates[0, j1, 2] * prior[3]
+        u2 = candidates[0, j2, 0] * prior[1] + candidates[0, j2, 1] * prior[2] + candidates[0, j2, 2] * prior[3]
+        g = prior[4 + j1] * u2 - prior[4 + j2] * u1
+        s2 += g * g
+    return costs[1] >= costs[0] + lam * lam * s2
+
+
+@numba.njit(cache=True)
+def _board_sigma(settings: np.ndarray, cost: float, n: int) -> float:
+    """Corner noise std (px) of a board: the configured one, or estimated from ``cost`` (px^2) of ``n`` corners."""
+    sigma = settings[_SIGMA]
+    if np.isnan(sigma):
+        sigma = max(np.sqrt(cost / (2 * n - 6)), settings[_SIGMA_FLOOR])
+    return sigma
+
+
 @numba.njit(cache=True)
 def solve_boards(
-    obj: np.ndarray, px: np.ndarray, starts: np.ndarray, p: np.ndarray, T: np.ndarray, rms: np.ndarray
+    obj: np.ndarray,
+    px: np.ndarray,
+    starts: np.ndarray,
+    p: np.ndarray,
+    up_m: np.ndarray,
+    up_c: np.ndarray,
+    settings: np.ndarray,
+    use_given: bool,
+    given: np.ndarray,
+    T: np.ndarray,
+    rms: np.ndarray,
+    cov: np.ndarray,
 ) -> None:
-    """PnP (:mod:`moma_env.camera.planar_pnp`) and RMS reprojection error of each board.
+    """PnP (:mod:`moma_env.camera.planar_pnp`), upright prior, covariance and RMS reprojection error of each board.
+
+    Each board gets the two poses of the planar ambiguity, Levenberg-Marquardt
+    minima of the pixel residuals (normalised residuals weighted by
+    :func:`pixel_weights`, so the costs are in px^2): from the homography's pose
+    and its mirror image, or, with ``use_given``, from the pose already in
+    ``T[b]`` (an OpenCV solution) and its mirror image. Then:
+
+    * ``settings[upright]`` off (rule ``min_cost``): the lower cost (a given
+      pose: unchanged).
+    * ``settings[upright]`` on, ``up_m[b]`` finite and ``sigma > 0``: both
+      candidates (one if they coincide, or if the second's pixel cost alone
+      exceeds the first's posterior cost) are refined again with the upright
+      prior added to the cost,
+      ``sigma^2 sin^2(angle) / prior^2`` where ``angle`` is between ``R @ up_m[b]``
+      (world up as the pose and the board's mount predict it in C) and ``up_c``
+      (world up in C from the camera's attitude): the maximum a posteriori pose
+      under a Gaussian prior of std ``prior`` (rad) on that angle, and of the two
+      the one with the lower posterior cost is kept. The prior decides where
+      the corners cannot (nearly face-on boards, where the two poses' costs
+      differ by less than the noise); where it cannot tell them apart (equal
+      angles, e.g. a vertical board seen level) the lower cost decides. With
+      ``sigma == 0`` (noise-free corners) or no ``up_m`` the lower cost decides.
+    * **Covariance** of the kept pose, ``sigma^2 inv(J^T J)`` (6x6, camera
+      frame C, translation first, rotation perturbed on the left: see
+      :func:`~moma_env.camera.planar_pnp.pose_information`), ``J`` the Jacobian
+      of the pixel residuals (focal lengths and lens distortion included) and,
+      when the prior was applied, of the prior's residual (the posterior
+      covariance). ``sigma`` is ``settings[sigma]`` px, or, if that is NaN,
+      estimated from the pose's cost (see :func:`solve_settings`). ``sigma = 0``
+      gives an exactly zero covariance; a singular ``J^T J`` gives NaN.
 
     Args:
         obj: (n, 3) visible corners in their board frames M (m), board after board.
         px: (n, 2) their measured pixels.
         starts: (K + 1,) first row of each board in ``obj``/``px``, then ``n``.
         p: camera parameters (:func:`camera_parameters`).
-        T: (K, 4, 4) output poses ``T_c_m``.
+        up_m: (K, 3) world up in each board's frame M as its mount declares it
+            (unit vectors); a NaN row: not known (lower cost).
+        up_c: (3,) world up in the camera frame C (unit vector).
+        settings: see :func:`solve_settings`.
+        use_given: start from the poses in ``T`` instead of the homographies.
+        given: (K,) bool, read only with ``use_given``: True where ``T[b]`` holds
+            a pose; the other boards failed (NaN error).
+        T: (K, 4, 4) output poses ``T_c_m`` (and input where ``given``).
         rms: (K,) output RMS reprojection errors (px); NaN where the solve failed.
+        cov: (K, 6, 6) output covariances.
     """
     n = px.shape[0]
     xy = np.empty((n, 2))
     undistort_points(px, p, xy)
+    W = np.empty((n, 4))
+    pixel_weights(xy, p, W)
     obj_xy = np.ascontiguousarray(obj[:, :2])
+    upright = settings[_UPRIGHT] != 0.0
+    candidates = np.empty((2, 4, 4))
+    costs = np.empty(2)
+    info = np.empty((6, 6))
+    prior = np.zeros(7)
     for b in range(starts.shape[0] - 1):
         first = starts[b]
         end = starts[b + 1]
-        if solve_planar_pnp_kernel(obj_xy[first:end], xy[first:end], T[b]):
-            rms[b] = np.sqrt(reprojection_sq(T[b], obj[first:end], px[first:end], p) / (end - first))
+        o = obj_xy[first:end]
+        x = xy[first:end]
+        w = W[first:end]
+        prior[0] = 0.0
+        if use_given:
+            if not given[b]:
+                rms[b] = np.nan
+                continue
+            k = 0
+            if upright:
+                k = refine_two_starts(T[b, :3, :3], T[b, :3, 3], o, x, w, prior, True, candidates, costs)
+            if k == 0:
+                candidates[0] = T[b]
+                k = 1
         else:
+            k = solve_planar_pnp_candidates(o, x, w, prior, False, candidates, costs)
+        if k == 0:
             rms[b] = np.nan
+            continue
+        choice = 0
+        if upright and np.isfinite(up_m[b, 0]):
+            sigma = _board_sigma(settings, costs[0], end - first)
+            if sigma > 0.0:
+                prior[0] = sigma / settings[_PRIOR]
+                prior[1:4] = up_m[b]
+                prior[4:7] = up_c
+                if k == 2 and _skip_second(candidates, costs, prior):
+                    k = 1
+                for j in range(k):
+                    costs[j] = refine_pose(candidates[j], o, x, w, prior)
+                if k == 2 and costs[1] < costs[0]:
+                    choice = 1
+                if not np.isfinite(costs[choice]):
+                    rms[b] = np.nan
+                    continue
+        T[b] = candidates[choice]
+        cost = pose_information(T[b], o, x, w, prior, info)
+        if prior[0] > 0.0:
+            sigma = prior[0] * settings[_PRIOR]
+        else:
+            sigma = _board_sigma(settings, cost, end - first)
+        if sigma == 0.0:
+            cov[b] = 0.0
+        elif spd_inverse(info, cov[b]):
+            cov[b] *= sigma * sigma
+        rms[b] = np.sqrt(reprojection_sq(T[b], obj[first:end], px[first:end], p) / (end - first))

@@ -28,6 +28,17 @@ halves the time). Measured on 1000 views of a robot board at 2-6 m with 1.5 px
 of noise: mean position error 0.104 m against SQPNP's 0.144 m, and 1 view ended
 at a higher reprojection cost than SQPNP's global minimum.
 
+The camera backends use :func:`solve_planar_pnp_candidates`, which keeps both
+poses of the ambiguity (for the upright prior of
+:func:`moma_env.camera.kernels.solve_boards`) and weighs each corner's residual
+by a 2x2 matrix (the pixel Jacobian ``diag(fx, fy) D``, so that the costs are in
+px^2 and the pose is the maximum-likelihood one with non-square pixels and lens
+distortion too); :func:`pose_information` gives ``J^T J`` for the covariance in
+the convention of :class:`~moma_env.estimator.detection.Detection`, and an
+optional prior residual (the upright prior) enters the cost and ``J^T J``.
+:func:`solve_planar_pnp` and :func:`solve_planar_pnp_kernel` are the plain
+solver (identity weights, lower cost).
+
 This module imports only numpy and numba: it runs as well on corners detected in
 a real image.
 """
@@ -37,7 +48,16 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["solve_planar_pnp"]
+__all__ = [
+    "pose_information",
+    "prior_vector",
+    "refine_pose",
+    "refine_two_starts",
+    "solve_planar_pnp",
+    "solve_planar_pnp_candidates",
+    "solve_planar_pnp_kernel",
+    "spd_inverse",
+]
 
 #: Most Levenberg-Marquardt iterations per start (a good start needs 3 to 6).
 _MAX_ITERATIONS = 100
@@ -216,10 +236,24 @@ def _pose_from_homography(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @numba.njit(cache=True)
 def _cost_and_normal_equations(
-    R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray, jtj: np.ndarray, jtr: np.ndarray
+    R: np.ndarray,
+    t: np.ndarray,
+    obj: np.ndarray,
+    img: np.ndarray,
+    W: np.ndarray,
+    prior: np.ndarray,
+    jtj: np.ndarray,
+    jtr: np.ndarray,
 ) -> float:
-    """Sum of squared normalised residuals; fills ``J^T J`` (6x6) and ``J^T r`` (6,).
+    """Sum of squared weighted residuals; fills ``J^T J`` (6x6) and ``J^T r`` (6,).
 
+    The residual of corner ``i`` is ``W_i (x_i(R, t) - img_i)``, with the 2x2
+    weight ``W_i = [[W[i, 0], W[i, 1]], [W[i, 2], W[i, 3]]]`` (identity: plain
+    normalised residuals; see :func:`solve_planar_pnp_candidates`).
+    With ``prior[0] = lam > 0`` a prior residual is added:
+    ``lam * (up_c x R up_m)`` (``up_m = prior[1:4]``, ``up_c = prior[4:7]``,
+    unit vectors): its square is ``lam^2 sin^2(angle)`` between the up direction the
+    pose predicts in C and the one the camera knows (see :func:`prior_vector`).
     Parameters: rotation increment ``w`` (left, ``R <- exp([w]x) R``) then translation.
     """
     jtj[:, :] = 0.0
@@ -237,8 +271,14 @@ def _cost_and_normal_equations(
         iz = 1.0 / (q2 + t[2])
         u = (q0 + t[0]) * iz
         v = (q1 + t[1]) * iz
-        ru = u - img[i, 0]
-        rv = v - img[i, 1]
+        du = u - img[i, 0]
+        dv = v - img[i, 1]
+        w0 = W[i, 0]
+        w1 = W[i, 1]
+        w2 = W[i, 2]
+        w3 = W[i, 3]
+        ru = w0 * du + w1 * dv
+        rv = w2 * du + w3 * dv
         cost += ru * ru + rv * rv
         # d(u, v)/dp = [[iz, 0, -u iz], [0, iz, -v iz]]; dp/dw = -[q]x; dp/dt = I.
         a2 = -u * iz
@@ -257,13 +297,47 @@ def _cost_and_normal_equations(
         jv[4] = iz
         jv[5] = b2
         for a in range(6):
+            ja = ju[a]
+            jb = jv[a]
+            ju[a] = w0 * ja + w1 * jb
+            jv[a] = w2 * ja + w3 * jb
+        for a in range(6):
             jtr[a] += ju[a] * ru + jv[a] * rv
             for b in range(a, 6):
                 jtj[a, b] += ju[a] * ju[b] + jv[a] * jv[b]
+    lam = prior[0]
+    if lam > 0.0:
+        # u = R up_m; g = up_c x u; dg/dw = (up_c . u) I - u up_c^T; dg/dt = 0.
+        u = np.empty(3)
+        for i in range(3):
+            u[i] = R[i, 0] * prior[1] + R[i, 1] * prior[2] + R[i, 2] * prior[3]
+        c0 = prior[4]
+        c1 = prior[5]
+        c2 = prior[6]
+        g = np.empty(3)
+        g[0] = lam * (c1 * u[2] - c2 * u[1])
+        g[1] = lam * (c2 * u[0] - c0 * u[2])
+        g[2] = lam * (c0 * u[1] - c1 * u[0])
+        cost += g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+        dot = c0 * u[0] + c1 * u[1] + c2 * u[2]
+        G = np.empty((3, 3))
+        for i in range(3):
+            for j in range(3):
+                G[i, j] = lam * ((dot if i == j else 0.0) - u[i] * prior[4 + j])
+        for a in range(3):
+            for i in range(3):
+                jtr[a] += G[i, a] * g[i]
+            for b in range(a, 3):
+                jtj[a, b] += G[0, a] * G[0, b] + G[1, a] * G[1, b] + G[2, a] * G[2, b]
     for a in range(6):
         for b in range(a):
             jtj[a, b] = jtj[b, a]
     return cost
+
+
+def prior_vector(weight: float, up_m: np.ndarray, up_c: np.ndarray) -> np.ndarray:
+    """The ``prior`` argument of the kernels: ``[weight, up_m (3), up_c (3)]`` (weight 0: no prior)."""
+    return np.concatenate([[float(weight)], up_m, up_c])
 
 
 @numba.njit(cache=True)
@@ -292,7 +366,9 @@ def _rotation_exp(w0: float, w1: float, w2: float) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _refine(R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray, give_up_above: float) -> float:
+def _refine(
+    R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray, W: np.ndarray, prior: np.ndarray, give_up_above: float
+) -> float:
     """Levenberg-Marquardt from ``(R, t)``, updated in place; returns the final cost.
 
     Gives up (returning ``inf``) if after ``_GIVE_UP_AFTER`` iterations the cost is
@@ -305,7 +381,7 @@ def _refine(R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray, give
     A = np.empty((6, 6))
     step = np.empty(6)
     t_new = np.empty(3)
-    cost = _cost_and_normal_equations(R, t, obj, img, jtj, jtr)
+    cost = _cost_and_normal_equations(R, t, obj, img, W, prior, jtj, jtr)
     damping = 0.0  # Gauss-Newton until a step fails
     for iteration in range(_MAX_ITERATIONS):
         if iteration == _GIVE_UP_AFTER and cost > give_up_above:
@@ -323,7 +399,7 @@ def _refine(R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray, give
         t_new[0] = t[0] + step[3]
         t_new[1] = t[1] + step[4]
         t_new[2] = t[2] + step[5]
-        cost_new = _cost_and_normal_equations(R_new, t_new, obj, img, jtj_new, jtr_new)
+        cost_new = _cost_and_normal_equations(R_new, t_new, obj, img, W, prior, jtj_new, jtr_new)
         if cost_new <= cost:  # False for NaN
             converged = cost - cost_new <= _COST_TOLERANCE * cost
             R[:, :] = R_new
@@ -364,13 +440,177 @@ def _mirrored_start(R: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def _write_pose(R: np.ndarray, t: np.ndarray, T_out: np.ndarray) -> None:
+    """``T_out`` (4x4) = ``[R t; 0 0 0 1]``."""
+    for i in range(3):
+        for j in range(3):
+            T_out[i, j] = R[i, j]
+        T_out[i, 3] = t[i]
+        T_out[3, i] = 0.0
+    T_out[3, 3] = 1.0
+
+
+@numba.njit(cache=True)
+def refine_two_starts(
+    R: np.ndarray, t: np.ndarray, obj: np.ndarray, img: np.ndarray, W: np.ndarray, prior: np.ndarray,
+    refine_both: bool, T_out: np.ndarray, costs: np.ndarray,
+) -> int:
+    """Both poses of the planar ambiguity, refined from ``(R, t)`` and from its mirror image.
+
+    ``(R, t)`` (3x3, (3,); not modified) is one start; the other is its mirror
+    image (:func:`_mirrored_start`). Each is refined by Levenberg-Marquardt on the
+    weighted residuals (see :func:`_cost_and_normal_equations`). Unless
+    ``refine_both``, the mirror start is abandoned after ``_GIVE_UP_AFTER``
+    iterations if its cost is still above ``_GIVE_UP_FACTOR`` times the first's
+    final cost (then only one candidate comes out).
+
+    Returns:
+        The number of candidates, 0 (failure), 1 or 2, written into ``T_out[k]``
+        (``T_c_m``, 4x4) and ``costs[k]`` (final sums of squared weighted
+        residuals). Candidate 0 is the one the lower-cost rule picks: the mirror's
+        pose if its cost is lower and it lies in front of the camera, else the
+        first start's; a pose counts only with a finite cost and ``t_z > 0``.
+    """
+    R1 = R.copy()
+    t1 = t.copy()
+    R2 = _mirrored_start(R1, t1)
+    t2 = t1.copy()
+    cost1 = _refine(R1, t1, obj, img, W, prior, np.inf)
+    cost2 = _refine(R2, t2, obj, img, W, prior, np.inf if refine_both else _GIVE_UP_FACTOR * cost1)
+    ok1 = np.isfinite(cost1) and t1[2] > 0.0
+    ok2 = np.isfinite(cost2) and t2[2] > 0.0
+    if ok2 and cost2 < cost1:
+        _write_pose(R2, t2, T_out[0])
+        costs[0] = cost2
+        if ok1:
+            _write_pose(R1, t1, T_out[1])
+            costs[1] = cost1
+            return 2
+        return 1
+    if not ok1:
+        return 0
+    _write_pose(R1, t1, T_out[0])
+    costs[0] = cost1
+    if ok2:
+        _write_pose(R2, t2, T_out[1])
+        costs[1] = cost2
+        return 2
+    return 1
+
+
+@numba.njit(cache=True)
+def solve_planar_pnp_candidates(
+    obj: np.ndarray, img: np.ndarray, W: np.ndarray, prior: np.ndarray, refine_both: bool, T_out: np.ndarray,
+    costs: np.ndarray,
+) -> int:
+    """Compiled solver keeping both poses of the planar ambiguity (see :func:`refine_two_starts`).
+
+    The homography's pose is the first start.
+
+    Args:
+        obj: (n, 2) float64 corners ``(x_M, y_M)`` in the board plane (m), n >= 4.
+        img: (n, 2) float64 undistorted normalised image coordinates.
+        W: (n, 4) float64 row-major 2x2 weight of each corner's residual. With
+            ``W_i = diag(fx, fy) D_i`` (``D_i`` the Jacobian of the lens
+            distortion at ``img[i]``) the weighted residual is the pixel
+            residual to first order, the costs are in px^2 and the solution is
+            the maximum-likelihood pose under isotropic Gaussian pixel noise.
+            Identity rows give plain normalised residuals.
+        prior: the upright prior (:func:`prior_vector`; zeros: none).
+        refine_both: refine the mirror start to the end even when it is clearly worse.
+        T_out: (2, 4, 4) float64 output poses ``T_c_m``.
+        costs: (2,) float64 output costs.
+
+    Returns:
+        The number of candidates (0: no solution; T_out untouched).
+    """
+    if obj.shape[0] < 4:
+        return 0
+    H = np.empty((3, 3))
+    if not _homography(obj, img, H):
+        return 0
+    for i in range(3):
+        for j in range(3):
+            if not np.isfinite(H[i, j]):
+                return 0
+    R, t = _pose_from_homography(H)
+    return refine_two_starts(R, t, obj, img, W, prior, refine_both, T_out, costs)
+
+
+@numba.njit(cache=True)
+def pose_information(
+    T: np.ndarray, obj: np.ndarray, img: np.ndarray, W: np.ndarray, prior: np.ndarray, info: np.ndarray
+) -> float:
+    """``J^T J`` (6x6, into ``info``) of the weighted residuals at ``T`` (``T_c_m``); returns the cost.
+
+    ``J`` is the Jacobian with respect to ``(dt, dtheta)``, translation first, of
+    the perturbation ``T = [exp([dtheta]x) R, t + dt]`` (the convention of
+    :class:`~moma_env.estimator.detection.Detection`'s covariance): with pixel
+    weights (see :func:`solve_planar_pnp_candidates`) ``sigma^2 inv(J^T J)`` is
+    the first-order covariance of the pose for corner noise of ``sigma`` px
+    (with a ``prior``, the posterior covariance: the prior's information added).
+    """
+    R = np.empty((3, 3))
+    t = np.empty(3)
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = T[i, j]
+        t[i] = T[i, 3]
+    jtj = np.empty((6, 6))
+    jtr = np.empty(6)
+    cost = _cost_and_normal_equations(R, t, obj, img, W, prior, jtj, jtr)
+    for a in range(6):  # the solver's order is (w, t); the output's (t, w)
+        for b in range(6):
+            info[a, b] = jtj[(a + 3) % 6, (b + 3) % 6]
+    return cost
+
+
+@numba.njit(cache=True)
+def refine_pose(T: np.ndarray, obj: np.ndarray, img: np.ndarray, W: np.ndarray, prior: np.ndarray) -> float:
+    """Levenberg-Marquardt from ``T`` (``T_c_m``, 4x4, updated in place); returns the final cost (inf: failed)."""
+    R = np.empty((3, 3))
+    t = np.empty(3)
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = T[i, j]
+        t[i] = T[i, 3]
+    cost = _refine(R, t, obj, img, W, prior, np.inf)
+    if np.isfinite(cost) and t[2] > 0.0:
+        _write_pose(R, t, T)
+        return cost
+    return np.inf
+
+
+@numba.njit(cache=True)
+def spd_inverse(A: np.ndarray, out: np.ndarray) -> bool:
+    """Inverse of the symmetric positive definite 6x6 ``A`` into ``out``; False (``out`` NaN) if not SPD."""
+    n = A.shape[0]
+    col = np.empty(n)
+    L = np.empty((n, n))
+    for j in range(n):
+        L[:, :] = A
+        for i in range(n):
+            col[i] = 1.0 if i == j else 0.0
+        if not _solve_spd(L, col):
+            out[:, :] = np.nan
+            return False
+        for i in range(n):
+            out[i, j] = col[i]
+    for i in range(n):  # exact symmetry
+        for j in range(i):
+            m = 0.5 * (out[i, j] + out[j, i])
+            out[i, j] = m
+            out[j, i] = m
+    return True
+
+
+@numba.njit(cache=True)
 def solve_planar_pnp_kernel(obj: np.ndarray, img: np.ndarray, T_out: np.ndarray) -> bool:
     """Compiled solver: writes ``T_c_m`` into ``T_out`` (4x4) and returns success.
 
-    Both poses of the planar ambiguity are refined (from the homography's pose
-    and from its mirror image, see :func:`_mirrored_start`; the second is
-    abandoned early when it is clearly worse) and the one with the smaller
-    reprojection error is kept.
+    Both poses of the planar ambiguity are refined on plain normalised
+    residuals (the mirror start abandoned early when clearly worse) and the one
+    with the smaller reprojection error is kept (:func:`solve_planar_pnp_candidates`).
 
     Args:
         obj: (n, 2) float64 corners ``(x_M, y_M)`` in the board plane (m), n >= 4.
@@ -378,32 +618,15 @@ def solve_planar_pnp_kernel(obj: np.ndarray, img: np.ndarray, T_out: np.ndarray)
         T_out: (4, 4) float64 output; left untouched on failure.
     """
     n = obj.shape[0]
-    if n < 4:
+    W = np.zeros((n, 4))
+    for i in range(n):
+        W[i, 0] = 1.0
+        W[i, 3] = 1.0
+    T = np.empty((2, 4, 4))
+    costs = np.empty(2)
+    if solve_planar_pnp_candidates(obj, img, W, np.zeros(7), False, T, costs) == 0:
         return False
-    H = np.empty((3, 3))
-    if not _homography(obj, img, H):
-        return False
-    for i in range(3):
-        for j in range(3):
-            if not np.isfinite(H[i, j]):
-                return False
-    R, t = _pose_from_homography(H)
-    R2 = _mirrored_start(R, t)
-    t2 = t.copy()
-    cost = _refine(R, t, obj, img, np.inf)
-    cost2 = _refine(R2, t2, obj, img, _GIVE_UP_FACTOR * cost)
-    if cost2 < cost and t2[2] > 0.0:
-        R = R2
-        t = t2
-        cost = cost2
-    if not (np.isfinite(cost) and t[2] > 0.0):
-        return False
-    for i in range(3):
-        for j in range(3):
-            T_out[i, j] = R[i, j]
-        T_out[i, 3] = t[i]
-        T_out[3, i] = 0.0
-    T_out[3, 3] = 1.0
+    T_out[:, :] = T[0]
     return True
 
 

@@ -23,7 +23,10 @@ with the real pipeline a camera on the robots would run:
    border; range, incidence and occlusion are whatever the image allows. One
    Detection per board with a detected marker, ``T_c_m`` from PnP on all of
    its detected corners with the configured ``pnp_method``
-   (``GeometricCamera.solve_boards``, so both backends solve identically).
+   (``GeometricCamera.solve_boards``, so both backends solve identically),
+   the same choice between the two poses of the planar ambiguity and a
+   covariance whose corner noise is, by default, estimated from each board's
+   residuals (``CameraConfig.pnp_sigma_source``).
 
 Speed: the floor view is kept while the camera does not move (or, with
 ``RenderConfig.floor_reuse_px``, while it moves the view by less than that);
@@ -53,7 +56,7 @@ from moma_env.camera.backend import BoardView, OcclusionQuery, as_pose
 from moma_env.camera.board_raster import BoardRaster, aruco_dictionary
 from moma_env.camera.config import CameraConfig
 from moma_env.camera.floor import FloorConfig, FloorTexture
-from moma_env.camera.geometric import GeometricCamera
+from moma_env.camera.geometric import GeometricCamera, board_up_rows, finite_or_none
 from moma_env.camera.pinhole import PinholeCamera
 from moma_env.camera.rays import PixelRays
 from moma_env.camera.render_config import RenderConfig
@@ -79,7 +82,9 @@ class RenderedCamera:
     Args:
         camera_id: name copied into every detection.
         config: intrinsics, distortion, visibility limits and PnP method.
-            ``noise_px`` is not used: the noise is in the image (``render``).
+            ``noise_px`` adds no noise (the noise is in the image, ``render``);
+            it is the covariances' corner noise only with
+            ``pnp_sigma_source="noise_px"``.
         render: image formation and detector settings (defaults if None).
         floor: the floor texture; None draws a plain floor of
             ``FloorConfig.gray``.
@@ -101,6 +106,7 @@ class RenderedCamera:
         self.camera_id = camera_id
         self.camera: PinholeCamera = self._solver.camera
         self.config = config
+        self._sigma_px = config.noise_px if config.pnp_sigma_source == "noise_px" else math.nan
         self.render_config = RenderConfig() if render is None else render
         if not isinstance(self.render_config, RenderConfig):
             raise TypeError(f"render must be a RenderConfig, got {type(self.render_config).__name__}")
@@ -137,7 +143,7 @@ class RenderedCamera:
         :attr:`last_image`.
         """
         image = self.render(T_w_c, boards, rng, time=time, occluded=occluded)
-        return self.detect(image, boards, time)
+        return self.detect(image, boards, time, up_c=self._solver.up_in_camera(as_pose(T_w_c, "T_w_c"), rng))
 
     def render(
         self,
@@ -175,11 +181,15 @@ class RenderedCamera:
         self.last_render_s = _time.perf_counter() - start
         return image
 
-    def detect(self, image: np.ndarray, boards: Sequence[BoardView], time: float) -> list[Detection]:
+    def detect(
+        self, image: np.ndarray, boards: Sequence[BoardView], time: float, up_c: np.ndarray | None = None
+    ) -> list[Detection]:
         """Board detections in a grayscale ``image`` (uint8, this camera's size): ArUco, then PnP.
 
         Works on any image of this camera (rendered or real). Markers whose ids
-        belong to no board are ignored.
+        belong to no board are ignored. ``up_c`` is world up in C (unit 3-vector,
+        e.g. from an IMU) for the upright prior; None: unknown (the lower
+        reprojection cost decides between the two poses of a flip).
         """
         time = float(time)
         if not math.isfinite(time):
@@ -187,6 +197,10 @@ class RenderedCamera:
         image = np.asarray(image)
         if image.dtype != np.uint8 or image.shape != self.rays.shape:
             raise ValueError(f"image must be uint8 of shape {self.rays.shape}, got {image.dtype} {image.shape}")
+        if up_c is not None:
+            up_c = np.asarray(up_c, dtype=float)
+            if up_c.shape != (3,) or not np.isfinite(up_c).all() or abs(float(up_c @ up_c) - 1.0) > 1e-6:
+                raise ValueError(f"up_c must be a finite unit 3-vector, got {up_c!r}")
         if not boards:
             self.last_detect_s = 0.0
             return []
@@ -212,14 +226,19 @@ class RenderedCamera:
             pixels.append(np.concatenate(list(seen.values())))
             starts.append(starts[-1] + 4 * len(seen))
         px = np.concatenate(pixels).astype(np.float64)
-        T, rms = self._solver.solve_boards(np.concatenate(objects), px, np.array(starts, dtype=np.int64))
+        up_m = board_up_rows([boards[b] for b, _ in order]) if up_c is not None else None
+        T, rms, cov = self._solver.solve_boards(
+            np.concatenate(objects), px, np.array(starts, dtype=np.int64), up_m, up_c, self._sigma_px
+        )
         detections = []
         for i, (b, indices) in enumerate(order):
             if not math.isfinite(rms[i]):
                 continue
             ids = tuple(layouts[b].marker_ids[k] for k in indices)
             first, end = starts[i], starts[i + 1]
-            detections.append(Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, float(rms[i])))
+            detections.append(
+                Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, float(rms[i]), finite_or_none(cov[i]))
+            )
         return detections
 
     # ------------------------------------------------------------------ scene

@@ -41,7 +41,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from moma_env.camera import BoardView
+from moma_env.camera import BoardView, up_in_board
 from moma_env.config import all_finite
 from moma_env.control import BoardTrackingController, WaypointFollower, WaypointFollowerConfig
 from moma_env.env.cameras import build_cameras, floor_for
@@ -160,6 +160,7 @@ class MomaParallelEnv(ParallelEnv):
             board_id = len(wc.ugvs) + k
             self._boards.append((sled.name, board_id, sled.board))
             board_owner[board_id] = sled.name
+        self._board_up = {d.name: up_in_board(d.board_mount) for d in (*wc.ugvs, *sleds)}  # world up in M, from the mounts
         camera_owner: dict[str, str] = {}
         for ugv in wc.ugvs:
             for cam in ugv.cameras:
@@ -576,7 +577,7 @@ class MomaParallelEnv(ParallelEnv):
         return self._tracker.command(positions)
 
     def _measure(self) -> list:
-        views = [BoardView(board_id, layout, self.world.board_transform(device)) for device, board_id, layout in self._boards]
+        views = [BoardView(board_id, layout, self.world.board_transform(device), self._board_up[device]) for device, board_id, layout in self._boards]
         if self._occlusions:
             # Device positions for the occlusion queries, once per frame.
             self._device_xy = [(d, self._device_pose(d)[:2]) for d in self._devices]

@@ -38,6 +38,7 @@ from moma_env.camera import (
     FloorTexture,
     RenderConfig,
     make_camera,
+    up_in_board,
 )
 from moma_env.config import ConfigError, check_bool, check_choice, check_non_negative, check_positive
 from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
@@ -424,7 +425,7 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
         wheel.update(world.ugv_body_velocity(MAIN), world.dt, rng_odometry)
         if vo is not None:
             vo.update(vo_camera.frame(world.ugv_transform(MAIN), rng_vo_frames, time=world.time))
-        views = [BoardView(board_id, layout, world.board_transform(name)) for name, (board_id, layout) in boards.items()]
+        views = [BoardView(board_id, layout, world.board_transform(name), up_in_board(world.config.ugv(name).board_mount)) for name, (board_id, layout) in boards.items()]
         detections = camera.measure(world.camera_transform(uav_cfg.camera_name), views, world.time, rng_camera)
         estimator.update(world.time, detections)
         record()
