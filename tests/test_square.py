@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from moma_env.config import ConfigError
-from moma_env.metrics import read_tum
+from moma_env.metrics import read_tum, read_tum_with_covariances
 from training.cli import main
 from training.experiments.square import SquareConfig, run_square, square_legs, square_waypoints
 from training.experiments.square_report import format_table
@@ -87,6 +87,11 @@ def test_cli_writes_table_figure_tum_and_json(tmp_path, capsys):
     truth = read_tum(out / "tum" / "run_00" / "ugv_0_truth.tum")
     moma = read_tum(out / "tum" / "run_01" / "ugv_0_moma.tum")
     assert len(truth) > 100 and len(moma) > 100
+    # MOMA's covariances go beside its TUM file, line for line; the other methods have none
+    with_cov = read_tum_with_covariances(out / "tum" / "run_01" / "ugv_0_moma.tum")
+    np.testing.assert_array_equal(with_cov.times, moma.times)
+    assert with_cov.covariances.shape == (len(moma), 6, 6) and np.isfinite(with_cov.covariances).all()
+    assert sorted(p.name for p in (out / "tum" / "run_00").glob("*.cov.txt")) == ["uav_moma.cov.txt", "ugv_0_moma.cov.txt", "ugv_1_moma.cov.txt"]
     assert not list(out.rglob("*.tmp*"))
 
     assert main(["experiment", "square", "--side", "0.5", "--runs", "1", "--out", str(tmp_path / "t")]) == 0

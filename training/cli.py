@@ -4,6 +4,7 @@ Subcommands:
     experiment square   the paper's 1 m square: table, figure, TUM files, JSON, CSV.
     experiment line     the paper's 4.6 m line, forward-back-forward: keypoint table, figures, JSON, CSV.
     experiment flips    how often a nearly face-on board's pose comes out flipped, per pose rule.
+    experiment consistency  Monte Carlo NEES of MOMA's covariance (square, line; planar, 6-DoF): table, figures, JSON, CSV.
     bench               environment steps per second against MPE2, memory over a long run.
     evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
     train               train a coordination policy with Stable-Baselines3 (training/train/).
@@ -67,6 +68,25 @@ def build_parser() -> argparse.ArgumentParser:
     fl.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the views and the noise (default 0)")
     fl.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     fl.set_defaults(handler=_run_flips)
+
+    cons = exp_sub.add_parser(
+        "consistency", help="Monte Carlo NEES of MOMA's covariance on the square and the line (planar and 6-DoF UGVs)"
+    )
+    cons.add_argument("--runs", type=_int_at_least(1, "count"), default=20, help="runs of each geometric-camera case (default 20)")
+    cons.add_argument(
+        "--rendered-runs", type=_int_at_least(0, "count"), default=2, help="runs of each rendered-camera case (default 2; 0 skips them)"
+    )
+    cons.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first run of each case; run k uses seed+k (default 0)")
+    cons.add_argument(
+        "--jobs", type=_int_at_least(1, "job count"), default=1, help="worker processes for the runs (default 1; same results for any value)"
+    )
+    cons.add_argument("--experiments", nargs="+", choices=("square", "line"), default=["square", "line"], help="experiments to run (default both)")
+    cons.add_argument(
+        "--max-time", type=_positive_float("time limit (s)"), default=None, help="simulated time limit of a run in s (default: the experiment's)"
+    )
+    cons.add_argument("--out", type=Path, default=Path("runs/consistency"), help="output folder (default runs/consistency)")
+    cons.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
+    cons.set_defaults(handler=_run_consistency)
 
     bench = sub.add_parser("bench", help="steps per second of every environment against MPE2, and memory over a long run")
     bench.add_argument("--steps", type=_int_at_least(100, "step count"), default=5000, help="random-action steps per row (default 5000)")
@@ -301,6 +321,28 @@ def _run_experiment(args: argparse.Namespace) -> int:
             print("\n" + (f"{name}: {paths}" if isinstance(paths, Path) else "\n".join(f"{kind}: {path}" for kind, path in paths.items())))
         print(f"wall time: {wall:.1f} s")
     return 0 if completed else 1
+
+
+def _run_consistency(args: argparse.Namespace) -> int:
+    from moma_env.io import to_jsonable
+    from training.experiments.consistency import consistency_cases, run_consistency
+    from training.experiments.consistency_report import format_table, results_dict, write_outputs
+
+    try:
+        cases = consistency_cases(args.runs, args.rendered_runs, tuple(dict.fromkeys(args.experiments)), args.max_time)
+    except ValueError as err:
+        print(f"moma-env experiment consistency: {err}", file=sys.stderr)
+        return 2
+    start = time.perf_counter()
+    results = run_consistency(cases, args.seed, jobs=args.jobs, log=lambda line: print(line, file=sys.stderr))
+    files = write_outputs(results, args.seed, args.out)
+    wall = time.perf_counter() - start
+    if args.json:
+        print(json.dumps(to_jsonable(results_dict(results, args.seed) | {"wall_time_s": wall, "files": files}), indent=2, sort_keys=True))
+    else:
+        print(format_table(results))
+        print("\n" + "\n".join(f"{kind}: {path}" for kind, path in files.items()) + f"\nwall time: {wall:.1f} s")
+    return 0 if all(r.n_completed == r.case.n_runs for r in results) else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:

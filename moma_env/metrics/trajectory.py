@@ -7,6 +7,14 @@ whose pose is unknown (an estimator that reported nothing, a lost visual
 odometry) is stored as an all-NaN pose and is *invalid*; ``valid`` masks the
 others. Planar quantities (``xy``, ``yaw``, path length) use the world's x-y
 floor plane.
+
+An estimate that reports its uncertainty (MOMA) may carry ``covariances``:
+``(n, 6, 6)`` covariances of the pose errors in the world frame W, translation
+first, rotation perturbed on the left (the convention of
+:mod:`moma_env.estimator.uncertainty`, a ROS ``PoseWithCovariance``): m^2 in
+``[:3, :3]``, rad^2 in ``[3:, 3:]``, m rad off the diagonal blocks. A sample
+without a covariance (an invalid pose, or a method that gave none at that
+time) is all NaN.
 """
 
 from __future__ import annotations
@@ -20,6 +28,8 @@ import numpy as np
 __all__ = ["Trajectory", "TrajectoryRecorder"]
 
 _ROTATION_TOLERANCE = 1e-6
+#: Largest asymmetry |C - C^T| accepted in a covariance, relative to its largest entry.
+_SYMMETRY_TOLERANCE = 1e-9
 _BOTTOM_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 
 
@@ -49,19 +59,26 @@ class Trajectory:
         poses: ``(n, 4, 4)`` rigid poses ``T_w_b`` (m). An invalid sample is an
             all-NaN pose; on construction a pose with any NaN entry becomes all
             NaN.
+        covariances: None (the method reports no uncertainty), or ``(n, 6, 6)``
+            covariances of the pose errors (world frame W, translation first,
+            rotation perturbed on the left; m^2, m rad, rad^2; see the module
+            docstring). A covariance with any NaN entry becomes all NaN, and so
+            does the covariance of an invalid pose.
 
-    Both arrays are copied on construction and made read-only.
+    The arrays are copied on construction and made read-only.
 
     Raises:
         ValueError: wrong shapes, non-finite or non-increasing times, infinite
             pose entries, or a valid pose that is not a rigid transform
             (rotation not orthonormal with determinant +1 within 1e-6, or
-            bottom row not ``[0, 0, 0, 1]``). The message names the first bad
-            sample.
+            bottom row not ``[0, 0, 0, 1]``); a covariance with an infinite
+            entry, a negative diagonal entry or not symmetric (within 1e-9 of
+            its largest entry). The message names the first bad sample.
     """
 
     times: np.ndarray
     poses: np.ndarray
+    covariances: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         times = np.array(self.times, dtype=float, copy=True)
@@ -91,11 +108,16 @@ class Trajectory:
         valid = ~invalid
         if valid.any():
             _check_rigid(poses[valid], np.flatnonzero(valid))
+        covariances = None
+        if self.covariances is not None:
+            covariances = _checked_covariances(self.covariances, n, invalid)
+            covariances.flags.writeable = False
         times.flags.writeable = False
         poses.flags.writeable = False
         valid.flags.writeable = False
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "poses", poses)
+        object.__setattr__(self, "covariances", covariances)
         object.__setattr__(self, "_valid", valid)
 
     # -- construction -------------------------------------------------------
@@ -190,11 +212,24 @@ class Trajectory:
             raise ValueError(f"window start {start!r} is after stop {stop!r}")
         lo = int(np.searchsorted(self.times, start, side="left"))
         hi = int(np.searchsorted(self.times, stop, side="right"))
-        return Trajectory(self.times[lo:hi], self.poses[lo:hi])
+        return self._subset(slice(lo, hi))
 
     def valid_only(self) -> Trajectory:
         """The valid samples only, as a new trajectory."""
-        return Trajectory(self.times[self.valid], self.poses[self.valid])
+        return self._subset(self.valid)
+
+    def with_covariances(self, covariances: np.ndarray | None) -> Trajectory:
+        """This trajectory with ``(n, 6, 6)`` pose covariances (or None: without), as a new trajectory."""
+        return Trajectory(self.times, self.poses, covariances)
+
+    @property
+    def has_covariances(self) -> bool:
+        """True if the samples carry covariances (:attr:`covariances` is not None)."""
+        return self.covariances is not None
+
+    def _subset(self, index: slice | np.ndarray) -> Trajectory:
+        covariances = None if self.covariances is None else self.covariances[index]
+        return Trajectory(self.times[index], self.poses[index], covariances)
 
     def __repr__(self) -> str:
         if len(self) == 0:
@@ -203,6 +238,34 @@ class Trajectory:
             f"Trajectory(n={len(self)}, t=[{self.times[0]:.6g}, {self.times[-1]:.6g}] s, "
             f"valid={int(self.valid.sum())})"
         )
+
+
+def _checked_covariances(covariances: np.ndarray, n: int, invalid: np.ndarray) -> np.ndarray:
+    """A validated copy of ``(n, 6, 6)`` covariances: NaN-containing and invalid-pose samples all NaN.
+
+    Raises ValueError naming the first sample with an infinite entry, a negative
+    diagonal entry or an asymmetry beyond ``_SYMMETRY_TOLERANCE``.
+    """
+    cov = np.array(covariances, dtype=float, copy=True)
+    if cov.shape != (n, 6, 6):
+        raise ValueError(f"covariances must have shape ({n}, 6, 6) to match times, got {cov.shape}")
+    if np.isinf(cov).any():
+        i = int(np.argmax(np.isinf(cov).any(axis=(1, 2))))
+        raise ValueError(f"covariances must be finite or NaN (no covariance); covariances[{i}] contains inf")
+    missing = np.isnan(cov).any(axis=(1, 2)) | invalid
+    cov[missing] = np.nan
+    known = ~missing
+    if known.any():
+        c = cov[known]
+        indices = np.flatnonzero(known)
+        negative = (np.diagonal(c, axis1=1, axis2=2) < 0.0).any(axis=1)
+        if negative.any():
+            raise ValueError(f"covariances[{int(indices[np.argmax(negative)])}] has a negative diagonal entry (a variance)")
+        scale = np.abs(c).max(axis=(1, 2))
+        asymmetric = np.abs(c - c.transpose(0, 2, 1)).max(axis=(1, 2)) > _SYMMETRY_TOLERANCE * scale
+        if asymmetric.any():
+            raise ValueError(f"covariances[{int(indices[np.argmax(asymmetric)])}] is not symmetric")
+    return cov
 
 
 def _check_rigid(poses: np.ndarray, indices: np.ndarray) -> None:
@@ -228,37 +291,49 @@ class TrajectoryRecorder:
     Args:
         planar_z: height (m) given to samples appended as planar ``(x, y, yaw)``.
         capacity: initial number of samples to preallocate.
+        covariances: also record a 6x6 pose covariance per sample (see
+            :class:`Trajectory`; world frame W, translation first, m^2, m rad,
+            rad^2), passed to :meth:`append`; the trajectory then carries them.
     """
 
-    __slots__ = ("_times", "_poses", "_n", "_planar_z", "_last_time")
+    __slots__ = ("_times", "_poses", "_covariances", "_n", "_planar_z", "_last_time")
 
     # Invariant: slots at index >= _n hold the planar template, so a planar
     # append writes only its six varying entries.
 
-    def __init__(self, planar_z: float = 0.0, capacity: int = 1024):
+    def __init__(self, planar_z: float = 0.0, capacity: int = 1024, covariances: bool = False):
         if not math.isfinite(planar_z):
             raise ValueError(f"planar_z must be finite, got {planar_z!r}")
         if int(capacity) < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity!r}")
+        if not isinstance(covariances, bool):
+            raise ValueError(f"covariances must be a bool, got {covariances!r}")
         self._planar_z = float(planar_z)
         self._times = np.empty(int(capacity))
         self._poses = self._blank_poses(int(capacity))
+        self._covariances = np.empty((int(capacity), 6, 6)) if covariances else None
         self._n = 0
         self._last_time = -math.inf
 
     def __len__(self) -> int:
         return self._n
 
-    def append(self, time: float, pose: np.ndarray | Sequence[float] | None) -> None:
+    def append(
+        self, time: float, pose: np.ndarray | Sequence[float] | None, covariance: np.ndarray | None = None
+    ) -> None:
         """Record a sample at ``time`` (s, later than the previous one).
 
         ``pose`` is a 4x4 pose ``T_w_b`` (m), a planar ``(x, y, yaw)`` (m, m,
         rad, placed at height ``planar_z``), or ``None`` for an invalid sample
-        (no estimate at this time).
+        (no estimate at this time). ``covariance`` is the pose's 6x6 covariance
+        (see :class:`Trajectory`), or None for none (recorded as NaN); only a
+        recorder made with ``covariances=True`` takes one. It is checked when
+        the trajectory is built (:meth:`to_trajectory`), not here.
 
         Raises:
             ValueError: ``time`` not finite or not after the previous sample's,
-                or ``pose`` of another shape.
+                ``pose`` of another shape, ``covariance`` not 6x6, or a
+                covariance given to a recorder without covariances.
         """
         t = float(time)
         if not t > self._last_time or t == math.inf:
@@ -266,6 +341,16 @@ class TrajectoryRecorder:
         n = self._n
         if n == self._times.shape[0]:
             self._grow()
+        covariances = self._covariances
+        if covariances is not None:
+            if covariance is None:
+                covariances[n].fill(math.nan)
+            elif getattr(covariance, "shape", None) == (6, 6):
+                covariances[n] = covariance
+            else:
+                raise ValueError(f"covariance must be a 6x6 array or None, got shape {np.shape(covariance)}")
+        elif covariance is not None:
+            raise ValueError("covariance given to a recorder made without covariances (pass covariances=True)")
         slot = self._poses[n]
         if pose is None:
             slot.fill(math.nan)
@@ -305,8 +390,13 @@ class TrajectoryRecorder:
         poses = self._blank_poses(capacity)
         times[: self._n] = self._times[: self._n]
         poses[: self._n] = self._poses[: self._n]
+        if self._covariances is not None:
+            covariances = np.empty((capacity, 6, 6))
+            covariances[: self._n] = self._covariances[: self._n]
+            self._covariances = covariances
         self._times, self._poses = times, poses
 
     def to_trajectory(self) -> Trajectory:
         """The samples recorded so far, as a (validated, independent) :class:`Trajectory`."""
-        return Trajectory(self._times[: self._n], self._poses[: self._n])
+        covariances = None if self._covariances is None else self._covariances[: self._n]
+        return Trajectory(self._times[: self._n], self._poses[: self._n], covariances)

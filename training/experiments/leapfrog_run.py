@@ -59,6 +59,7 @@ __all__ = [
     "FloorVOSetup",
     "LeapfrogConfig",
     "LeapfrogRun",
+    "CameraFactory",
     "left_of",
     "leapfrog_legs",
     "run_leapfrog",
@@ -270,6 +271,11 @@ class LeapfrogRun:
         lost_at: ``{method: time (s) it first lost track, or None}``.
         completed: True if every leg was driven before ``max_time_s``.
         duration_s: simulated time (s).
+        localised: ``{robot: (n,) bool}``, per sample of the robot's
+            trajectories, True where MOMA's estimate was LOCALISED (fresh), not
+            HOLDING or LOST: the samples where its covariance describes its pose.
+            The MOMA trajectories carry their covariances
+            (:attr:`Trajectory.covariances`).
     """
 
     seed: int
@@ -280,6 +286,7 @@ class LeapfrogRun:
     lost_at: dict[str, float | None]
     completed: bool
     duration_s: float
+    localised: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def methods(self) -> tuple[str, ...]:
@@ -351,13 +358,27 @@ def _observer_camera(config: LeapfrogConfig, camera_name: str, floor: FloorTextu
     return make_camera(camera_name, config.camera, backend="rendered", render=config.render, floor=floor)
 
 
-def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], None] | None = None) -> LeapfrogRun:
+#: ``camera_factory(config, camera_name, floor) -> CameraBackend``: builds the observer's camera of a run.
+CameraFactory = Callable[[LeapfrogConfig, str, FloorTexture | None], CameraBackend]
+
+
+def run_leapfrog(
+    config: LeapfrogConfig,
+    seed: int,
+    progress: Callable[[float], None] | None = None,
+    camera_factory: CameraFactory | None = None,
+) -> LeapfrogRun:
     """Run the experiment once with every random draw seeded by ``seed``.
 
     Args:
         config: the experiment (square, line, ...).
         seed: seed of the run's generators (world, camera, odometry).
         progress: called with the simulated time (s) after every step, if given.
+        camera_factory: builds the observer's camera from the configuration,
+            the camera's name and the floor texture (None unless the backend is
+            rendered); default: ``config.camera_backend``'s camera. The camera
+            draws from the run's camera generator, so a factory changes only
+            what the camera does with it.
     """
     root = np.random.default_rng(seed)
     # Children 0-2 do not depend on how many are spawned: geometric runs are unchanged by the VO's.
@@ -366,7 +387,7 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
     world.reset(rng_world)
     uav_cfg = world.config.uav
     floor = floor_texture(config) if config.camera_backend == "rendered" else None
-    camera = _observer_camera(config, uav_cfg.camera_name, floor)
+    camera = (camera_factory or _observer_camera)(config, uav_cfg.camera_name, floor)
     tracker = BoardTrackingController(
         uav_cfg.camera_mount[:3, :3], config.camera.fx, (config.camera.width, config.camera.height), config.tracking_config()
     )
@@ -395,16 +416,25 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
         vo_camera = FloorCamera(config.vo.camera, config.vo.T_b_c, floor, config.vo.render)
         vo = VisualOdometry(config.vo.camera, config.vo.T_b_c, config.vo.tracking, initial_pose=world.ugv_pose(MAIN), rng=rng_vo)
         vo.update(vo_camera.frame(world.ugv_transform(MAIN), rng_vo_frames, time=world.time))
-    recorders = {name: {m: TrajectoryRecorder() for m in ("truth", *methods)} for name in (MAIN, BUDDY)}
-    recorders[uav_cfg.name] = {m: TrajectoryRecorder() for m in ("truth", "moma")}
+    # MOMA reports a covariance with its poses; the other methods do not.
+    recorders = {
+        name: {m: TrajectoryRecorder(covariances=m == "moma") for m in ("truth", *methods)} for name in (MAIN, BUDDY)
+    }
+    recorders[uav_cfg.name] = {m: TrajectoryRecorder(covariances=m == "moma") for m in ("truth", "moma")}
+    localised: dict[str, list[bool]] = {name: [] for name in recorders}
     lost_at: dict[str, float | None] = {m: None for m in methods}
     switch_times: list[float] = []
+
+    def record_moma(name: str, t: float) -> None:
+        est = estimator.estimate(name)
+        recorders[name]["moma"].append(t, est.T_w_b, est.covariance)
+        localised[name].append(est.status is Status.LOCALISED)
 
     def record() -> None:
         t = world.time
         for name in (MAIN, BUDDY):
             recorders[name]["truth"].append(t, world.ugv_transform(name))
-            recorders[name]["moma"].append(t, estimator.estimate(name).T_w_b)
+            record_moma(name, t)
         recorders[MAIN]["wheel"].append(t, wheel.pose)
         recorders[BUDDY]["wheel"].append(t, None)
         if vo is not None:
@@ -413,7 +443,7 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
             if lost_at["vo"] is None and vo.lost:
                 lost_at["vo"] = t
         recorders[uav_cfg.name]["truth"].append(t, world.uav_transform())
-        recorders[uav_cfg.name]["moma"].append(t, estimator.estimate(uav_cfg.name).T_w_b)
+        record_moma(uav_cfg.name, t)
         if lost_at["moma"] is None and estimator.estimate(MAIN).status is Status.LOST:
             lost_at["moma"] = t
 
@@ -458,6 +488,7 @@ def run_leapfrog(config: LeapfrogConfig, seed: int, progress: Callable[[float], 
         lost_at=lost_at,
         completed=schedule.done,
         duration_s=world.time,
+        localised={name: np.array(flags, dtype=bool) for name, flags in localised.items()},
     )
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from moma_env.io import atomic_path, write_csv, write_json
-from moma_env.metrics import write_tum
+from moma_env.metrics import covariance_path_for, write_covariances, write_tum
 from training.experiments.leapfrog_run import MAIN, LeapfrogConfig, LeapfrogRun
 
 __all__ = ["LABELS", "COLOURS", "cm", "pct", "write_run_tums", "run_record", "config_record", "results_base",
@@ -42,7 +42,12 @@ def pct(value: float | None, width: int = 6, digits: int = 3) -> str:
 
 
 def write_run_tums(runs: list[LeapfrogRun], out_dir: Path) -> Path:
-    """``out_dir/tum/run_XX/<robot>_<method>.tum`` for every trajectory with a valid sample."""
+    """``out_dir/tum/run_XX/<robot>_<method>.tum`` for every trajectory with a valid sample.
+
+    A trajectory that carries covariances (MOMA's) also gets
+    ``<robot>_<method>.cov.txt``, line for line beside its TUM file
+    (:mod:`moma_env.metrics.tum_covariance`).
+    """
     tum_dir = out_dir / "tum"
     for k, run in enumerate(runs):
         run_dir = tum_dir / f"run_{k:02d}"
@@ -50,7 +55,10 @@ def write_run_tums(runs: list[LeapfrogRun], out_dir: Path) -> Path:
         for robot, trajs in run.trajectories.items():
             for method, traj in trajs.items():
                 if np.any(traj.valid):
-                    write_tum(run_dir / f"{robot.replace('/', '_')}_{method}.tum", traj)
+                    path = run_dir / f"{robot.replace('/', '_')}_{method}.tum"
+                    write_tum(path, traj)
+                    if traj.covariances is not None:
+                        write_covariances(covariance_path_for(path), traj)
     return tum_dir
 
 

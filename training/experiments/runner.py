@@ -11,8 +11,9 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 
-from training.experiments.leapfrog_run import LeapfrogConfig, LeapfrogRun, run_leapfrog
+from training.experiments.leapfrog_run import CameraFactory, LeapfrogConfig, LeapfrogRun, run_leapfrog
 
 __all__ = ["run_many", "describe_run"]
 
@@ -31,7 +32,12 @@ def describe_run(run: LeapfrogRun) -> str:
 
 
 def run_many(
-    config: LeapfrogConfig, n_runs: int, seed: int, log: Callable[[str], None] | None = None, jobs: int = 1
+    config: LeapfrogConfig,
+    n_runs: int,
+    seed: int,
+    log: Callable[[str], None] | None = None,
+    jobs: int = 1,
+    camera_factory: CameraFactory | None = None,
 ) -> list[LeapfrogRun]:
     """``n_runs`` runs of ``config`` with seeds ``seed .. seed + n_runs - 1``, in seed order.
 
@@ -41,6 +47,8 @@ def run_many(
         seed: seed of the first run.
         log: gets one line per finished run.
         jobs: worker processes (>= 1); 1 runs in this process.
+        camera_factory: the observer's camera (see :func:`run_leapfrog`); with
+            ``jobs > 1`` it must be picklable (a module-level function).
     """
     if n_runs < 1:
         raise ValueError(f"n_runs must be >= 1, got {n_runs}")
@@ -54,11 +62,12 @@ def run_many(
         if log is not None:
             log(f"run {len(runs)}/{n_runs} {describe_run(run)}")
 
+    one_run = partial(run_leapfrog, camera_factory=camera_factory)
     if jobs == 1 or n_runs == 1:
         for s in seeds:
-            done(run_leapfrog(config, s))
+            done(one_run(config, s))
     else:
         with ProcessPoolExecutor(max_workers=min(jobs, n_runs)) as pool:
-            for run in pool.map(run_leapfrog, [config] * n_runs, seeds):
+            for run in pool.map(one_run, [config] * n_runs, seeds):
                 done(run)
     return runs
