@@ -174,3 +174,27 @@ def test_attitude_noise_draws_three_numbers_after_the_corner_noise():
         states.append(rng)
     states[0].standard_normal(3)
     assert states[0].bit_generator.state == states[1].bit_generator.state
+
+
+def test_env_board_normal_errors_are_measured_from_the_env_public_frame():
+    from training.experiments.board_normals import format_normal_table, normal_errors
+
+    result = normal_errors("caterpillar", episodes=1, seed=0)
+    assert result["detections"] > 100
+    assert 0.0 <= result["median_deg"] <= result["p99_deg"] <= result["max_deg"] < 90.0
+    assert 0.0 <= result["over_5_deg"] <= 1.0
+    table = format_normal_table([result])
+    assert "| caterpillar |" in table and "1 random layouts" in table
+    with pytest.raises(ValueError, match="episodes"):
+        normal_errors("caterpillar", episodes=0)
+
+
+def test_env_exposes_the_latest_detections_and_board_devices():
+    from moma_env.top_observer_v0 import parallel_env
+
+    env = parallel_env()
+    env.reset(seed=0)
+    core = env.unwrapped
+    assert core.detections and all(core.board_device(d.board_id).startswith("ugv_") for d in core.detections)
+    with pytest.raises(KeyError, match="unknown board id 99"):
+        core.board_device(99)

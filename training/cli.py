@@ -67,6 +67,13 @@ def build_parser() -> argparse.ArgumentParser:
     fl.add_argument("--views", type=_int_at_least(1, "view count"), default=1000, help="random views per tilt (default 1000)")
     fl.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the views and the noise (default 0)")
     fl.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
+    fl.add_argument(
+        "--envs",
+        type=_int_at_least(1, "episode count"),
+        default=None,
+        metavar="EPISODES",
+        help="also measure the detected normals' errors in every configuration over EPISODES scripted episodes",
+    )
     fl.set_defaults(handler=_run_flips)
 
     cons = exp_sub.add_parser(
@@ -202,11 +209,19 @@ def _run_flips(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     result = flip_rates(FlipConfig(views=args.views, seed=args.seed))
+    if args.envs is not None:
+        from moma_env.scenarios import CONFIGURATIONS
+        from training.experiments.board_normals import format_normal_table, normal_errors
+
+        result["environments"] = [normal_errors(name, args.envs, args.seed) for name in CONFIGURATIONS]
     wall = time.perf_counter() - start
     if args.json:
         print(json.dumps(result | {"wall_time_s": wall}, indent=2))
     else:
-        print(format_flip_table(result) + f"\n\nwall time: {wall:.1f} s")
+        tables = [format_flip_table(result)]
+        if args.envs is not None:
+            tables.append(format_normal_table(result["environments"]))
+        print("\n\n".join(tables) + f"\n\nwall time: {wall:.1f} s")
     return 0
 
 

@@ -646,6 +646,19 @@ class MomaParallelEnv(ParallelEnv):
         )
         return float(reward), newly, len(new_contacts)
 
+    @property
+    def detections(self) -> tuple:
+        """The latest camera frame: every camera's ``Detection``s of the last ``reset``
+        or ``step`` (camera ids are the world's camera names)."""
+        return tuple(self._detections)
+
+    def board_device(self, board_id: int) -> str:
+        """The device (UGV or sled) that carries board ``board_id``; KeyError naming the known ids otherwise."""
+        try:
+            return self._board_owner[board_id]
+        except KeyError:
+            raise KeyError(f"unknown board id {board_id!r}; known: {sorted(self._board_owner)}") from None
+
     def localisation_error(self, device: str) -> float:
         """Planar position error (m) of a device's MOMA estimate, NaN without one
         (as of the last ``reset`` or ``step``; see :meth:`_read_truth`)."""
