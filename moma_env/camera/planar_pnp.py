@@ -480,20 +480,16 @@ def refine_two_starts(
     ok1 = np.isfinite(cost1) and t1[2] > 0.0
     ok2 = np.isfinite(cost2) and t2[2] > 0.0
     if ok2 and cost2 < cost1:
-        _write_pose(R2, t2, T_out[0])
-        costs[0] = cost2
-        if ok1:
-            _write_pose(R1, t1, T_out[1])
-            costs[1] = cost1
-            return 2
-        return 1
-    if not ok1:
+        R_a, t_a, cost_a, R_b, t_b, cost_b, ok_b = R2, t2, cost2, R1, t1, cost1, ok1
+    elif ok1:
+        R_a, t_a, cost_a, R_b, t_b, cost_b, ok_b = R1, t1, cost1, R2, t2, cost2, ok2
+    else:
         return 0
-    _write_pose(R1, t1, T_out[0])
-    costs[0] = cost1
-    if ok2:
-        _write_pose(R2, t2, T_out[1])
-        costs[1] = cost2
+    _write_pose(R_a, t_a, T_out[0])
+    costs[0] = cost_a
+    if ok_b:
+        _write_pose(R_b, t_b, T_out[1])
+        costs[1] = cost_b
         return 2
     return 1
 

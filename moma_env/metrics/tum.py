@@ -19,7 +19,7 @@ from moma_env.geometry import matrix_to_quaternion
 from moma_env.io import atomic_write_text
 from moma_env.metrics.trajectory import Trajectory
 
-__all__ = ["TUM_HEADER", "format_tum", "write_tum", "read_tum", "quaternions_to_matrices"]
+__all__ = ["TUM_HEADER", "format_tum", "write_tum", "read_tum", "read_timed_rows", "quaternions_to_matrices"]
 
 #: Comment line written at the top of a TUM file.
 TUM_HEADER = "# timestamp tx ty tz qx qy qz qw"
@@ -63,6 +63,41 @@ def quaternions_to_matrices(q: np.ndarray) -> np.ndarray:
     return R
 
 
+def read_timed_rows(path: str | os.PathLike[str], n_fields: int, layout: str) -> list[tuple[int, list[float]]]:
+    """The data lines of a text file of timestamped rows, as ``(line number, values)``.
+
+    Lines are fields separated by spaces, tabs or commas; blank lines and lines
+    starting with ``#`` are skipped. Every data line must hold ``n_fields``
+    numbers (``layout`` names them in the error), the first a finite timestamp
+    after the previous line's. Other checks are the caller's.
+
+    Raises:
+        ValueError: naming the file and the 1-based line number.
+    """
+    name = os.fspath(path)
+    rows: list[tuple[int, list[float]]] = []
+    last_time = -math.inf
+    with open(path, encoding="utf-8") as f:
+        for lineno, line in enumerate(f, start=1):
+            text = line.strip()
+            if not text or text.startswith("#"):
+                continue
+            fields = text.replace(",", " ").split()
+            if len(fields) != n_fields:
+                raise ValueError(f"{name}:{lineno}: expected {n_fields} values {layout}, got {len(fields)}")
+            try:
+                values = [float(v) for v in fields]
+            except ValueError:
+                raise ValueError(f"{name}:{lineno}: not a number in {text!r}") from None
+            if not math.isfinite(values[0]):
+                raise ValueError(f"{name}:{lineno}: the timestamp must be finite, got {fields[0]!r}")
+            if not values[0] > last_time:
+                raise ValueError(f"{name}:{lineno}: timestamp {values[0]!r} is not after the previous one {last_time!r}")
+            last_time = values[0]
+            rows.append((lineno, values))
+    return rows
+
+
 def read_tum(path: str | os.PathLike[str]) -> Trajectory:
     """Read a TUM trajectory file (fields separated by spaces, tabs or commas).
 
@@ -73,31 +108,12 @@ def read_tum(path: str | os.PathLike[str]) -> Trajectory:
     """
     name = os.fspath(path)
     rows: list[list[float]] = []
-    last_time = -math.inf
-    with open(path, encoding="utf-8") as f:
-        for lineno, line in enumerate(f, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            fields = text.replace(",", " ").split()
-            if len(fields) != 8:
-                raise ValueError(
-                    f"{name}:{lineno}: expected 8 values 'timestamp tx ty tz qx qy qz qw', got {len(fields)}"
-                )
-            try:
-                values = [float(v) for v in fields]
-            except ValueError:
-                raise ValueError(f"{name}:{lineno}: not a number in {text!r}") from None
-            if not all(math.isfinite(v) for v in values):
-                raise ValueError(f"{name}:{lineno}: non-finite value in {text!r}")
-            if math.hypot(*values[4:]) < 1e-9:
-                raise ValueError(f"{name}:{lineno}: zero quaternion")
-            if not values[0] > last_time:
-                raise ValueError(
-                    f"{name}:{lineno}: timestamp {values[0]!r} is not after the previous one {last_time!r}"
-                )
-            last_time = values[0]
-            rows.append(values)
+    for lineno, values in read_timed_rows(path, 8, "'timestamp tx ty tz qx qy qz qw'"):
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f"{name}:{lineno}: non-finite value in {values!r}")
+        if math.hypot(*values[4:]) < 1e-9:
+            raise ValueError(f"{name}:{lineno}: zero quaternion")
+        rows.append(values)
     if not rows:
         return Trajectory.empty()
     data = np.array(rows)

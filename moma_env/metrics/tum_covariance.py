@@ -32,7 +32,7 @@ import numpy as np
 
 from moma_env.io import atomic_write_text
 from moma_env.metrics.trajectory import Trajectory
-from moma_env.metrics.tum import read_tum
+from moma_env.metrics.tum import read_timed_rows, read_tum
 
 __all__ = [
     "COVARIANCE_HEADER",
@@ -103,36 +103,19 @@ def read_covariances(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarr
     """
     name = os.fspath(path)
     rows: list[list[float]] = []
-    last_time = -math.inf
-    with open(path, encoding="utf-8") as f:
-        for lineno, line in enumerate(f, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            fields = text.replace(",", " ").split()
-            if len(fields) != _FIELDS:
-                raise ValueError(f"{name}:{lineno}: expected {_FIELDS} values 'timestamp' and 36 covariance entries, got {len(fields)}")
-            try:
-                values = [float(v) for v in fields]
-            except ValueError:
-                raise ValueError(f"{name}:{lineno}: not a number in {text!r}") from None
-            if any(math.isinf(v) for v in values):
-                raise ValueError(f"{name}:{lineno}: infinite value")
-            if not math.isfinite(values[0]):
-                raise ValueError(f"{name}:{lineno}: the timestamp must be finite, got {fields[0]!r}")
-            if not values[0] > last_time:
-                raise ValueError(f"{name}:{lineno}: timestamp {values[0]!r} is not after the previous one {last_time!r}")
-            cov = np.array(values[1:]).reshape(6, 6)
-            nans = np.isnan(cov)
-            if nans.any() and not nans.all():
-                raise ValueError(f"{name}:{lineno}: a covariance is either all nan (unknown) or has no nan")
-            if not nans.any():
-                if (np.diag(cov) < 0.0).any():
-                    raise ValueError(f"{name}:{lineno}: negative variance on the diagonal")
-                if np.abs(cov - cov.T).max() > _SYMMETRY_TOLERANCE * np.abs(cov).max():
-                    raise ValueError(f"{name}:{lineno}: the covariance is not symmetric")
-            last_time = values[0]
-            rows.append(values)
+    for lineno, values in read_timed_rows(path, _FIELDS, "'timestamp' and 36 covariance entries"):
+        if any(math.isinf(v) for v in values):
+            raise ValueError(f"{name}:{lineno}: infinite value")
+        cov = np.array(values[1:]).reshape(6, 6)
+        nans = np.isnan(cov)
+        if nans.any() and not nans.all():
+            raise ValueError(f"{name}:{lineno}: a covariance is either all nan (unknown) or has no nan")
+        if not nans.any():
+            if (np.diag(cov) < 0.0).any():
+                raise ValueError(f"{name}:{lineno}: negative variance on the diagonal")
+            if np.abs(cov - cov.T).max() > _SYMMETRY_TOLERANCE * np.abs(cov).max():
+                raise ValueError(f"{name}:{lineno}: the covariance is not symmetric")
+        rows.append(values)
     if not rows:
         return np.empty(0), np.empty((0, 6, 6))
     data = np.array(rows)
