@@ -80,6 +80,13 @@ def test_a_preset_too_low_for_the_experiment_is_rejected_when_applied():
     narrow = ExperimentPreset(name="narrow", description="long lens", altitude=2.0, camera=CameraConfig(fx=1200.0))
     with pytest.raises(ConfigError, match="square.altitude"):
         narrow.apply(SquareConfig())
+    # The view is measured from the principal point (where the tracker centres the boards):
+    # one near the top edge leaves too little view upward, however wide the image.
+    centred = ExperimentPreset(name="centred", description="centred", altitude=2.5, camera=CameraConfig(fx=420.0))
+    assert centred.apply(SquareConfig()).altitude == 2.5
+    off_centre = dataclasses.replace(centred, camera=CameraConfig(fx=420.0, cy=100.0))
+    with pytest.raises(ConfigError, match="square.altitude.*too low"):
+        off_centre.apply(SquareConfig())
 
 
 def test_cli_flags_override_the_preset():
@@ -88,6 +95,10 @@ def test_cli_flags_override_the_preset():
     config = _experiment_config(args, args.observer)
     assert config.camera.noise_px == 0.2 and config.camera.width == 720
     assert config.altitude == PAPER.altitude and config.planar_ugvs is False
+    assert config.floor.grain == PAPER.floor_grain
+    args = parser.parse_args(["experiment", "square", "--preset", "paper", "--plain-floor"])
+    config = _experiment_config(args, args.observer)
+    assert config.floor.grain is None and config.camera == PAPER.camera
     args = parser.parse_args(["experiment", "line", "--full-6dof"])
     config = _experiment_config(args, args.observer)
     assert config.planar_ugvs is False and config.altitude is None and config.camera_backend == "geometric"
