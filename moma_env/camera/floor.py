@@ -17,12 +17,11 @@ Frames and units: world W (x, y on the floor, z up; metres). The raster's pixel
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
-
-from collections.abc import Mapping
 
 from moma_env.camera.backend import as_pose
 from moma_env.camera.floor_grain import FloorGrainConfig, grain_layer
