@@ -76,3 +76,12 @@ def test_an_experiment_run_is_hashed_whole_and_reproducibly():
     assert first["case"] == "experiment line max_time_s=8.0"
     assert fingerprint(short, seed=2)["sha256"] != first["sha256"]
     assert fingerprint(Case("line", max_time_s=9.0), seed=1)["sha256"] != first["sha256"]
+
+
+def test_a_preset_case_runs_the_experiment_under_that_preset():
+    from moma_env.config import ConfigError
+
+    plain = fingerprint(Case("line", max_time_s=8.0), seed=1)["sha256"]
+    assert fingerprint(Case("line", preset="default", max_time_s=8.0), seed=1)["sha256"] == plain  # default: the same run
+    with pytest.raises(ConfigError, match="unknown preset 'lab'"):
+        fingerprint(Case("line", preset="lab", max_time_s=8.0), seed=1)

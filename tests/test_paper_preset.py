@@ -31,6 +31,10 @@ def test_paper_preset_models_the_authors_hardware():
     assert PAPER.camera_backend == "rendered"
     assert PAPER.render.interlaced and PAPER.render.field_period_s == 0.02
     assert PAPER.render.blur_sigma_px > 0 and PAPER.render.noise_std > 0
+    # The authors' calibrated camera (tud_momana ardrone_ext_cam.yaml) and a lab floor with grain.
+    assert (PAPER.camera.fx, PAPER.camera.fy) == (492.856172, 526.006429)
+    assert PAPER.camera.dist[0] == -0.419143
+    assert PAPER.floor_grain is not None and DEFAULT.floor_grain is None
 
 
 def test_apply_sets_the_sensing_and_keeps_the_experiment():
@@ -58,6 +62,7 @@ def test_apply_sets_the_sensing_and_keeps_the_experiment():
         ({"altitude": -2.0}, "preset.altitude"),
         ({"board": "aruco"}, "preset.board"),
         ({"planar_ugvs": 1}, "preset.planar_ugvs"),
+        ({"floor_grain": {"grain_std": 2.0}}, "preset.floor_grain"),
     ],
 )
 def test_bad_presets_are_rejected_naming_the_field(changes, field):
@@ -75,6 +80,13 @@ def test_a_preset_too_low_for_the_experiment_is_rejected_when_applied():
     narrow = ExperimentPreset(name="narrow", description="long lens", altitude=2.0, camera=CameraConfig(fx=1200.0))
     with pytest.raises(ConfigError, match="square.altitude"):
         narrow.apply(SquareConfig())
+    # The view is measured from the principal point (where the tracker centres the boards):
+    # one near the top edge leaves too little view upward, however wide the image.
+    centred = ExperimentPreset(name="centred", description="centred", altitude=2.5, camera=CameraConfig(fx=420.0))
+    assert centred.apply(SquareConfig()).altitude == 2.5
+    off_centre = dataclasses.replace(centred, camera=CameraConfig(fx=420.0, cy=100.0))
+    with pytest.raises(ConfigError, match="square.altitude.*too low"):
+        off_centre.apply(SquareConfig())
 
 
 def test_cli_flags_override_the_preset():
@@ -83,6 +95,10 @@ def test_cli_flags_override_the_preset():
     config = _experiment_config(args, args.observer)
     assert config.camera.noise_px == 0.2 and config.camera.width == 720
     assert config.altitude == PAPER.altitude and config.planar_ugvs is False
+    assert config.floor.grain == PAPER.floor_grain
+    args = parser.parse_args(["experiment", "square", "--preset", "paper", "--plain-floor"])
+    config = _experiment_config(args, args.observer)
+    assert config.floor.grain is None and config.camera == PAPER.camera
     args = parser.parse_args(["experiment", "line", "--full-6dof"])
     config = _experiment_config(args, args.observer)
     assert config.planar_ugvs is False and config.altitude is None and config.camera_backend == "geometric"
@@ -97,6 +113,12 @@ def test_the_preset_study_derives_its_candidates_from_the_preset():
     # Each earlier step differs from the preset in the one thing it studies.
     changed = {name: {f.name for f in dataclasses.fields(PAPER) if getattr(p, f.name) != getattr(PAPER, f.name)} for name, p in CANDIDATES.items()}
     assert changed[final] == set()
-    assert all(fields and fields <= {"camera_backend", "render", "altitude", "planar_ugvs"} for name, fields in changed.items() if name != final)
+    assert all(
+        fields and fields <= {"camera_backend", "render", "altitude", "planar_ugvs", "camera", "floor_grain"}
+        for name, fields in changed.items()
+        if name != final
+    )
+    # The calibrated lens and the lab floor are each studied on their own.
+    assert {"camera"} in changed.values() and {"floor_grain"} in changed.values()
     with pytest.raises(KeyError, match="unknown candidate"):
         candidate_config("lab floor")

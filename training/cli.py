@@ -259,6 +259,11 @@ def _add_experiment_arguments(parser: argparse.ArgumentParser, default_runs: int
         "--full-6dof", action="store_true", help="estimate the UGVs' full 3D pose instead of constraining them upright on the floor"
     )
     parser.add_argument(
+        "--plain-floor",
+        action="store_true",
+        help="a perfectly plain floor (one gray level) outside the textured regions, instead of the preset's floor grain",
+    )
+    parser.add_argument(
         "--max-time", type=_positive_float("time limit (s)"), default=None, help="simulated time limit of a run in s; a run stopped by it is flagged (default: the experiment's)"
     )
     parser.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
@@ -294,6 +299,8 @@ def _experiment_config(args: argparse.Namespace, observer: str):
         config = dataclasses.replace(config, planar_ugvs=False)
     if args.noise_px is not None:
         config = dataclasses.replace(config, camera=dataclasses.replace(config.camera, noise_px=args.noise_px))
+    if args.plain_floor:
+        config = dataclasses.replace(config, floor=dataclasses.replace(config.floor, grain=None))
     if args.max_time is not None:
         config = dataclasses.replace(config, max_time_s=args.max_time)
     return config

@@ -42,7 +42,8 @@ _EXPERIMENTS = ("square", "line")
 class Case:
     """One seeded run: env configuration ``name`` (``parallel_env(name, **kwargs)``) for
     ``steps`` random-action steps, or, when ``name`` is ``"square"`` or ``"line"``, one
-    whole run of that experiment (``SquareConfig(**kwargs)``, ``steps`` None)."""
+    whole run of that experiment (``SquareConfig(**kwargs)``, ``steps`` None; a
+    ``preset=NAME`` keyword applies that experiment preset to it)."""
 
     def __init__(self, name: str, steps: int | None = None, **kwargs) -> None:
         if (name in _EXPERIMENTS) != (steps is None):
@@ -86,6 +87,8 @@ def _cases() -> tuple[Case, ...]:
         Case("square"),
         Case("line"),
         Case("square", camera_backend="rendered", max_time_s=45.0),
+        # The paper preset (the authors' calibrated lens, the PAL link, the lab floor's grain), cut short.
+        Case("square", preset="paper", max_time_s=45.0),
     ]
     return tuple(cases)
 
@@ -173,7 +176,14 @@ def _fingerprint_experiment(case: Case, seed: int) -> dict:
         from training.experiments.square import SquareConfig as config_class, run_square as run
     else:
         from training.experiments.line import LineConfig as config_class, run_line as run
-    record = run(config_class(**case.kwargs), seed)
+    kwargs = dict(case.kwargs)
+    preset = kwargs.pop("preset", None)
+    config = config_class(**kwargs)
+    if preset is not None:
+        from training.experiments.presets import get_preset
+
+        config = get_preset(preset).apply(config)
+    record = run(config, seed)
     out: list[str] = []
     serialise(record, out)
     digest = hashlib.sha256("|".join(out).encode()).hexdigest()

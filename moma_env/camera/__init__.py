@@ -9,6 +9,7 @@
   board in the scene; :class:`GeometricCamera` -- the fast geometric backend;
   :class:`RenderedCamera` -- the rendered backend (synthetic image, ArUco
   detector), with :class:`RenderConfig`; :func:`make_camera` builds either.
+* :class:`FloorGrainConfig` -- the weak texture of a real floor (grain, seams, specks).
 * :class:`FloorConfig` / :class:`FloorTexture` -- the floor's texture and its
   rendering; :class:`FloorCamera` -- a robot camera's floor frames (for VO).
 
@@ -20,6 +21,7 @@ from moma_env.camera.backend import BoardView, CameraBackend, OcclusionQuery, up
 from moma_env.camera.config import PNP_METHODS, PNP_SIGMA_SOURCES, POSE_DISAMBIGUATIONS, CameraConfig
 from moma_env.camera.factory import CAMERA_BACKENDS, make_camera
 from moma_env.camera.floor import FloorConfig, FloorTexture
+from moma_env.camera.floor_grain import FloorGrainConfig
 from moma_env.camera.floor_camera import FloorCamera
 from moma_env.camera.geometric import GeometricCamera
 from moma_env.camera.pinhole import PinholeCamera
@@ -33,6 +35,7 @@ __all__ = [
     "CORNER_REFINEMENTS",
     "FloorCamera",
     "FloorConfig",
+    "FloorGrainConfig",
     "FloorTexture",
     "RenderConfig",
     "RenderedCamera",

@@ -1,7 +1,12 @@
 """Camera configuration: intrinsics, lens distortion, pixel noise and visibility limits.
 
-Defaults model the observer of the paper: an Ar.Drone 2.0 analogue camera, PAL
-720x576 px, with a mild barrel distortion and about half a pixel of corner noise.
+Defaults are a generic PAL observer camera: 720x576 px, square pixels, the
+principal point at the image centre, a mild barrel distortion and about half a
+pixel of corner noise. The authors' calibrated camera (non-square pixels, an
+off-centre principal point, k1 = -0.42) is
+``training.experiments.presets.PAPER_CAMERA``; every part of the camera model
+takes ``fx != fy``, any principal point inside the image and any distortion
+whose radial mapping is one-to-one over the image.
 
 Pixel convention (OpenCV): pixel centres sit at integer coordinates ``(u, v)``,
 ``u`` to the right, ``v`` down, so the sensor spans ``[-0.5, width - 0.5] x

@@ -1,8 +1,10 @@
 """The floor as a camera sees it: a seeded world-frame texture on the plane z = 0.
 
 :class:`FloorConfig` says where the floor is textured (rectangles in world x, y)
-and how; everything else is plain (one gray level), where a feature tracker
-finds nothing. :class:`FloorTexture` draws the raster once from a seeded
+and how; everything else is plain: one gray level, where a feature tracker
+finds nothing, or, with ``grain`` set, the weak texture of a real floor
+(grain, tiles and seams, specks: :mod:`moma_env.camera.floor_grain`) over the
+raster's extent. :class:`FloorTexture` draws the raster once from a seeded
 generator and renders it as seen by a pinhole camera with lens distortion:
 every pixel's ray (see :mod:`moma_env.camera.rays`) is followed to the floor,
 one exact resampling of the raster.
@@ -15,14 +17,16 @@ Frames and units: world W (x, y on the floor, z up; metres). The raster's pixel
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from moma_env.camera.backend import as_pose
+from moma_env.camera.floor_grain import FloorGrainConfig, grain_layer
 from moma_env.camera.rays import PixelRays
-from moma_env.config import ConfigError, check_count, check_numbers, check_positive, check_range
+from moma_env.config import ConfigError, check_count, check_numbers, check_positive, check_range, from_mapping
 
 __all__ = ["FloorConfig", "FloorTexture"]
 
@@ -49,6 +53,9 @@ _RECT = ("xmin", "ymin", "xmax", "ymax")
 _MAX_RASTER_PX = 64_000_000
 #: Octaves of the texture: each halves the blob size and the amplitude.
 _OCTAVES = 3
+#: The grain's generator is seeded with ``(seed, _GRAIN_STREAM)``: a stream of its own,
+#: so that the textured rectangles are the same with and without grain.
+_GRAIN_STREAM = 1
 
 
 def _check_rect(field: str, value: object) -> tuple[float, float, float, float]:
@@ -78,6 +85,9 @@ class FloorConfig:
         background_gray: gray level drawn where a pixel's ray misses the floor
             (above the horizon of a forward camera).
         seed: seed of the texture's generator (same seed, same floor).
+        grain: the weak texture of the untextured floor inside ``extent``
+            (:class:`~moma_env.camera.floor_grain.FloorGrainConfig`, or a
+            mapping of its fields); ``None``: perfectly plain (one gray level).
     """
 
     extent: tuple[float, float, float, float] = (-2.0, -2.0, 5.0, 5.0)
@@ -89,9 +99,14 @@ class FloorConfig:
     gray: float = 140.0
     background_gray: float = 90.0
     seed: int = 0
+    grain: FloorGrainConfig | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "extent", _check_rect("floor.extent", self.extent))
+        if isinstance(self.grain, Mapping):
+            object.__setattr__(self, "grain", from_mapping(FloorGrainConfig, self.grain, name="floor.grain"))
+        if self.grain is not None and not isinstance(self.grain, FloorGrainConfig):
+            raise ConfigError("floor.grain", f"must be a FloorGrainConfig, a mapping or None, got {type(self.grain).__name__}")
         if self.textured is not None:
             try:
                 rects = tuple(self.textured)
@@ -118,6 +133,12 @@ class FloorConfig:
     def textured_rects(self) -> tuple[tuple[float, float, float, float], ...]:
         """The textured rectangles, ``None`` resolved to the whole extent."""
         return (self.extent,) if self.textured is None else self.textured  # type: ignore[return-value]
+
+    @property
+    def detailed_rects(self) -> tuple[tuple[float, float, float, float], ...]:
+        """Rectangles in W (m) outside which the floor is one gray level: the
+        textured ones, or the whole extent when the plain floor has grain."""
+        return self.textured_rects if self.grain is None else (self.extent,)
 
 
 class FloorTexture:
@@ -147,9 +168,16 @@ class FloorTexture:
         self._background = int(round(config.background_gray))
 
     def _make_raster(self, rows: int, cols: int, rng: np.random.Generator) -> np.ndarray:
-        """Plain gray, with seeded multi-octave blob texture inside the textured rectangles."""
+        """Plain gray (with its grain if configured), with seeded multi-octave blob
+        texture inside the textured rectangles."""
         cfg = self.config
-        raster = np.full((rows, cols), round(cfg.gray), dtype=np.uint8)
+        if cfg.grain is None:
+            raster = np.full((rows, cols), round(cfg.gray), dtype=np.uint8)
+        else:
+            grain_rng = np.random.default_rng([cfg.seed, _GRAIN_STREAM])
+            plain = grain_layer(cfg.grain, (rows, cols), cfg.extent[:2], cfg.px_per_m, grain_rng)
+            plain += np.float32(cfg.gray)
+            raster = np.clip(np.rint(plain), 0, 255).astype(np.uint8)
         windows = []
         for rect in cfg.textured_rects:
             c0, r0 = (self.A_px_w @ (rect[0], rect[1], 1.0))[:2] + 0.5
@@ -230,7 +258,7 @@ class FloorTexture:
         ground = t[:2] + (-t[2] / border_dz)[:, None] * d[:, :2]
         gx0, gy0 = ground.min(axis=0)
         gx1, gy1 = ground.max(axis=0)
-        rects = self.config.textured_rects
+        rects = self.config.detailed_rects
         if any(x0 <= gx0 and y0 <= gy0 and gx1 <= x1 and gy1 <= y1 for x0, y0, x1, y1 in rects):
             return (0, 0, rays.shape[1], rays.shape[0])  # the floor in view is all textured
         samples = []

@@ -65,6 +65,10 @@ class PinholeCamera:
         rays = self.undistort(np.vstack([self.sensor_corners_px, edges]))
         self._corner_rays = np.column_stack([rays[:4], np.ones(4)])
         (xl, _), (xr, _), (_, yt), (_, yb) = rays[4:]
+        # The same four rays, ``margin_px`` inside the border (where a corner still counts).
+        m = config.margin_px
+        inset = self.undistort(np.array([[m - 0.5, config.cy], [w - 0.5 - m, config.cy], [config.cx, m - 0.5], [config.cx, h - 0.5 - m]]))
+        self._half_view_tan = float(min(-inset[0, 0], inset[1, 0], -inset[2, 1], inset[3, 1]))
         # Rays (z = 1) through the row of the principal point, left edge to right edge.
         row = np.column_stack([np.linspace(-0.5, w - 0.5, _WEDGE_SAMPLES), np.full(_WEDGE_SAMPLES, config.cy)])
         self._row_rays = np.column_stack([self.undistort(row), np.ones(_WEDGE_SAMPLES)])
@@ -147,6 +151,17 @@ class PinholeCamera:
         """Horizontal and vertical field of view (deg) through the principal point,
         edge to edge of the sensor, distortion included."""
         return self._fov_deg
+
+    @property
+    def axis_half_view_tan(self) -> float:
+        """Tangent of the narrowest half field of view from the optical axis:
+        the smallest of the four normalised distances (``|x|`` or ``|y|`` of the
+        undistorted ray) from the principal point to the sensor edges along the
+        principal row and column, ``margin_px`` inside the border, distortion
+        included. A point at depth ``z`` (m) on the optical axis's plane is in
+        view within ``z * axis_half_view_tan`` (m) of the axis in every direction
+        along the image axes."""
+        return self._half_view_tan
 
     def view_wedge(self, T_w_c: np.ndarray, range_m: float) -> np.ndarray:
         """The horizontal field of view of a camera looking forward, as a floor polygon.

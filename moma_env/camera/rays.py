@@ -101,8 +101,10 @@ class PixelRays:
 
         About half the cost of the exact map on a PAL frame. The interpolation
         error grows with the map's curvature: below 0.01 px of the plane's
-        raster for a camera looking down at a floor (checked by the tests); use
-        the exact map where the horizon or a strong distortion is in view.
+        raster for a camera with mild distortion looking down at a floor, below
+        0.05 px with the authors' calibrated lens (k1 = -0.42; 0.2 mm on a floor
+        2.1 m below, a twentieth of the camera's ground pixel) (both checked by
+        the tests); use the exact map where the horizon is in view.
         """
         rows, cols = self._grid_shape
         step = SMOOTH_MAP_STEP

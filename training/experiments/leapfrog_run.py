@@ -36,6 +36,7 @@ from moma_env.camera import (
     FloorCamera,
     FloorConfig,
     FloorTexture,
+    PinholeCamera,
     RenderConfig,
     make_camera,
     up_in_board,
@@ -200,8 +201,10 @@ class LeapfrogConfig:
             depth = self.altitude - _board_height()
             if depth <= 0.0:
                 raise ConfigError(f"{name}.altitude", f"must be above the boards ({_board_height()} m), got {self.altitude}")
-            # Centred over the pair, the camera must hold both boards whole at every switch.
-            half_view = depth * (min(self.camera.width, self.camera.height) / 2.0) / max(self.camera.fx, self.camera.fy)
+            # Centred over the pair (the tracking controller centres the boards on the
+            # optical axis), the camera must hold both boards whole at every switch:
+            # the narrowest side of the view from the principal point, lens included.
+            half_view = depth * PinholeCamera(self.camera).axis_half_view_tan
             needed = self.max_spread() / 2.0 + math.hypot(self.board.width, self.board.height) / 2.0
             if half_view < needed:
                 raise ConfigError(
@@ -342,10 +345,16 @@ def _world_config(config: LeapfrogConfig, rng: np.random.Generator) -> WorldConf
 def floor_texture(config: LeapfrogConfig) -> FloorTexture:
     """The floor of a run: ``config.floor`` textured in :meth:`LeapfrogConfig.textured_regions`, plain elsewhere.
 
-    The raster spans the textured regions only (the floor outside it is plain
-    anyway), which keeps a fine raster small.
+    With a perfectly plain floor (``config.floor.grain`` None) the raster spans
+    the textured regions only (the floor outside it is one gray level anyway),
+    which keeps a fine raster small; with grain it spans the arena too (the
+    textured regions and the walls' rectangle), where the grain is drawn.
     """
     regions = np.array(config.textured_regions(), dtype=float).reshape(-1, 4)
+    if config.floor.grain is not None:
+        arena = _arena(config)
+        x0, y0 = arena.origin
+        regions = np.vstack([regions, [x0, y0, x0 + arena.width, y0 + arena.height]])
     if regions.shape[0] == 0:
         return FloorTexture(dataclasses.replace(config.floor, textured=()))
     extent = (*regions[:, :2].min(axis=0), *regions[:, 2:].max(axis=0))

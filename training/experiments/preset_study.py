@@ -3,8 +3,10 @@
 Each candidate changes one physically motivated thing on the way from the
 experiments' defaults to :data:`training.experiments.presets.PAPER` (the clean
 rendered image; the full 6-DoF estimate of the authors' system; the analogue PAL
-video link; the flying altitude). The candidates derive from the preset itself,
-so the study and the preset cannot drift apart.
+video link; the flying altitude; the authors' calibrated lens instead of a
+generic f = 420 px one; the lab floor's grain instead of a perfectly plain
+floor). The candidates derive from the preset itself, so the study and the
+preset cannot drift apart.
 
     python -m training.experiments.preset_study [--runs 3] [--seed 0] [--jobs 1] [--out runs/preset_study]
 
@@ -21,7 +23,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from moma_env.camera import RenderConfig
+from moma_env.camera import CameraConfig, RenderConfig
 from moma_env.io import write_json
 from training.experiments.leapfrog_run import summarise
 from training.experiments.presets import PAPER, ExperimentPreset
@@ -30,7 +32,12 @@ from training.experiments.runner import run_many
 from training.experiments.square import SquareConfig
 from training.experiments.square_report import PAPER_SQUARE
 
-__all__ = ["CANDIDATES", "candidate_config", "main"]
+__all__ = ["CANDIDATES", "GENERIC_PAL_CAMERA", "candidate_config", "main"]
+
+#: The lens the preset used before the authors' calibration: a 2.8 mm FPV lens on a
+#: 1/3" CCD (81 deg horizontal field of view, f = 420 px at 720 px), square pixels,
+#: centred, mild barrel distortion.
+GENERIC_PAL_CAMERA = CameraConfig(width=720, height=576, fx=420.0, dist=(-0.05, 0.01, 0.0, 0.0, 0.0), noise_px=0.5)
 
 #: The derivation, in order: name -> the preset tried.
 CANDIDATES: dict[str, ExperimentPreset] = {
@@ -38,6 +45,8 @@ CANDIDATES: dict[str, ExperimentPreset] = {
     "rendered clean image, 2.5 m, 6-DoF": dataclasses.replace(PAPER, render=RenderConfig()),
     "rendered PAL link, 2.0 m, planar": dataclasses.replace(PAPER, altitude=2.0, planar_ugvs=True),
     "rendered PAL link, 2.0 m, 6-DoF": dataclasses.replace(PAPER, altitude=2.0),
+    "generic lens f=420 px, 2.5 m, 6-DoF": dataclasses.replace(PAPER, camera=GENERIC_PAL_CAMERA),
+    "perfectly plain floor, 2.5 m, 6-DoF": dataclasses.replace(PAPER, floor_grain=None),
     "rendered PAL link, 2.5 m, 6-DoF (paper)": PAPER,
 }
 

@@ -7,6 +7,8 @@ not at all (:mod:`moma_env.io`).
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -72,8 +74,12 @@ def config_record(config: LeapfrogConfig) -> dict:
         "separation_m": config.separation,
         "dwell_s": config.dwell_s,
         "path_length_m": config.path_length,
-        "camera": {"width": config.camera.width, "height": config.camera.height, "fx": config.camera.fx, "noise_px": config.camera.noise_px},
+        "camera": {
+            "width": config.camera.width, "height": config.camera.height, "fx": config.camera.fx, "fy": config.camera.fy,
+            "cx": config.camera.cx, "cy": config.camera.cy, "dist": list(config.camera.dist), "noise_px": config.camera.noise_px,
+        },
         "board": {"marker_size_m": config.board.marker_size, "gap_m": config.board.gap},
+        "floor_grain": None if config.floor.grain is None else dataclasses.asdict(config.floor.grain),
     }
 
 
