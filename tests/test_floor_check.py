@@ -7,10 +7,10 @@ import cv2
 import numpy as np
 import pytest
 
+from moma_env.odometry.visual import corner_response
 from training.experiments.floor_check import (
     FLOORS,
     FloorCheckConfig,
-    corner_response,
     main,
     run_floor_check,
 )

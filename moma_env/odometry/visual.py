@@ -47,7 +47,7 @@ from moma_env.camera.pinhole import PinholeCamera
 from moma_env.config import ConfigError, check_count, check_positive, check_range, check_rigid_transform
 from moma_env.geometry import fit_rigid_2d, se2_to_se3, se3_to_se2
 
-__all__ = ["VisualOdometryConfig", "VisualOdometry"]
+__all__ = ["VisualOdometryConfig", "VisualOdometry", "corner_response"]
 
 
 @dataclass(frozen=True)
@@ -214,9 +214,9 @@ class VisualOdometry:
         )
         if corners is None:
             return existing
-        response = cv2.cornerMinEigenVal(image, cfg.block_size)
+        response = corner_response(image, cfg.block_size)
         uv = np.rint(corners.reshape(-1, 2)).astype(int)
-        strong = response[uv[:, 1], uv[:, 0]] * _RESPONSE_SCALE >= cfg.min_corner_response
+        strong = response[uv[:, 1], uv[:, 0]] >= cfg.min_corner_response
         return np.concatenate([existing, corners[strong].astype(np.float32)])
 
     def _track(self, before: np.ndarray, after: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -269,6 +269,16 @@ class VisualOdometry:
 #: block: this factor turns it into the block mean of the gradient's structure
 #: tensor's smallest eigenvalue in (gray levels / px)^2.
 _RESPONSE_SCALE = 255.0**2 / 4.0
+
+
+def corner_response(image: np.ndarray, block_size: int) -> np.ndarray:
+    """The VO's corner response of every pixel of a uint8 image (h, w), in (gray levels / px)^2.
+
+    The smallest eigenvalue of the gray-level gradient's structure tensor, averaged
+    over ``block_size`` x ``block_size`` px: a feature is kept when its response is
+    at least ``VisualOdometryConfig.min_corner_response``. float32 array (h, w).
+    """
+    return cv2.cornerMinEigenVal(image, block_size) * _RESPONSE_SCALE
 
 
 @numba.njit(cache=True)

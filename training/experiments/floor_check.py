@@ -41,6 +41,7 @@ from moma_env.camera import BoardView, CameraBackend, FloorCamera, FloorTexture,
 from moma_env.geometry import R_BODY_CAM_DOWN, invert, make_transform, rot_z
 from moma_env.markers import board_for_robot
 from moma_env.odometry import VisualOdometryConfig
+from moma_env.odometry.visual import corner_response
 from training.experiments.leapfrog_run import floor_texture
 from training.experiments.presets import PAPER
 from training.experiments.square import SquareConfig
@@ -48,9 +49,7 @@ from training.experiments.square import SquareConfig
 __all__ = [
     "DETECTION_POSES",
     "FLOORS",
-    "RESPONSE_SCALE",
     "FloorCheckConfig",
-    "corner_response",
     "detection_errors",
     "format_detection_table",
     "format_frame_cost_table",
@@ -67,13 +66,6 @@ __all__ = [
 
 #: The two floors compared, in table order.
 FLOORS = ("grain", "plain")
-
-#: ``cv2.cornerMinEigenVal`` on a uint8 image divides each 3x3 Sobel derivative
-#: (8x the gray-level gradient) by ``4 * block_size * 255`` and sums the products
-#: over the block; times this factor it is the block mean of the smallest
-#: eigenvalue of the gradient's structure tensor in (gray levels / px)^2, the
-#: unit of ``VisualOdometryConfig.min_corner_response``.
-RESPONSE_SCALE = 255.0**2 / 4.0
 
 #: Main robot poses ``(x, y, yaw)`` in W (m, m, rad) of the detection check; the
 #: second board is 0.6 m to its left, the observer 2.5 m up between them.
@@ -197,16 +189,6 @@ def frame_cost(config: SquareConfig, floors: dict[str, FloorTexture], frames: in
 
 
 # ------------------------------------------------------- 2. what the VO finds
-
-
-def corner_response(image: np.ndarray, block_size: int) -> np.ndarray:
-    """The VO's corner response of every pixel of ``image`` (uint8, (h, w)), in (gray levels / px)^2.
-
-    The smallest eigenvalue of the gray-level gradient's structure tensor,
-    averaged over ``block_size`` x ``block_size`` px (``cv2.cornerMinEigenVal``
-    times :data:`RESPONSE_SCALE`); float array (h, w).
-    """
-    return cv2.cornerMinEigenVal(image, block_size).astype(float) * RESPONSE_SCALE
 
 
 def frame_features(image: np.ndarray, tracking: VisualOdometryConfig) -> np.ndarray:
