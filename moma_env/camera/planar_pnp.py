@@ -440,6 +440,18 @@ def _mirrored_start(R: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def _read_pose(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """New arrays ``R`` (3x3) and ``t`` (3,) of the pose ``T`` (4x4)."""
+    R = np.empty((3, 3))
+    t = np.empty(3)
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = T[i, j]
+        t[i] = T[i, 3]
+    return R, t
+
+
+@numba.njit(cache=True)
 def _write_pose(R: np.ndarray, t: np.ndarray, T_out: np.ndarray) -> None:
     """``T_out`` (4x4) = ``[R t; 0 0 0 1]``."""
     for i in range(3):
@@ -546,12 +558,7 @@ def pose_information(
     the first-order covariance of the pose for corner noise of ``sigma`` px
     (with a ``prior``, the posterior covariance: the prior's information added).
     """
-    R = np.empty((3, 3))
-    t = np.empty(3)
-    for i in range(3):
-        for j in range(3):
-            R[i, j] = T[i, j]
-        t[i] = T[i, 3]
+    R, t = _read_pose(T)
     jtj = np.empty((6, 6))
     jtr = np.empty(6)
     cost = _cost_and_normal_equations(R, t, obj, img, W, prior, jtj, jtr)
@@ -564,12 +571,7 @@ def pose_information(
 @numba.njit(cache=True)
 def refine_pose(T: np.ndarray, obj: np.ndarray, img: np.ndarray, W: np.ndarray, prior: np.ndarray) -> float:
     """Levenberg-Marquardt from ``T`` (``T_c_m``, 4x4, updated in place); returns the final cost (inf: failed)."""
-    R = np.empty((3, 3))
-    t = np.empty(3)
-    for i in range(3):
-        for j in range(3):
-            R[i, j] = T[i, j]
-        t[i] = T[i, 3]
+    R, t = _read_pose(T)
     cost = _refine(R, t, obj, img, W, prior, np.inf)
     if np.isfinite(cost) and t[2] > 0.0:
         _write_pose(R, t, T)
