@@ -52,7 +52,7 @@ def drive_a_unseen(est: MomaEstimator, truth: dict[str, np.ndarray], others: str
 
 
 def test_stale_freeze_a_lost_robot_never_becomes_a_reference():
-    """The issue's reproduction with two boards: a LOST robot declared static, then b mobile."""
+    """Two boards under a downward camera: robot a driven unseen until LOST, declared static, then b mobile."""
     est, truth = team(2)
     t = drive_a_unseen(est, truth, others="b")
     est.set_static("a", True, t)
