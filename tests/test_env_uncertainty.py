@@ -67,3 +67,18 @@ def test_a_request_that_needs_a_settling_robot_is_refused_with_window():
     assert "mobile:ugv_1" in infos["ugv_1"]["events"]
     # Granted once ugv_0's window was ready: it is a reference now.
     assert estimator.estimate("ugv_0").phase.value == "reference"
+
+
+def test_env_public_state_for_readers():
+    env = parallel_env(action_mode="switching", observer_agent=False)
+    env.reset(seed=0)
+    core = env.unwrapped
+    assert core.devices == ("ugv_0", "ugv_1") and core.sleds == ()
+    assert [b[0] for b in core.boards] == ["ugv_0", "ugv_1"]
+    views = core.board_views()
+    assert [v.board_id for v in views] == [b[1] for b in core.boards] and all(v.up_m is not None for v in views)
+    env.step({"ugv_0": 1, "ugv_1": 0})
+    assert core.steps == 1 and core.mobile_devices == frozenset({"ugv_0"}) and core.switches_total == 1
+    assert core.refused_total == 0 and list(core.cameras)
+    with pytest.raises(TypeError):
+        core.cameras["x"] = None

@@ -35,6 +35,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Mapping
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -577,7 +578,7 @@ class MomaParallelEnv(ParallelEnv):
         return self._tracker.command(positions)
 
     def _measure(self) -> list:
-        views = [BoardView(board_id, layout, self.world.board_transform(device), self._board_up[device]) for device, board_id, layout in self._boards]
+        views = self.board_views()
         if self._occlusions:
             # Device positions for the occlusion queries, once per frame.
             self._device_xy = [(d, self._device_pose(d)[:2]) for d in self._devices]
@@ -645,6 +646,53 @@ class MomaParallelEnv(ParallelEnv):
             + w.time
         )
         return float(reward), newly, len(new_contacts)
+
+    @property
+    def devices(self) -> tuple[str, ...]:
+        """The devices (UGVs, then sleds) in their fixed order."""
+        return self._devices
+
+    @property
+    def sleds(self) -> tuple[str, ...]:
+        """The sleds among the devices."""
+        return self._sleds
+
+    @property
+    def boards(self) -> tuple[tuple[str, int, Any], ...]:
+        """Every board as ``(device, board id, layout)``."""
+        return tuple(self._boards)
+
+    @property
+    def cameras(self) -> Mapping[str, Any]:
+        """The camera backends by camera name (world camera names; read-only)."""
+        return MappingProxyType(self._cameras)
+
+    @property
+    def steps(self) -> int:
+        """Steps since the last ``reset``."""
+        return self._steps
+
+    @property
+    def mobile_devices(self) -> frozenset[str]:
+        """The devices declared mobile now."""
+        return frozenset(self._mobile)
+
+    @property
+    def switches_total(self) -> int:
+        """Granted state changes since the last ``reset``."""
+        return self._switches_total
+
+    @property
+    def refused_total(self) -> int:
+        """Refused mobile requests since the last ``reset``."""
+        return self._refused_total
+
+    def board_views(self) -> list[BoardView]:
+        """The boards as the cameras are shown them now: true pose and the mount's up direction."""
+        return [
+            BoardView(board_id, layout, self.world.board_transform(device), self._board_up[device])
+            for device, board_id, layout in self._boards
+        ]
 
     @property
     def detections(self) -> tuple:

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from moma_env.camera import BoardView, PinholeCamera
+from moma_env.camera import PinholeCamera
 from moma_env.env.render import RobotView, SceneView, compose, inset_size, render_camera_view, render_top_down
 from moma_env.estimator import Status
 from moma_env.geometry import se3_to_se2
@@ -39,15 +39,15 @@ def scene_of(env: MomaParallelEnv) -> SceneView:
     world = env.world
     wc = env.scenario.world
     robots = []
-    boards = {device: (layout, world.board_transform(device)) for device, _, layout in env._boards}  # noqa: SLF001
-    for device in env._devices:  # noqa: SLF001
+    boards = {device: (layout, world.board_transform(device)) for device, _, layout in env.boards}
+    for device in env.devices:
         e = env.estimator.estimate(device)
         est = None if e.T_w_b is None else se3_to_se2(e.T_w_b)
         outline = None
         if device in boards:
             layout, T = boards[device]
             outline = _board_outline(T, layout.width / 2, layout.height / 2)
-        if device in env._sleds:  # noqa: SLF001
+        if device in env.sleds:
             cfg = next(s for s in wc.sleds if s.name == device)
             robots.append(
                 RobotView(device, world.sled_pose(device), est, max(cfg.size) / 2, world.is_static(device), e.status, shape="box", size=tuple(cfg.size), board_corners_w=outline)
@@ -75,9 +75,9 @@ def scene_of(env: MomaParallelEnv) -> SceneView:
         sx, sy, syaw = world.sled_pose(sled.name)
         ropes.append(((rx - math.cos(ryaw) * wc.ugv(sled.robot).radius, ry - math.sin(ryaw) * wc.ugv(sled.robot).radius), (sx, sy)))
     lines = (
-        f"step {env._steps}",  # noqa: SLF001
-        f"mobile: {', '.join(sorted(env._mobile)) or '-'}",  # noqa: SLF001
-        f"switches {env._switches_total}  refused {env._refused_total}",  # noqa: SLF001
+        f"step {env.steps}",
+        f"mobile: {', '.join(sorted(env.mobile_devices)) or '-'}",
+        f"switches {env.switches_total}  refused {env.refused_total}",
     )
     return SceneView(
         bounds=wc.arena.bounds,
@@ -115,13 +115,13 @@ def _box_polygon(o) -> np.ndarray:
 def render_env(env: MomaParallelEnv, size: tuple[int, int] = FRAME_SIZE) -> np.ndarray:
     """Top-down frame with the first camera's view as an inset, (H, W, 3) uint8 RGB."""
     frame = render_top_down(scene_of(env), size)
-    camera_names = list(env._cameras)  # noqa: SLF001
+    camera_names = list(env.cameras)
     if not camera_names:
         return frame
     name = camera_names[0]
-    cam = env._cameras[name].camera  # noqa: SLF001
-    views = [BoardView(board_id, layout, env.world.board_transform(device)) for device, board_id, layout in env._boards]  # noqa: SLF001
-    detected = {d.board_id for d in env._detections if d.camera_id == name}  # noqa: SLF001
+    cam = env.cameras[name].camera
+    views = env.board_views()
+    detected = {d.board_id for d in env.detections if d.camera_id == name}
     cfg = env.scenario.camera
     inset = render_camera_view(cam, env.world.camera_transform(name), views, detected, size=inset_size(size, (cfg.width, cfg.height)))
     return compose(frame, inset)
