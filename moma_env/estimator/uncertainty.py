@@ -29,6 +29,8 @@ from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
+from moma_env.geometry import matrix_to_rotvec, rotvec_to_matrix
+
 __all__ = [
     "apply_error",
     "pose_error",
@@ -44,31 +46,14 @@ def apply_error(T: np.ndarray, e: Sequence[float] | np.ndarray) -> np.ndarray:
     """The pose ``[exp([dtheta]x) R, t + dt]`` for the error ``e = (dt, dtheta)`` (m, rad) of ``T = [R, t]``."""
     e = np.asarray(e, dtype=float)
     out = np.array(T, dtype=float)
-    theta = e[3:]
-    angle = float(np.linalg.norm(theta))
-    K = skew(theta)
-    if angle < 1e-12:
-        R = np.eye(3) + K
-    else:
-        R = np.eye(3) + (np.sin(angle) / angle) * K + ((1.0 - np.cos(angle)) / angle**2) * (K @ K)
-    out[:3, :3] = R @ out[:3, :3]
+    out[:3, :3] = rotvec_to_matrix(e[3:]) @ out[:3, :3]
     out[:3, 3] = out[:3, 3] + e[:3]
     return out
 
 
 def pose_error(T: np.ndarray, T_ref: np.ndarray) -> np.ndarray:
     """The error ``e`` with ``T = apply_error(T_ref, e)``: ``(t - t_ref, log(R R_ref^T))`` (m, rad)."""
-    R = T[:3, :3] @ T_ref[:3, :3].T
-    c = min(1.0, max(-1.0, (np.trace(R) - 1.0) / 2.0))
-    angle = float(np.arccos(c))
-    w = np.array((R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]))
-    if angle < 1e-9:
-        theta = 0.5 * w
-    elif np.pi - angle < 1e-6:
-        raise ValueError("pose_error: the rotation between the poses is 180 degrees; its axis is ambiguous")
-    else:
-        theta = (angle / (2.0 * np.sin(angle))) * w
-    return np.concatenate([T[:3, 3] - T_ref[:3, 3], theta])
+    return np.concatenate([T[:3, 3] - T_ref[:3, 3], matrix_to_rotvec(T[:3, :3] @ T_ref[:3, :3].T)])
 
 
 def skew(v: Sequence[float] | np.ndarray) -> np.ndarray:
