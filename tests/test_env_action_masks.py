@@ -12,7 +12,7 @@ CONFIGURATIONS = ["top_observer", "caterpillar", "caterpillar_sled", "caterpilla
 
 def _keep(env, agent: str) -> int:
     """The switching action that changes nothing: advance while mobile, hold while static."""
-    return 1 if agent in env._mobile else 0  # noqa: SLF001
+    return 1 if agent in env.mobile_devices else 0
 
 
 @pytest.mark.parametrize("random_scenarios", [False, True])
@@ -31,10 +31,10 @@ def test_the_mask_predicts_the_rules_decision(name, random_scenarios):
             action = int(rng.integers(1, n))
             mask = infos[agent]["action_mask"]
             assert mask.dtype == np.int8 and mask.shape == (n,) and mask[0] == 1
-            sled = env._tows.get(agent)  # noqa: SLF001
+            sled = {s.robot: s.name for s in env.scenario.world.sleds}.get(agent)
             device = agent if action == 1 else sled
-            already_mobile = device in env._mobile  # noqa: SLF001
-            robot_mobile = agent in env._mobile  # noqa: SLF001
+            already_mobile = device in env.mobile_devices
+            robot_mobile = agent in env.mobile_devices
             actions = {a: _keep(env, a) for a in env.agents}
             actions[agent] = action
             _, _, _, _, infos = env.step(actions)
@@ -66,7 +66,7 @@ def test_masked_sampling_avoids_most_refusals_and_masks_are_off_by_default():
                 break
             actions = {a: int(env.action_space(a).sample(infos[a]["action_mask"] if masked else None)) for a in env.agents}
             _, _, _, _, infos = env.step(actions)
-        refused[masked] = env._refused_total  # noqa: SLF001
+        refused[masked] = env.refused_total
     assert refused[True] * 10 < refused[False], refused
     plain = parallel_env("top_observer")
     _, infos = plain.reset(seed=0)

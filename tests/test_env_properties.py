@@ -20,10 +20,10 @@ def test_random_scenarios_and_actions_keep_the_invariants(name, mode, seed):
     for agent in env.possible_agents:
         env.action_space(agent).seed(seed)
     assert env.agents == env.possible_agents and set(obs) == set(env.agents) == set(infos)
-    devices = env._devices  # noqa: SLF001
+    devices = env.devices
     steps = 0
     while env.agents:
-        before = {d: env._device_pose(d) for d in devices if env.world.is_static(d)}  # noqa: SLF001
+        before = {d: env.simulation.device_pose(d) for d in devices if env.world.is_static(d)}
         alive = list(env.agents)
         actions = {a: env.action_space(a).sample() for a in alive}
         obs, rewards, terms, truncs, infos = env.step(actions)
@@ -38,9 +38,9 @@ def test_random_scenarios_and_actions_keep_the_invariants(name, mode, seed):
         released = {ev.split(":")[1] for info in infos.values() for ev in info["events"] if ev.startswith("mobile:")}
         for device, pose in before.items():
             if device not in released:
-                assert env._device_pose(device) == pose, f"static {device} moved"  # noqa: SLF001
-        ids = {d.board_id for d in env._detections}  # noqa: SLF001
-        assert ids <= set(env._board_owner)  # noqa: SLF001
+                assert env.simulation.device_pose(device) == pose, f"static {device} moved"
+        ids = {d.board_id for d in env.detections}
+        assert ids <= {board_id for _, board_id, _ in env.boards}
     assert steps <= 150
     assert env.agents == []
 

@@ -32,8 +32,8 @@ def test_rendered_env_passes_the_parallel_api_test() -> None:
 def test_rendered_cameras_feed_the_estimator() -> None:
     env = rendered_env()
     env.reset(seed=0)
-    assert all(isinstance(c, RenderedCamera) for c in env._cameras.values())
-    assert {d.board_id for d in env._detections} == {0, 1}
+    assert all(isinstance(c, RenderedCamera) for c in env.cameras.values())
+    assert {d.board_id for d in env.detections} == {0, 1}
     for _ in range(10):
         env.step({a: 0 for a in env.agents})
     for ugv in ("ugv_0", "ugv_1"):
@@ -44,7 +44,7 @@ def test_pixel_observation_is_the_downscaled_frame_inside_its_space() -> None:
     env = rendered_env(action_mode="velocity", observer_image=IMAGE_SIZE)
     obs, _ = env.reset(seed=1)
     space = env.observation_space("observer")
-    camera = env._cameras[env.scenario.world.uav.camera_name]
+    camera = env.cameras[env.scenario.world.uav.camera_name]
     for _ in range(3):
         assert space.contains(obs["observer"])
         image = obs["observer"]["image"]
@@ -60,7 +60,7 @@ def test_pixel_observation_is_the_downscaled_frame_inside_its_space() -> None:
 def test_default_env_is_geometric_with_vector_observations() -> None:
     env = parallel_env("top_observer", action_mode="velocity")
     env.reset(seed=0)
-    assert all(isinstance(c, GeometricCamera) for c in env._cameras.values())
+    assert all(isinstance(c, GeometricCamera) for c in env.cameras.values())
     assert env.observation_space("observer").shape is not None
     assert EnvConfig().camera_backend == "geometric" and EnvConfig().observer_image is None
 

@@ -11,7 +11,7 @@ from moma_env.env.rendering import scene_of
 def test_ground_cameras_show_their_view_inside_the_arena(name):
     env = parallel_env(name)
     env.reset(seed=0)
-    scene = scene_of(env)
+    scene = scene_of(env.simulation)
     world = env.world
     assert len(scene.footprints) == len(world.camera_names) >= 1
     xmin, ymin, xmax, ymax = env.scenario.world.arena.bounds
@@ -32,7 +32,7 @@ def test_ground_cameras_show_their_view_inside_the_arena(name):
 def test_the_uav_shows_its_ground_footprint_only():
     env = parallel_env("top_observer")
     env.reset(seed=0)
-    scene = scene_of(env)
+    scene = scene_of(env.simulation)
     assert len(scene.footprints) == 1
     footprint = scene.footprints[0]
     assert footprint.shape == (4, 2) and np.isfinite(footprint).all()

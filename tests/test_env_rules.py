@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from moma_env.env.rules import REFUSED_DWELL, REFUSED_NO_REFERENCE, REFUSED_WINDOW, MotionRules
+from moma_env.sim.rules import REFUSED_DWELL, REFUSED_NO_REFERENCE, REFUSED_WINDOW, MotionRules
 from moma_env.estimator import Detection
 
 

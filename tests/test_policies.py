@@ -44,7 +44,7 @@ def run_episode(configuration: str, seed: int, random_scenarios: bool = False) -
         steps += 1
     errors = {agent: info["localisation_error"] for agent, info in last_infos.items()}
     success = bool(terminations) and all(terminations.values())
-    return {"success": success, "steps": steps, "max_cycles": env._max_cycles, "errors": errors}
+    return {"success": success, "steps": steps, "max_cycles": env.max_cycles, "errors": errors}
 
 
 # ---------------------------------------------------------------------- default scenarios

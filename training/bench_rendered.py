@@ -59,7 +59,7 @@ class _CameraTimes:
 
     @property
     def camera(self):
-        return self.env._cameras[self.camera_name]
+        return self.env.cameras[self.camera_name]
 
     def _instrument(self) -> None:
         """Time the stages of the camera the env holds now (a reset may build a new one)."""

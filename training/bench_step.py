@@ -39,7 +39,7 @@ def step_breakdown(scenario: str = "top_observer", steps: int = 5000, warmup: in
 
     def instrument() -> None:
         # reset() may build a new estimator or world: wrap whatever the env holds now.
-        for camera in env._cameras.values():
+        for camera in env.cameras.values():
             time_calls(camera, "measure", totals, "camera")
         time_calls(env.estimator, "update", totals, "estimator")
         time_calls(env.world, "step", totals, "world")

@@ -164,7 +164,7 @@ def fingerprint(case: Case, seed: int = 0) -> dict:
         feed(env.state())
         estimates = env.estimator.estimates()
         feed({k: (e.T_w_b, e.status, e.phase, e.last_fresh_time, e.n_window) for k, e in estimates.items()})
-        feed([env.localisation_error(device) for device in env._devices])
+        feed([env.localisation_error(device) for device in env.devices])
     feed([repr(event) for event in env.estimator.events])
     env.close()
     return {"case": case.label, "steps": case.steps, "episodes": episodes, "sha256": digest.hexdigest()}

@@ -40,9 +40,9 @@ def main(argv: list[str] | None = None) -> int:
 
     env = parallel_env("top_observer", camera_backend="rendered")
     env.reset(seed=0)
-    camera = env._cameras[env.scenario.world.uav.camera_name]
+    camera = env.cameras[env.scenario.world.uav.camera_name]
     _write_png(args.out / "rendered_observer.png", camera.last_image)
-    for d in env._detections:
+    for d in env.detections:
         print(f"observer: board {d.board_id} markers {d.marker_ids} reprojection {d.reprojection_error_px:.2f} px")
 
     floor = FloorTexture(FloorConfig(extent=(-1.0, -1.0, 1.0, 1.0), px_per_m=400.0, feature_size_m=0.02, contrast=0.5))

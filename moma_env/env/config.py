@@ -9,6 +9,9 @@ config, the reward is a weighted sum of named terms.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
+from numbers import Integral
+
+import numpy as np
 
 from moma_env.camera.factory import CAMERA_BACKENDS
 from moma_env.camera.floor import FloorConfig
@@ -23,7 +26,16 @@ from moma_env.config import (
     check_numbers,
 )
 
-__all__ = ["ACTION_MODES", "RewardConfig", "EnvConfig"]
+__all__ = ["ACTION_MODES", "RewardConfig", "EnvConfig", "checked_max_cycles"]
+
+
+def checked_max_cycles(name: str, value: object) -> int:
+    """``value`` as an episode length in steps: an integer >= 1 (Python or numpy, not a bool);
+    ConfigError naming ``name`` otherwise."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, Integral) or value < 1:
+        raise ConfigError(name, f"must be an integer >= 1, got {value!r}")
+    return int(value)
+
 
 #: ``velocity``: continuous body velocities plus a requested static/mobile state;
 #: ``switching``: discrete hold / advance per UGV, built-in controllers drive.
@@ -89,6 +101,10 @@ class EnvConfig:
         action_masks: in ``switching`` mode, add ``"action_mask"`` to every UGV
             agent's ``infos`` (see :meth:`MomaParallelEnv.action_mask`). Off by
             default: it costs a motion-rules check per UGV and step.
+        pad_observations: pad every agent's vector observation with zeros to
+            the longest one, so that all agents share one observation shape
+            (parameter-sharing wrappers need it; e.g. the observer beside the
+            UGVs in ``velocity`` mode). Off by default.
     """
 
     action_mode: str = "switching"
@@ -100,15 +116,14 @@ class EnvConfig:
     floor: FloorConfig | None = None
     observer_image: tuple[int, int] | None = None
     action_masks: bool = False
+    pad_observations: bool = False
 
     def __post_init__(self) -> None:
         check_choice("env.action_mode", self.action_mode, ACTION_MODES)
         if self.observer_agent is not None:
             check_bool("env.observer_agent", self.observer_agent)
-        if self.max_cycles is not None and (
-            isinstance(self.max_cycles, bool) or not isinstance(self.max_cycles, int) or self.max_cycles < 1
-        ):
-            raise ConfigError("env.max_cycles", f"must be an integer >= 1 or None, got {self.max_cycles!r}")
+        if self.max_cycles is not None:
+            object.__setattr__(self, "max_cycles", checked_max_cycles("env.max_cycles", self.max_cycles))
         if not isinstance(self.rewards, RewardConfig):
             raise ConfigError("env.rewards", f"must be a RewardConfig, got {type(self.rewards).__name__}")
         check_choice("env.camera_backend", self.camera_backend, CAMERA_BACKENDS)
@@ -132,6 +147,7 @@ class EnvConfig:
             if not self.observer_is_agent:
                 raise ConfigError("env.observer_image", "needs the observer to be an agent (observer_agent=True)")
 
+        check_bool("env.pad_observations", self.pad_observations)
         check_bool("env.action_masks", self.action_masks)
         if self.action_masks and self.action_mode != "switching":
             raise ConfigError("env.action_masks", "exist only for the discrete actions of action_mode='switching'")

@@ -40,15 +40,16 @@ frame (clipped to [-2, 2]), depth z / 4 m (clipped to [0, 2]); then timing.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from gymnasium import spaces
 
 from moma_env.estimator import Status
+from moma_env.sim import Frame
 
-__all__ = ["Feature", "ObservationLayout", "describe", "STATUS_ORDER"]
+__all__ = ["DeviceSnapshot", "Feature", "ObservationLayout", "describe", "device_snapshots", "padded", "STATUS_ORDER"]
 
 #: Order of the status one-hot.
 STATUS_ORDER = (Status.LOCALISED, Status.HOLDING, Status.LOST)
@@ -171,6 +172,39 @@ class DeviceSnapshot:
     position_std_m: float  # root of the trace of the position covariance (m), NaN without one
     heading_std_rad: float  # heading standard deviation (rad), NaN without one
     seen: bool
+
+
+def device_snapshots(
+    frame: Frame, board_device: Callable[[int], str], camera_owner: Mapping[str, str], lost_after_s: float
+) -> dict[str, DeviceSnapshot]:
+    """What every device's owner knows at ``frame``: its estimate (None when LOST), status,
+    declared state, staleness (age of the last fresh estimate / ``lost_after_s`` (s),
+    clipped to 1), standard deviations, and whether the frame's detections involve it."""
+    seen: set[str] = set()
+    for d in frame.detections:
+        seen.add(board_device(d.board_id))
+        seen.add(camera_owner[d.camera_id])
+    t = frame.time
+    snaps = {}
+    for device in frame.truth:
+        e = frame.estimates[device]
+        pose = None if e.status is Status.LOST else frame.estimated[device]
+        age = 1.0 if e.last_fresh_time is None else min(1.0, (t - e.last_fresh_time) / lost_after_s)
+        snaps[device] = DeviceSnapshot(
+            pose, e.status, device not in frame.mobile, age, e.position_std_m, e.heading_std_rad, device in seen
+        )
+    return snaps
+
+
+def padded(value: spaces.Box | np.ndarray, size: int) -> spaces.Box | np.ndarray:
+    """A vector space or observation grown to ``size`` entries with zeros (bounds [0, 0])."""
+    if isinstance(value, spaces.Box):
+        extra = size - value.shape[0]
+        low = np.concatenate([value.low, np.zeros(extra, dtype=np.float32)])
+        high = np.concatenate([value.high, np.zeros(extra, dtype=np.float32)])
+        return spaces.Box(low=low, high=high, dtype=np.float32)
+    extra = size - value.shape[0]
+    return value if extra == 0 else np.concatenate([value, np.zeros(extra, dtype=value.dtype)])
 
 
 class ObservationLayout:

@@ -1,16 +1,17 @@
-"""From a running environment to pictures: the rgb_array frame and the human window.
+"""From a running simulation to pictures: the rgb_array frame and the human window.
 
-:func:`render_env` gathers the truth, the MOMA estimates, the goals, the camera
-footprints and the first camera's view of a :class:`MomaParallelEnv` into the
-plain data of :mod:`moma_env.env.render` and draws them. :class:`HumanWindow`
-shows frames in a pygame window (``render_mode="human"``).
+:func:`render_simulation` gathers the truth, the estimates, the goals, the camera
+footprints and the first camera's view of a :class:`~moma_env.sim.Simulation`
+(its latest :class:`~moma_env.sim.Frame` and its public API) into the plain data
+of :mod:`moma_env.env.render` and draws them. :class:`HumanWindow` shows frames
+in a pygame window (``render_mode="human"``).
 """
 
 from __future__ import annotations
 
 import math
 import os
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -19,11 +20,9 @@ from moma_env.camera import PinholeCamera
 from moma_env.env.render import RobotView, SceneView, compose, inset_size, render_camera_view, render_top_down
 from moma_env.estimator import Status
 from moma_env.geometry import se3_to_se2
+from moma_env.sim import Simulation
 
-if TYPE_CHECKING:
-    from moma_env.env.parallel import MomaParallelEnv
-
-__all__ = ["render_env", "HumanWindow", "FRAME_SIZE"]
+__all__ = ["render_simulation", "scene_of", "HumanWindow", "FRAME_SIZE"]
 
 #: Size (width, height) of a rendered frame in pixels.
 FRAME_SIZE = (640, 640)
@@ -34,20 +33,22 @@ def _board_outline(T_w_m: np.ndarray, half_w: float, half_h: float) -> np.ndarra
     return (T_w_m @ corners.T).T[:, :2]
 
 
-def scene_of(env: MomaParallelEnv) -> SceneView:
-    """The plain-data scene of the environment's current state."""
-    world = env.world
-    wc = env.scenario.world
+def scene_of(sim: Simulation, info_lines: Sequence[str] = ()) -> SceneView:
+    """The plain-data scene of the simulation's latest frame, with ``info_lines`` of text."""
+    world = sim.world
+    frame = sim.frame
+    scenario = sim.scenario
+    wc = scenario.world
     robots = []
-    boards = {device: (layout, world.board_transform(device)) for device, _, layout in env.boards}
-    for device in env.devices:
-        e = env.estimator.estimate(device)
-        est = None if e.T_w_b is None else se3_to_se2(e.T_w_b)
+    boards = {device: (layout, world.board_transform(device)) for device, _, layout in sim.boards}
+    for device in sim.devices:
+        e = frame.estimates[device]
+        est = frame.estimated[device]
         outline = None
         if device in boards:
             layout, T = boards[device]
             outline = _board_outline(T, layout.width / 2, layout.height / 2)
-        if device in env.sleds:
+        if device in sim.sleds:
             cfg = next(s for s in wc.sleds if s.name == device)
             robots.append(
                 RobotView(device, world.sled_pose(device), est, max(cfg.size) / 2, world.is_static(device), e.status, shape="box", size=tuple(cfg.size), board_corners_w=outline)
@@ -57,39 +58,34 @@ def scene_of(env: MomaParallelEnv) -> SceneView:
             robots.append(RobotView(device, world.ugv_pose(device), est, cfg.radius, world.is_static(device), e.status, board_corners_w=outline))
     observer_true = observer_est = None
     footprints = []
-    camera = PinholeCamera(env.scenario.camera)
+    camera = PinholeCamera(scenario.camera)
     if wc.uav is not None:
-        s = world.uav_state
+        s = frame.uav
         observer_true = (s.x, s.y, s.yaw, s.z)
-        e = env.estimator.estimate(wc.uav.name)
+        e = frame.estimates[wc.uav.name]
         if e.T_w_b is not None and e.status is not Status.LOST:
             observer_est = se3_to_se2(e.T_w_b)
         footprints.append(camera.ground_footprint(world.camera_transform(wc.uav.camera_name)))
     for name in world.camera_names:
         if wc.uav is None or name != wc.uav.camera_name:  # a robot's forward camera: its view up to its range
-            wedge = camera.view_wedge(world.camera_transform(name), env.scenario.camera.max_range_m)
+            wedge = camera.view_wedge(world.camera_transform(name), scenario.camera.max_range_m)
             footprints.append(_inside(wedge, wc.arena.bounds))
     ropes = []
     for sled in getattr(wc, "sleds", ()):
         rx, ry, ryaw = world.ugv_pose(sled.robot)
         sx, sy, syaw = world.sled_pose(sled.name)
         ropes.append(((rx - math.cos(ryaw) * wc.ugv(sled.robot).radius, ry - math.sin(ryaw) * wc.ugv(sled.robot).radius), (sx, sy)))
-    lines = (
-        f"step {env.steps}",
-        f"mobile: {', '.join(sorted(env.mobile_devices)) or '-'}",
-        f"switches {env.switches_total}  refused {env.refused_total}",
-    )
     return SceneView(
         bounds=wc.arena.bounds,
         obstacles=tuple(_box_polygon(o) for o in wc.arena.obstacles),
         robots=tuple(robots),
-        goals=dict(env.scenario.goals),
+        goals=dict(scenario.goals),
         observer_true=observer_true,
         observer_est=observer_est,
         footprints=tuple(footprints),
         ropes=tuple(ropes),
-        time=world.time,
-        info_lines=lines,
+        time=frame.time,
+        info_lines=tuple(info_lines),
     )
 
 
@@ -112,18 +108,18 @@ def _box_polygon(o) -> np.ndarray:
     return local @ np.array([[c, s], [-s, c]]) + (o.x, o.y)
 
 
-def render_env(env: MomaParallelEnv, size: tuple[int, int] = FRAME_SIZE) -> np.ndarray:
+def render_simulation(sim: Simulation, info_lines: Sequence[str] = (), size: tuple[int, int] = FRAME_SIZE) -> np.ndarray:
     """Top-down frame with the first camera's view as an inset, (H, W, 3) uint8 RGB."""
-    frame = render_top_down(scene_of(env), size)
-    camera_names = list(env.cameras)
+    frame = render_top_down(scene_of(sim, info_lines), size)
+    camera_names = list(sim.cameras)
     if not camera_names:
         return frame
     name = camera_names[0]
-    cam = env.cameras[name].camera
-    views = env.board_views()
-    detected = {d.board_id for d in env.detections if d.camera_id == name}
-    cfg = env.scenario.camera
-    inset = render_camera_view(cam, env.world.camera_transform(name), views, detected, size=inset_size(size, (cfg.width, cfg.height)))
+    cam = sim.cameras[name].camera
+    views = sim.board_views()
+    detected = {d.board_id for d in sim.frame.detections if d.camera_id == name}
+    cfg = sim.scenario.camera
+    inset = render_camera_view(cam, sim.world.camera_transform(name), views, detected, size=inset_size(size, (cfg.width, cfg.height)))
     return compose(frame, inset)
 
 
