@@ -30,7 +30,6 @@ import numpy as np
 from agents.leapfrog import LeapfrogSchedule, Leg
 from moma_env.camera import (
     CAMERA_BACKENDS,
-    BoardView,
     CameraBackend,
     CameraConfig,
     FloorCamera,
@@ -39,18 +38,18 @@ from moma_env.camera import (
     PinholeCamera,
     RenderConfig,
     make_camera,
-    up_in_board,
 )
 from moma_env.config import ConfigError, check_bool, check_choice, check_non_negative, check_positive
 from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
 from moma_env.control.waypoint import WaypointFollower, WaypointFollowerConfig
-from moma_env.estimator import EstimatorConfig, MomaEstimator, Status
-from moma_env.geometry import se3_to_se2
+from moma_env.estimator import EstimatorConfig, Status
 from moma_env.markers import BoardLayout, board_for_robot
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, aggregate, run_metrics
 from moma_env.odometry import WheelOdometry, WheelOdometryConfig
 from moma_env.odometry.visual import VisualOdometry, VisualOdometryConfig
-from moma_env.world import ArenaConfig, UAVConfig, UGVConfig, World, WorldConfig
+from moma_env.scenarios import Scenario
+from moma_env.sim import Frame, Simulation
+from moma_env.world import ArenaConfig, UAVConfig, UGVConfig, WorldConfig
 from moma_env.world.mounts import board_on_top, camera_down
 
 __all__ = [
@@ -63,6 +62,7 @@ __all__ = [
     "CameraFactory",
     "left_of",
     "leapfrog_legs",
+    "experiment_scenario",
     "run_leapfrog",
     "summarise",
 ]
@@ -342,6 +342,18 @@ def _world_config(config: LeapfrogConfig, rng: np.random.Generator) -> WorldConf
     return WorldConfig(arena=_arena(config), ugvs=ugvs, uav=uav, control_hz=config.control_hz)
 
 
+def experiment_scenario(config: LeapfrogConfig, rng: np.random.Generator) -> Scenario:
+    """The run's layout as a :class:`Scenario`: the pair at its start, the observer above it
+    (a small random offset drawn from ``rng``), the camera, estimator and dwell of ``config``."""
+    return Scenario(
+        name=config.experiment,
+        world=_world_config(config, rng),
+        camera=config.camera,
+        estimator=config.estimator,
+        dwell_s=config.dwell_s,
+    )
+
+
 def floor_texture(config: LeapfrogConfig) -> FloorTexture:
     """The floor of a run: ``config.floor`` textured in :meth:`LeapfrogConfig.textured_regions`, plain elsewhere.
 
@@ -392,28 +404,18 @@ def run_leapfrog(
     root = np.random.default_rng(seed)
     # Children 0-2 do not depend on how many are spawned: geometric runs are unchanged by the VO's.
     rng_world, rng_camera, rng_odometry, rng_vo_frames, rng_vo = root.spawn(5)
-    world = World(_world_config(config, rng_world))
-    world.reset(rng_world)
-    uav_cfg = world.config.uav
+    scenario = experiment_scenario(config, rng_world)
+    uav_cfg = scenario.world.uav
     floor = floor_texture(config) if config.camera_backend == "rendered" else None
     camera = (camera_factory or _observer_camera)(config, uav_cfg.camera_name, floor)
+    # The schedule is the authority on switches here (no motion rules), and the first
+    # camera frame is the first step's.
+    sim = Simulation(scenario, {uav_cfg.camera_name: camera}, rules=False, planar_ugvs=config.planar_ugvs, measure_at_reset=False)
+    frame = sim.reset(rng_camera)
+    world = sim.world
     tracker = BoardTrackingController(
         uav_cfg.camera_mount[:3, :3], config.camera.fx, (config.camera.width, config.camera.height), config.tracking_config()
     )
-
-    estimator = MomaEstimator(config.estimator)
-    boards = {}
-    for index, ugv in enumerate(world.config.ugvs):
-        estimator.add_robot(
-            ugv.name,
-            boards={index: ugv.board_mount},
-            static=True,
-            initial_pose=world.ugv_transform(ugv.name),
-            time=world.time,
-            planar=config.planar_ugvs,
-        )
-        boards[ugv.name] = (index, ugv.board)
-    estimator.add_robot(uav_cfg.name, cameras={uav_cfg.camera_name: uav_cfg.camera_mount}, static=False, time=world.time)
 
     wheel = WheelOdometry(config.odometry, initial_pose=world.ugv_pose(MAIN))
     schedule = LeapfrogSchedule(
@@ -434,16 +436,14 @@ def run_leapfrog(
     lost_at: dict[str, float | None] = {m: None for m in methods}
     switch_times: list[float] = []
 
-    def record_moma(name: str, t: float) -> None:
-        est = estimator.estimate(name)
-        recorders[name]["moma"].append(t, est.T_w_b, est.covariance)
-        localised[name].append(est.status is Status.LOCALISED)
-
-    def record() -> None:
-        t = world.time
-        for name in (MAIN, BUDDY):
-            recorders[name]["truth"].append(t, world.ugv_transform(name))
-            record_moma(name, t)
+    def record(frame: Frame) -> None:
+        t = frame.time
+        for name in (MAIN, BUDDY, uav_cfg.name):
+            truth = world.uav_transform() if name == uav_cfg.name else world.ugv_transform(name)
+            recorders[name]["truth"].append(t, truth)
+            est = frame.estimates[name]
+            recorders[name]["moma"].append(t, est.T_w_b, est.covariance)
+            localised[name].append(est.status is Status.LOCALISED)
         recorders[MAIN]["wheel"].append(t, wheel.pose)
         recorders[BUDDY]["wheel"].append(t, None)
         if vo is not None:
@@ -451,35 +451,29 @@ def run_leapfrog(
             recorders[BUDDY]["vo"].append(t, None)
             if lost_at["vo"] is None and vo.lost:
                 lost_at["vo"] = t
-        recorders[uav_cfg.name]["truth"].append(t, world.uav_transform())
-        record_moma(uav_cfg.name, t)
-        if lost_at["moma"] is None and estimator.estimate(MAIN).status is Status.LOST:
+        if lost_at["moma"] is None and frame.estimates[MAIN].status is Status.LOST:
             lost_at["moma"] = t
 
-    record()
+    record(frame)
     uav_command = np.zeros(4)
     ugv_commands = {MAIN: np.zeros(3), BUDDY: np.zeros(3)}
     while not schedule.done and world.time < config.max_time_s:
-        world.step(ugv_commands, uav_command)
+        frame = sim.advance(ugv_commands, uav_command)
         wheel.update(world.ugv_body_velocity(MAIN), world.dt, rng_odometry)
         if vo is not None:
             vo.update(vo_camera.frame(world.ugv_transform(MAIN), rng_vo_frames, time=world.time))
-        views = [BoardView(board_id, layout, world.board_transform(name), up_in_board(world.config.ugv(name).board_mount)) for name, (board_id, layout) in boards.items()]
-        detections = camera.measure(world.camera_transform(uav_cfg.camera_name), views, world.time, rng_camera)
-        estimator.update(world.time, detections)
-        record()
+        record(frame)
         if progress is not None:
             progress(world.time)
 
-        uav_command = tracker.command([d.T_c_m[:3, 3] for d in detections])
+        uav_command = tracker.command([d.T_c_m[:3, 3] for d in frame.detections])
         poses = {}
         for name in (MAIN, BUDDY):
-            est = estimator.estimate(name)
-            poses[name] = se3_to_se2(est.T_w_b) if est.status is Status.LOCALISED and est.T_w_b is not None else None
-        ugv_commands, changes = schedule.step(world.time, poses, estimator.window_ready)
+            est = frame.estimates[name]
+            poses[name] = frame.estimated[name] if est.status is Status.LOCALISED else None
+        ugv_commands, changes = schedule.step(world.time, poses, sim.localiser.window_ready)
         for change in changes:
-            world.set_static(change.robot, change.static)
-            estimator.set_static(change.robot, change.static, world.time)
+            sim.declare(change.robot, static=change.static)
             if change.robot == MAIN and change.static:
                 switch_times.append(world.time)
 
