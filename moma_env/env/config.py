@@ -8,8 +8,10 @@ config, the reward is a weighted sum of named terms.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from numbers import Integral
+from typing import Any
 
 import numpy as np
 
@@ -105,6 +107,10 @@ class EnvConfig:
             the longest one, so that all agents share one observation shape
             (parameter-sharing wrappers need it; e.g. the observer beside the
             UGVs in ``velocity`` mode). Off by default.
+        localiser: builds each episode's localiser from the scenario's
+            ``EstimatorConfig`` (a :class:`moma_env.sim.Localiser`); None: the
+            MOMA estimator. Pass a class or a module-level function so that the
+            env stays picklable.
     """
 
     action_mode: str = "switching"
@@ -117,6 +123,7 @@ class EnvConfig:
     observer_image: tuple[int, int] | None = None
     action_masks: bool = False
     pad_observations: bool = False
+    localiser: Callable[[Any], Any] | None = None
 
     def __post_init__(self) -> None:
         check_choice("env.action_mode", self.action_mode, ACTION_MODES)
@@ -148,6 +155,8 @@ class EnvConfig:
                 raise ConfigError("env.observer_image", "needs the observer to be an agent (observer_agent=True)")
 
         check_bool("env.pad_observations", self.pad_observations)
+        if self.localiser is not None and not callable(self.localiser):
+            raise ConfigError("env.localiser", f"must be a callable EstimatorConfig -> Localiser or None, got {self.localiser!r}")
         check_bool("env.action_masks", self.action_masks)
         if self.action_masks and self.action_mode != "switching":
             raise ConfigError("env.action_masks", "exist only for the discrete actions of action_mode='switching'")

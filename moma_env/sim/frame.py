@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 
 from moma_env.estimator import Detection, RobotEstimate, Status
 from moma_env.world import UAVState
@@ -81,6 +82,14 @@ class Frame:
     ropes: Mapping[str, float]
     last_switch_time: float
     dwell_remaining: float
+
+    def __getstate__(self) -> dict:
+        # Read-only views cannot be pickled: store their dicts, and rewrap them on load.
+        return {k: dict(v) if isinstance(v, MappingProxyType) else v for k, v in self.__dict__.items()}
+
+    def __setstate__(self, state: dict) -> None:
+        for k, v in state.items():
+            object.__setattr__(self, k, MappingProxyType(v) if isinstance(v, dict) else v)
 
     def usable_pose(self, device: str) -> Pose2D | None:
         """The planar estimate of ``device`` a controller may act on: None if LOST or absent."""
