@@ -162,7 +162,7 @@ def fingerprint(case: Case, seed: int = 0) -> dict:
             actions.pop(next(iter(actions)))
         feed(env.step(actions))
         feed(env.state())
-        estimates = env.estimator.estimates()
+        estimates = env.frame.estimates
         feed({k: (e.T_w_b, e.status, e.phase, e.last_fresh_time, e.n_window) for k, e in estimates.items()})
         feed([env.localisation_error(device) for device in env.devices])
     feed([repr(event) for event in env.estimator.events])

@@ -70,12 +70,15 @@ def parallel_env(
     floor: FloorConfig | Mapping[str, Any] | None = None,
     observer_image: tuple[int, int] | None = None,
     action_masks: bool = False,
+    pad_observations: bool = False,
+    localiser: Any = None,
     **overrides: Any,
 ) -> MomaParallelEnv:
     """The PettingZoo parallel env of ``configuration`` (see the module docstring).
 
-    ``camera_backend``, ``render``, ``floor``, ``observer_image`` and
-    ``action_masks`` are the :class:`EnvConfig` fields of the same names
+    ``camera_backend``, ``render``, ``floor``, ``observer_image``,
+    ``action_masks``, ``pad_observations`` and ``localiser`` are the
+    :class:`EnvConfig` fields of the same names
     (``render`` and ``floor`` may be mappings of their fields).
     """
     if rewards is None:
@@ -96,6 +99,8 @@ def parallel_env(
         floor=floor,
         observer_image=observer_image,
         action_masks=action_masks,
+        pad_observations=pad_observations,
+        localiser=localiser,
     )
     return MomaParallelEnv(
         scenario_factory(configuration, random_scenarios, **overrides),

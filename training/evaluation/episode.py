@@ -203,7 +203,7 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
     robots = robot_agents(env)
     capacity = env.max_cycles + 1
     logs = {name: _RobotLog(capacity) for name in robots}
-    t = env.world.time
+    t = env.frame.time
     for name in robots:
         logs[name].record(name, t, infos[name])
     if frame_sink is not None:
@@ -214,7 +214,7 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
         actions = policy.act(observations, infos)
         observations, rewards, terminations, truncations, infos = env.step(actions)
         steps += 1
-        t = env.world.time
+        t = env.frame.time
         total_reward += next(iter(rewards.values()), 0.0)
         s, r = _count_events(infos)
         n_switches += s
@@ -225,7 +225,7 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
         truncated = any(truncations.values())
         if frame_sink is not None:
             frame_sink(env.render())
-    duration = float(env.world.time)
+    duration = float(env.frame.time)
     results = {name: log.result() for name, log in logs.items()}
     goals = {name: tuple(float(v) for v in goal) for name, goal in env.scenario.goals.items()}
     return EpisodeResult(

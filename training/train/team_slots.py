@@ -134,7 +134,7 @@ class TeamSlots:
             info["TimeLimit.truncated"] = bool(truncated and not terminated)
             if done:
                 info["terminal_observation"] = obs[k].copy()
-                info["episode"] = {"r": self._return, "l": self._length, "t": float(self.env.world.time)}
+                info["episode"] = {"r": self._return, "l": self._length, "t": float(self.env.frame.time)}
             out_infos.append(info)
         if done:
             obs, _ = self.reset()
