@@ -52,18 +52,22 @@ _BOX_KINDS = "iuf"  # numpy dtype kinds of real numbers (bool, complex, strings,
 
 def parse_box(agent: str, action: Any, space: spaces.Box) -> list[float]:
     """A Box action as a list of floats clipped to [-1, 1]; ValueError naming ``agent`` and ``space`` otherwise."""
-    expected = f"a sequence of {space.shape[0]} finite real numbers (the space {space})"
+
+    def refuse(requirement: str, got: str) -> ValueError:
+        expected = f"{space.shape[0]} finite real numbers, the space {space}"
+        return ValueError(f"action of {agent!r} must {requirement} ({expected}), got {got}")
+
     try:
         a = np.asarray(action)
-    except Exception:  # noqa: BLE001 - whatever numpy refuses, the message below says what was expected
-        raise ValueError(f"action of {agent!r} must be {expected}, got {action!r}") from None
+    except Exception:  # noqa: BLE001 - whatever numpy refuses, the message says what was expected
+        raise refuse("be a sequence of real numbers", repr(action)) from None
     if a.dtype.kind not in _BOX_KINDS:
-        raise ValueError(f"action of {agent!r} must be {expected}, got {action!r}")
+        raise refuse("be a sequence of real numbers", repr(action))
     if a.shape != space.shape:
-        raise ValueError(f"action of {agent!r} must have shape {space.shape} ({expected}), got shape {a.shape}: {action!r}")
+        raise refuse(f"have shape {space.shape}", f"shape {a.shape}: {action!r}")
     values = a.astype(np.float64).tolist()
     if not all(math.isfinite(v) for v in values):
-        raise ValueError(f"action of {agent!r} must be finite ({expected}), got {values}")
+        raise refuse("be finite", repr(values))
     # Plain floats: a handful of values, where numpy calls cost more than the arithmetic.
     return [-1.0 if v < -1.0 else (1.0 if v > 1.0 else v) for v in values]
 
