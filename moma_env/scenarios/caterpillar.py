@@ -32,7 +32,7 @@ import numpy as np
 
 from moma_env.config import ConfigError, check_positive
 from moma_env.geometry import wrap_angle
-from moma_env.markers import board_for_robot
+from moma_env.markers import board_for_robot, team_dictionary
 from moma_env.scenarios.common import (
     Layout,
     ScenarioConfig,
@@ -62,9 +62,10 @@ def file_layout(start: Pose2D, n_ugvs: int, distance: float, standoff: float, go
 
     ``ugv_0`` carries a back board only; ``ugv_k`` (k >= 1) a forward camera on
     ``ugv_{k-1}``'s board and, unless it is the last, a back board of its own
-    (ids of ``board_for_robot(k)``).
+    (ids of ``board_for_robot(k)``, all of ``team_dictionary(n_ugvs - 1)``).
     """
     radius = default_ugv_radius()
+    dictionary = team_dictionary(max(n_ugvs - 1, 0))
     mount_offset = 0.5 * (distance - standoff)
     leader = (start[0], start[1], float(wrap_angle(start[2])))
     ugvs, goals, disks = [], {}, []
@@ -78,7 +79,7 @@ def file_layout(start: Pose2D, n_ugvs: int, distance: float, standoff: float, go
             UGVConfig(
                 name=name,
                 initial_pose=pose,
-                board=board_for_robot(k) if has_board else None,
+                board=board_for_robot(k, dictionary=dictionary) if has_board else None,
                 board_mount=board_on_back(MOUNT_HEIGHT_M, mount_offset),
                 cameras=cameras,
             )

@@ -18,6 +18,7 @@ import numpy as np
 
 from moma_env.config import check_count
 from moma_env.scenarios.caterpillar import RobotFileConfig
+from moma_env.scenarios.common import check_team_boards
 from moma_env.scenarios.sampling import (
     draw_until_valid,
     random_camera,
@@ -37,7 +38,9 @@ class CaterpillarMultiConfig(RobotFileConfig):
     """A file of ``n_ugvs`` robots (fields of :class:`RobotFileConfig`, plus ``n_ugvs``).
 
     Attributes:
-        n_ugvs: number of robots in the file (>= 2).
+        n_ugvs: number of robots in the file (>= 2; its ``n_ugvs - 1`` boards take
+            ids of ``markers.team_dictionary(n_ugvs - 1)``, so at most
+            ``markers.MAX_TEAM_BOARDS + 1`` robots).
     """
 
     NAME: ClassVar[str] = "caterpillar_multi"
@@ -51,6 +54,7 @@ class CaterpillarMultiConfig(RobotFileConfig):
 
     def _check_fields(self) -> None:
         check_count(self._field("n_ugvs"), self.n_ugvs, minimum=2)
+        check_team_boards(self._field("n_ugvs"), self.n_ugvs, self.n_ugvs - 1)
         super()._check_fields()
 
     @classmethod

@@ -27,6 +27,7 @@ import numpy as np
 from moma_env.camera import CameraConfig
 from moma_env.config import ConfigError, check_count, check_finite, check_numbers, check_non_negative, check_positive, from_mapping
 from moma_env.estimator import EstimatorConfig
+from moma_env.markers import ARUCO_DICTIONARIES, MARKERS_PER_BOARD, MAX_TEAM_BOARDS, TEAM_DICTIONARIES
 from moma_env.scenarios.base import Scenario
 from moma_env.scenarios.layout import Disk, Pose2D, convex_hull
 from moma_env.world import ArenaConfig, BoxObstacle, SledConfig, UAVConfig, UGVConfig, WorldConfig
@@ -43,6 +44,7 @@ __all__ = [
     "default_ugv_radius",
     "field_default",
     "planar_pose",
+    "check_team_boards",
 ]
 
 #: Margin (m) between the start/goal footprints and the walls of a fitted arena (``arena=None``).
@@ -80,6 +82,20 @@ def default_ugv_radius() -> float:
 def planar_pose(field_name: str, value: object) -> Pose2D:
     """``value`` as a float ``(x, y, yaw)``; ConfigError naming ``field_name`` otherwise."""
     return check_numbers(field_name, value, ("x", "y", "yaw"))  # type: ignore[return-value]
+
+
+def check_team_boards(field_name: str, n_ugvs: int, n_boards: int) -> None:
+    """ConfigError naming ``field_name`` (the robot count) if a team of ``n_ugvs`` robots
+    carrying ``n_boards`` boards of ``markers.board_for_robot`` needs more distinct
+    marker ids than the largest team dictionary holds (``markers.MAX_TEAM_BOARDS`` boards)."""
+    if n_boards > MAX_TEAM_BOARDS:
+        largest = TEAM_DICTIONARIES[-1]
+        raise ConfigError(
+            field_name,
+            f"must be at most {MAX_TEAM_BOARDS + n_ugvs - n_boards}: the team's {n_boards} boards need "
+            f"{MARKERS_PER_BOARD * n_boards} distinct ArUco ids ({MARKERS_PER_BOARD} a board) and the largest "
+            f"dictionary, {largest}, holds {ARUCO_DICTIONARIES[largest]}; got {n_ugvs}",
+        )
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,8 @@
 
 The paper's main configuration (section IV, the 1 m square): UGVs ``ugv_0`` ..
 ``ugv_{N-1}`` carry face-up ArUco boards (``markers.board_for_robot(i)``: ids
-``4i..4i+3``) and an observer (an Ar.Drone quadcopter or a hand-held camera)
+``4i..4i+3``, of ``markers.team_dictionary(N)``: DICT_4X4_50 up to 12 robots, a
+larger 4x4 dictionary beyond, at most ``markers.MAX_TEAM_BOARDS`` robots) and an observer (an Ar.Drone quadcopter or a hand-held camera)
 looks down on them from ``altitude``. All robots start static; each one's goal
 is its start shifted by ``goal_offset``.
 
@@ -30,10 +31,11 @@ import numpy as np
 
 from moma_env.config import ConfigError, check_choice, check_count, check_positive, check_range
 from moma_env.geometry import wrap_angle
-from moma_env.markers import board_for_robot
+from moma_env.markers import board_for_robot, team_dictionary
 from moma_env.scenarios.common import (
     Layout,
     ScenarioConfig,
+    check_team_boards,
     default_ugv_radius,
     field_default,
     planar_pose,
@@ -102,6 +104,7 @@ class TopObserverConfig(ScenarioConfig):
 
     def _check_fields(self) -> None:
         check_count(self._field("n_ugvs"), self.n_ugvs, minimum=2)
+        check_team_boards(self._field("n_ugvs"), self.n_ugvs, self.n_ugvs)
         check_positive(self._field("spacing"), self.spacing)
         diameter = 2.0 * default_ugv_radius()
         if self.spacing < diameter:
@@ -118,13 +121,14 @@ class TopObserverConfig(ScenarioConfig):
     def _make_layout(self) -> Layout:
         radius = default_ugv_radius()
         ugvs, goals, disks = [], {}, []
+        dictionary = team_dictionary(self.n_ugvs)
         for i, (forward, left) in enumerate(formation_offsets(self.n_ugvs, self.spacing, self.formation).tolist()):
             name = ugv_name(i)
             start = in_body_frame(self.start, forward, left)
             start = (start[0], start[1], float(wrap_angle(start[2])))
             goal = shifted(start, self.goal_offset)
             goal = (goal[0], goal[1], float(wrap_angle(goal[2])))
-            ugvs.append(UGVConfig(name=name, initial_pose=start, board=board_for_robot(i)))
+            ugvs.append(UGVConfig(name=name, initial_pose=start, board=board_for_robot(i, dictionary=dictionary)))
             goals[name] = goal
             disks += [(f"{name} start", start[0], start[1], radius), (f"{name} goal", goal[0], goal[1], radius)]
         x, y, yaw = self.start
