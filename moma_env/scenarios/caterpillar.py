@@ -49,9 +49,18 @@ from moma_env.scenarios.sampling import (
     random_heading,
     random_surroundings,
 )
-from moma_env.world import CameraMount, UGVConfig, board_on_back, camera_forward
+from moma_env.scenarios.spec import ScenarioSpec
+from moma_env.world import CameraMount, UGVConfig, WorldConfig, board_on_back, camera_forward
 
-__all__ = ["CaterpillarConfig", "RobotFileConfig", "MOUNT_HEIGHT_M", "file_layout", "file_views"]
+__all__ = [
+    "CaterpillarConfig",
+    "RobotFileConfig",
+    "MOUNT_HEIGHT_M",
+    "file_layout",
+    "file_views",
+    "file_motion_views",
+    "SPEC",
+]
 
 #: Height (m) of the followers' cameras and of the boards on the robots' backs.
 MOUNT_HEIGHT_M = 0.30
@@ -92,6 +101,12 @@ def file_layout(start: Pose2D, n_ugvs: int, distance: float, standoff: float, go
 def file_views(n_ugvs: int) -> dict[str, tuple[str, ...]]:
     """Camera of ``ugv_k`` -> the board of ``ugv_{k-1}``, for k >= 1."""
     return {camera_name(ugv_name(k)): (ugv_name(k - 1),) for k in range(1, n_ugvs)}
+
+
+def file_motion_views(world: WorldConfig) -> dict[str, tuple[str, ...]]:
+    """:func:`file_views` of the file of ``world``'s UGVs: every follower keeps the
+    board ahead in view while it or the robot ahead moves."""
+    return file_views(len(world.ugvs))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -167,3 +182,14 @@ class CaterpillarConfig(RobotFileConfig):
             return replace(config, **random_surroundings(rng, config.occupied_disks))
 
         return draw_until_valid(cls, rng, draw)
+
+
+#: The two-robot caterpillar's place in the registry.
+SPEC = ScenarioSpec(
+    config_type=CaterpillarConfig,
+    gymnasium_id="moma_env/Caterpillar-v0",
+    pettingzoo_module="caterpillar_v0",
+    schedule="moma_env.planning.planner:robot_file_schedule",
+    scripted_policy="agents.policies.caterpillar_multi:CaterpillarTwo",
+    motion_views=file_motion_views,
+)

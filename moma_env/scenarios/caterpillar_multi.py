@@ -17,7 +17,7 @@ from typing import ClassVar
 import numpy as np
 
 from moma_env.config import check_count
-from moma_env.scenarios.caterpillar import RobotFileConfig
+from moma_env.scenarios.caterpillar import RobotFileConfig, file_motion_views
 from moma_env.scenarios.common import check_team_boards
 from moma_env.scenarios.sampling import (
     draw_until_valid,
@@ -26,8 +26,9 @@ from moma_env.scenarios.sampling import (
     random_heading,
     random_surroundings,
 )
+from moma_env.scenarios.spec import ScenarioSpec
 
-__all__ = ["CaterpillarMultiConfig", "MAX_RANDOM_UGVS"]
+__all__ = ["CaterpillarMultiConfig", "MAX_RANDOM_UGVS", "SPEC"]
 
 #: Largest number of robots a random configuration draws (at least 2).
 MAX_RANDOM_UGVS = 4
@@ -72,3 +73,14 @@ class CaterpillarMultiConfig(RobotFileConfig):
             return replace(config, **random_surroundings(rng, config.occupied_disks))
 
         return draw_until_valid(cls, rng, draw)
+
+
+#: The multi-robot caterpillar's place in the registry.
+SPEC = ScenarioSpec(
+    config_type=CaterpillarMultiConfig,
+    gymnasium_id="moma_env/CaterpillarMulti-v0",
+    pettingzoo_module="caterpillar_multi_v0",
+    schedule="moma_env.planning.planner:robot_file_schedule",
+    scripted_policy="agents.policies.caterpillar_multi:CaterpillarMulti",
+    motion_views=file_motion_views,
+)

@@ -50,9 +50,10 @@ from moma_env.scenarios.sampling import (
     random_heading,
     random_surroundings,
 )
+from moma_env.scenarios.spec import ScenarioSpec
 from moma_env.world import UAV_KINDS, UAVConfig, UGVConfig
 
-__all__ = ["TopObserverConfig", "FORMATIONS", "formation_offsets", "MAX_RANDOM_UGVS"]
+__all__ = ["TopObserverConfig", "FORMATIONS", "formation_offsets", "MAX_RANDOM_UGVS", "SPEC"]
 
 #: Formations the robots may start in.
 FORMATIONS = ("compact", "row")
@@ -175,3 +176,15 @@ class TopObserverConfig(ScenarioConfig):
             return replace(config, **random_surroundings(rng, config.occupied_disks))
 
         return draw_until_valid(cls, rng, draw)
+
+
+#: The top observer's place in the registry: the plan checker keeps the team within
+#: the observer's coverage (no per-camera motion views).
+SPEC = ScenarioSpec(
+    config_type=TopObserverConfig,
+    gymnasium_id="moma_env/TopObserver-v0",
+    pettingzoo_module="top_observer_v0",
+    schedule="moma_env.planning.planner:top_observer_schedule",
+    scripted_policy="agents.policies.top_observer:TopObserverLeapfrog",
+    observer_coverage=True,
+)
