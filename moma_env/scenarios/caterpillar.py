@@ -170,8 +170,12 @@ class CaterpillarConfig(RobotFileConfig):
         return 2
 
     @classmethod
-    def random(cls, rng: np.random.Generator) -> CaterpillarConfig:
-        """Random heading, goal distance (1-3 m), camera, arena and obstacles; every draw from ``rng``."""
+    def random(cls, rng: np.random.Generator, **team: int) -> CaterpillarConfig:
+        """Random heading, goal distance (1-3 m), camera, arena and obstacles; every draw from ``rng``.
+
+        ``team`` must be empty (the team is always the same; ConfigError otherwise).
+        """
+        cls.check_team(team)
 
         def draw(rng: np.random.Generator) -> CaterpillarConfig:
             config = cls(

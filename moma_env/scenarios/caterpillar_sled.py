@@ -131,9 +131,13 @@ class CaterpillarSledConfig(ScenarioConfig):
         return {camera_name(ugv_name(0)): (SLED_NAME,)}
 
     @classmethod
-    def random(cls, rng: np.random.Generator) -> CaterpillarSledConfig:
+    def random(cls, rng: np.random.Generator, **team: int) -> CaterpillarSledConfig:
         """Random heading, goal distance (1-3 m), initial rope length (0.45-1.0 m),
-        camera, arena and obstacles; every draw from ``rng``."""
+        camera, arena and obstacles; every draw from ``rng``.
+
+        ``team`` must be empty (the team is always the same; ConfigError otherwise).
+        """
+        cls.check_team(team)
 
         def draw(rng: np.random.Generator) -> CaterpillarSledConfig:
             config = cls(

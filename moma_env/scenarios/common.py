@@ -20,6 +20,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 import numpy as np
@@ -152,6 +153,11 @@ class ScenarioConfig(ABC):
 
     #: Configuration name (the scenario's name and the prefix of error fields).
     NAME: ClassVar[str] = "scenario"
+    #: Fields that fix the team (the env's agents) -> inclusive range ``(low, high)`` of
+    #: the values ``random`` can keep them at (``random(rng, n_ugvs=5)``); random layouts
+    #: of an env (``random_scenarios=True``) keep its configuration's values. Empty: the
+    #: team is always the same.
+    TEAM_FIELDS: ClassVar[Mapping[str, tuple[int, int]]] = MappingProxyType({})
 
     arena: tuple[float, float] | None = None
     arena_origin: tuple[float, float] | None = None
@@ -180,8 +186,31 @@ class ScenarioConfig(ABC):
 
     @classmethod
     @abstractmethod
-    def random(cls, rng: np.random.Generator) -> ScenarioConfig:
-        """A random valid configuration; every draw comes from ``rng``."""
+    def random(cls, rng: np.random.Generator, **team: int) -> ScenarioConfig:
+        """A random valid configuration; every draw comes from ``rng``.
+
+        ``team`` keeps fields of :attr:`TEAM_FIELDS` at the given values (checked
+        by :meth:`check_team`: ConfigError naming the field otherwise).
+        """
+
+    @classmethod
+    def check_team(cls, team: Mapping[str, Any]) -> dict[str, int]:
+        """``team`` as ints if :meth:`random` can keep every value; else ConfigError naming
+        the field (``"top_observer.n_ugvs"``) and the range of :attr:`TEAM_FIELDS` it allows."""
+        checked = {}
+        for name, value in team.items():
+            field_name = f"{cls.NAME}.{name}"
+            if name not in cls.TEAM_FIELDS:
+                kept = sorted(cls.TEAM_FIELDS) or "none"
+                raise ConfigError(field_name, f"random layouts cannot keep this field; the fields they keep: {kept}")
+            low, high = cls.TEAM_FIELDS[name]
+            check_count(field_name, value, minimum=low)
+            if value > high:
+                raise ConfigError(
+                    field_name, f"must be in [{low}, {high}] for random layouts (random_scenarios=True), got {value!r}"
+                )
+            checked[name] = int(value)
+        return checked
 
     # -- construction -------------------------------------------------------------------
 

@@ -73,7 +73,7 @@ class ScenarioSpec:
     Attributes:
         config_type: the configuration's dataclass (a :class:`ScenarioConfig`); its
             ``NAME`` is the configuration's name, its ``random`` the seeded random
-            generator.
+            generator and its ``TEAM_FIELDS`` the fields random layouts keep.
         gymnasium_id: Gymnasium id of the whole team as one agent, e.g.
             ``"moma_env/TopObserver-v0"`` (registered by :mod:`moma_env.registration`).
         pettingzoo_module: name of the versioned module in ``moma_env`` with
@@ -131,9 +131,16 @@ class ScenarioSpec:
         assert match is not None  # checked at construction
         return f"moma_env/{match['base']}-v{match['version']}"
 
-    def random(self, rng: np.random.Generator) -> ScenarioConfig:
-        """A random valid configuration drawn from ``rng`` (the class's ``random``)."""
-        return self.config_type.random(rng)
+    @property
+    def team_fields(self) -> Mapping[str, tuple[int, int]]:
+        """Fields that fix the team (the env's agents) -> the inclusive range of values
+        :meth:`random` can keep them at (the configuration class's ``TEAM_FIELDS``)."""
+        return self.config_type.TEAM_FIELDS
+
+    def random(self, rng: np.random.Generator, **team: int) -> ScenarioConfig:
+        """A random valid configuration drawn from ``rng`` (the class's ``random``);
+        ``team`` keeps fields of :attr:`team_fields` at the given values."""
+        return self.config_type.random(rng, **team)
 
     def load_schedule(self) -> Callable[..., None]:
         """The planner's schedule (imports its module); ValueError if there is none."""

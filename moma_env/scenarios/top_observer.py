@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 from typing import ClassVar
 
 import numpy as np
@@ -45,6 +46,7 @@ from moma_env.scenarios.layout import Pose2D, in_body_frame, shifted
 from moma_env.scenarios.sampling import (
     ALTITUDE_RANGE_M,
     draw_until_valid,
+    first_with_team,
     random_camera,
     random_goal_distance,
     random_heading,
@@ -53,12 +55,16 @@ from moma_env.scenarios.sampling import (
 from moma_env.scenarios.spec import ScenarioSpec
 from moma_env.world import UAV_KINDS, UAVConfig, UGVConfig
 
-__all__ = ["TopObserverConfig", "FORMATIONS", "formation_offsets", "MAX_RANDOM_UGVS", "SPEC"]
+__all__ = ["TopObserverConfig", "FORMATIONS", "formation_offsets", "MAX_RANDOM_UGVS", "MAX_KEPT_UGVS", "SPEC"]
 
 #: Formations the robots may start in.
 FORMATIONS = ("compact", "row")
 #: Largest number of robots a random configuration draws (at least 2).
 MAX_RANDOM_UGVS = 4
+#: Largest team a random configuration keeps (``random(rng, n_ugvs=k)``): at 12 robots
+#: about one draw in four still sees every board from the observer (a compact team
+#: under a high observer with a short lens), so the generator's attempts suffice.
+MAX_KEPT_UGVS = 12
 #: Largest turn (rad) of a random goal relative to the start.
 _MAX_RANDOM_GOAL_TURN = math.pi / 2
 
@@ -94,6 +100,7 @@ class TopObserverConfig(ScenarioConfig):
     """
 
     NAME: ClassVar[str] = "top_observer"
+    TEAM_FIELDS: ClassVar[Mapping[str, tuple[int, int]]] = MappingProxyType({"n_ugvs": (2, MAX_KEPT_UGVS)})
 
     n_ugvs: int = 2
     spacing: float = 0.6
@@ -151,13 +158,22 @@ class TopObserverConfig(ScenarioConfig):
         return {uav.camera_name: tuple(ugv_name(i) for i in range(self.n_ugvs))}
 
     @classmethod
-    def random(cls, rng: np.random.Generator) -> TopObserverConfig:
+    def random(cls, rng: np.random.Generator, **team: int) -> TopObserverConfig:
         """Random robots (2-4, random formation), start heading, goal (1-3 m in a random
         direction, turned by up to 90 degrees), observer kind and altitude (1.2-2.5 m),
-        camera, arena and obstacles; every draw from ``rng``."""
+        camera, arena and obstacles; every draw from ``rng``.
+
+        ``n_ugvs=k`` keeps the team at ``k`` robots, 2 to :data:`MAX_KEPT_UGVS`
+        (ConfigError naming ``top_observer.n_ugvs`` otherwise): for ``k <= 4`` the
+        first free draw with ``k`` robots, beyond that a draw with ``k`` fixed (see
+        :mod:`moma_env.scenarios.sampling`).
+        """
+        kept = cls.check_team(team).get("n_ugvs")
+        if kept is not None and kept <= MAX_RANDOM_UGVS:
+            return first_with_team(cls, rng, cls.random, {"n_ugvs": kept})
 
         def draw(rng: np.random.Generator) -> TopObserverConfig:
-            n_ugvs = int(rng.integers(2, MAX_RANDOM_UGVS + 1))
+            n_ugvs = int(rng.integers(2, MAX_RANDOM_UGVS + 1)) if kept is None else kept
             formation = FORMATIONS[int(rng.integers(len(FORMATIONS)))]
             heading = random_heading(rng)
             distance, direction = random_goal_distance(rng), random_heading(rng)
