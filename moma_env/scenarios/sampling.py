@@ -8,12 +8,12 @@ over, a required board out of view) is thrown away and drawn again, at most
 last reason.
 
 A generator keeps a team field (``n_ugvs``) at a given value in one of two ways,
-which give the same distribution, the free generator's conditioned on the value
-(the other fields are drawn the same way whatever the robot count; only the
-validity checks depend on it): for a value the free generator draws itself,
-:func:`first_with_team` takes the first free configuration that has it (the
-stream of layouts the environment has always drawn, bit for bit); beyond that
-range the generator draws the other fields with the value fixed.
+both giving the free generator's distribution conditioned on that value: for a
+value the free generator draws itself, :func:`first_with_team` takes the first
+free configuration that has it (the stream of layouts the environment has always
+drawn, bit for bit); beyond that range the generator skips that field's draw and
+draws the others as the free generator does given the value, rejecting the same
+invalid layouts.
 
 Ranges (m, rad, px): arena sides 4-10 m, 0-4 box obstacles of 0.2-1.0 m sides,
 goal distance 1-3 m, headings uniform, camera fx 350-600 px, corner noise 0-1

@@ -3,9 +3,10 @@
 The paper's main configuration (section IV, the 1 m square): UGVs ``ugv_0`` ..
 ``ugv_{N-1}`` carry face-up ArUco boards (``markers.board_for_robot(i)``: ids
 ``4i..4i+3``, of ``markers.team_dictionary(N)``: DICT_4X4_50 up to 12 robots, a
-larger 4x4 dictionary beyond, at most ``markers.MAX_TEAM_BOARDS`` robots) and an observer (an Ar.Drone quadcopter or a hand-held camera)
-looks down on them from ``altitude``. All robots start static; each one's goal
-is its start shifted by ``goal_offset``.
+larger 4x4 dictionary beyond, at most ``markers.MAX_TEAM_BOARDS`` robots) and an
+observer (an Ar.Drone quadcopter or a hand-held camera) looks down on them from
+``altitude``. All robots start static; each one's goal is its start shifted by
+``goal_offset``.
 
 Formation (m, in the frame of ``start``: x along the robots' heading, y to
 their left), ``spacing`` between neighbours, centred on ``start``:
