@@ -12,23 +12,48 @@ real camera pipeline would feed them to solvePnP.
 
 from __future__ import annotations
 
+import numbers
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import numpy as np
 
 from moma_env.config import ConfigError, check_choice, check_non_negative, check_positive, check_unique
 
-__all__ = ["BoardLayout", "ARUCO_DICTIONARIES", "board_for_robot"]
+__all__ = [
+    "BoardLayout",
+    "ARUCO_DICTIONARIES",
+    "TEAM_DICTIONARIES",
+    "MARKERS_PER_BOARD",
+    "MAX_TEAM_BOARDS",
+    "board_for_robot",
+    "team_dictionary",
+]
 
 #: Names of the cv2.aruco predefined dictionaries a layout may use, with the number
-#: of markers each holds.
-ARUCO_DICTIONARIES = {
-    "DICT_4X4_50": 50,
-    "DICT_4X4_100": 100,
-    "DICT_5X5_100": 100,
-    "DICT_6X6_250": 250,
-    "DICT_ARUCO_ORIGINAL": 1024,
-}
+#: of markers each holds (read-only).
+ARUCO_DICTIONARIES: Mapping[str, int] = MappingProxyType(
+    {
+        "DICT_4X4_50": 50,
+        "DICT_4X4_100": 100,
+        "DICT_4X4_250": 250,
+        "DICT_4X4_1000": 1000,
+        "DICT_5X5_100": 100,
+        "DICT_6X6_250": 250,
+        "DICT_ARUCO_ORIGINAL": 1024,
+    }
+)
+#: The dictionaries a team's boards are printed from, smallest first; the team uses
+#: the first that holds every id (:func:`team_dictionary`). In OpenCV each of these
+#: 4x4-bit dictionaries starts with the markers of the smaller ones (id k is the same
+#: pattern in all of them), so a team must not mix them.
+TEAM_DICTIONARIES = ("DICT_4X4_50", "DICT_4X4_100", "DICT_4X4_250", "DICT_4X4_1000")
+#: Markers on one robot's default board (a 2x2 grid; ids ``4k .. 4k+3`` on robot k).
+MARKERS_PER_BOARD = 4
+#: Most boards of :func:`board_for_robot` with distinct ids: the largest team dictionary's
+#: markers, :data:`MARKERS_PER_BOARD` a board (250).
+MAX_TEAM_BOARDS = ARUCO_DICTIONARIES[TEAM_DICTIONARIES[-1]] // MARKERS_PER_BOARD
 
 
 @dataclass(frozen=True)
@@ -103,7 +128,33 @@ class BoardLayout:
         return pts.reshape(-1, 3).copy()
 
 
-def board_for_robot(index: int, *, markers_per_board: int = 4, **layout: object) -> BoardLayout:
-    """Default layout of robot ``index``: ids ``4*index .. 4*index+3`` (DESIGN.md)."""
+def board_for_robot(index: int, *, markers_per_board: int = MARKERS_PER_BOARD, **layout: object) -> BoardLayout:
+    """Default layout of robot ``index``: ids ``4*index .. 4*index+3`` (DESIGN.md).
+
+    ``layout`` sets other :class:`BoardLayout` fields, e.g. ``dictionary=team_dictionary(n)``
+    for a team of ``n`` boards.
+    """
     first = markers_per_board * index
     return BoardLayout(marker_ids=tuple(range(first, first + markers_per_board)), **layout)  # type: ignore[arg-type]
+
+
+def team_dictionary(n_boards: int) -> str:
+    """The dictionary of a team whose boards are ``board_for_robot(0 .. n_boards - 1)``.
+
+    The first of :data:`TEAM_DICTIONARIES` holding the ``MARKERS_PER_BOARD * n_boards``
+    ids: ``"DICT_4X4_50"`` up to 12 boards, then ``"DICT_4X4_100"`` (25),
+    ``"DICT_4X4_250"`` (62) and ``"DICT_4X4_1000"`` (:data:`MAX_TEAM_BOARDS`, 250).
+
+    Raises:
+        ValueError: if ``n_boards`` is not an integer in ``[0, MAX_TEAM_BOARDS]``.
+    """
+    if isinstance(n_boards, bool) or not isinstance(n_boards, numbers.Integral) or n_boards < 0:
+        raise ValueError(f"n_boards must be an integer >= 0, got {n_boards!r}")
+    needed = MARKERS_PER_BOARD * n_boards
+    for name in TEAM_DICTIONARIES:
+        if needed <= ARUCO_DICTIONARIES[name]:
+            return name
+    raise ValueError(
+        f"{n_boards} boards need {needed} marker ids; the largest team dictionary {TEAM_DICTIONARIES[-1]} "
+        f"holds {ARUCO_DICTIONARIES[TEAM_DICTIONARIES[-1]]} (at most {MAX_TEAM_BOARDS} boards)"
+    )

@@ -1,23 +1,26 @@
 """Registration with Gymnasium and PettingZoo (called once by ``import moma_env``).
 
+Every configuration of :data:`moma_env.scenarios.SPECS` is registered under the ids
+its :class:`~moma_env.scenarios.ScenarioSpec` names:
+
 * Gymnasium, the whole team as one agent: ``gymnasium.make("moma_env/TopObserver-v0")``,
   ``moma_env/Caterpillar-v0``, ``moma_env/CaterpillarSled-v0``, ``moma_env/CaterpillarMulti-v0``.
 * PettingZoo (where the installed version has ``pettingzoo.register``):
   ``pettingzoo.make("parallel", "moma_env/top_observer-v0")`` and ``"aec"``, for
-  every configuration.
+  every configuration, from its versioned module (``moma_env.top_observer_v0``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import MappingProxyType
+
+from moma_env.scenarios.registry import SPECS
+
 __all__ = ["GYMNASIUM_IDS", "register_envs"]
 
-#: Gymnasium id -> configuration name.
-GYMNASIUM_IDS = {
-    "moma_env/TopObserver-v0": "top_observer",
-    "moma_env/Caterpillar-v0": "caterpillar",
-    "moma_env/CaterpillarSled-v0": "caterpillar_sled",
-    "moma_env/CaterpillarMulti-v0": "caterpillar_multi",
-}
+#: Gymnasium id -> configuration name (read-only; from the registered specs).
+GYMNASIUM_IDS: Mapping[str, str] = MappingProxyType({spec.gymnasium_id: spec.name for spec in SPECS})
 
 
 def register_envs() -> None:
@@ -25,19 +28,18 @@ def register_envs() -> None:
     import gymnasium
     import pettingzoo
 
-    for env_id, configuration in GYMNASIUM_IDS.items():
-        if env_id not in gymnasium.registry:
+    for spec in SPECS:
+        if spec.gymnasium_id not in gymnasium.registry:
             gymnasium.register(
-                id=env_id,
+                id=spec.gymnasium_id,
                 entry_point="moma_env.env.factory:centralised_env",
-                kwargs={"configuration": configuration},
+                kwargs={"configuration": spec.name},
             )
     register = getattr(pettingzoo, "register", None)
     if register is None:
         return
-    for configuration in GYMNASIUM_IDS.values():
+    for spec in SPECS:
         for kind, attr in (("parallel", "parallel_env"), ("aec", "env")):
-            env_id = f"moma_env/{configuration}-v0"
-            if env_id in (getattr(pettingzoo, f"{kind}_registry", None) or {}):
+            if spec.pettingzoo_id in (getattr(pettingzoo, f"{kind}_registry", None) or {}):
                 continue
-            register(kind, env_id, entry_point=f"moma_env.{configuration}_v0:{attr}")
+            register(kind, spec.pettingzoo_id, entry_point=f"moma_env.{spec.pettingzoo_module}:{attr}")

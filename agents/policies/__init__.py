@@ -13,6 +13,9 @@ estimates only (observation vectors and the non-truth ``infos`` keys).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import MappingProxyType
+
 from agents.policies.base import ADVANCE, ALLOWED_INFO_KEYS, FORBIDDEN_INFO_KEYS, HOLD, REEL, Policy
 from agents.policies.caterpillar_multi import CaterpillarMulti, CaterpillarTwo
 from agents.policies.caterpillar_servo import CaterpillarServo
@@ -21,6 +24,7 @@ from agents.policies.planned import PlannedPolicy
 from agents.policies.random_policy import RandomPolicy
 from agents.policies.top_observer import TopObserverLeapfrog
 from agents.policies.turns import Move, TurnTakingPolicy
+from moma_env.scenarios import SPECS
 
 __all__ = [
     "Policy",
@@ -42,13 +46,11 @@ __all__ = [
     "REEL",
 ]
 
-#: Configuration name -> scripted policy class.
-SCRIPTED_POLICIES: dict[str, type[TurnTakingPolicy]] = {
-    "top_observer": TopObserverLeapfrog,
-    "caterpillar": CaterpillarTwo,
-    "caterpillar_sled": CaterpillarSled,
-    "caterpillar_multi": CaterpillarMulti,
-}
+#: Configuration name -> scripted policy class (read-only): each registered
+#: configuration's ``ScenarioSpec.scripted_policy``.
+SCRIPTED_POLICIES: Mapping[str, type[TurnTakingPolicy]] = MappingProxyType(
+    {spec.name: spec.load_scripted_policy() for spec in SPECS if spec.scripted_policy is not None}
+)
 
 
 def scripted_policy(configuration: str) -> TurnTakingPolicy:

@@ -4,12 +4,11 @@
 :class:`MomaParallelEnv`; every keyword that is not an environment option is a
 field of the configuration's dataclass (``moma_env.scenarios``), validated by it.
 ``random_scenarios=True`` draws a new random layout of the same robots at every
-reset from the env's seeded generator.
+reset from the env's seeded generator (:class:`RandomScenarios`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
@@ -21,39 +20,94 @@ from moma_env.config import ConfigError, from_mapping
 from moma_env.env.centralised import CentralisedTeamEnv
 from moma_env.env.config import EnvConfig, RewardConfig
 from moma_env.env.parallel import MomaParallelEnv
-from moma_env.scenarios import CONFIGURATIONS, Scenario
+from moma_env.scenarios import SCENARIO_SPECS, Scenario, ScenarioConfig, ScenarioSpec
 
-__all__ = ["parallel_env", "aec_env", "centralised_env", "scenario_factory", "versioned_constructors"]
+__all__ = [
+    "parallel_env",
+    "aec_env",
+    "centralised_env",
+    "scenario_factory",
+    "RandomScenarios",
+    "versioned_constructors",
+]
 
-#: Random draws tried before giving up on matching the robots of the base configuration.
-_MAX_RANDOM_DRAWS = 200
+
+def _spec(configuration: str) -> ScenarioSpec:
+    """The registered spec of ``configuration``; ConfigError naming ``configuration`` otherwise."""
+    spec = SCENARIO_SPECS.get(configuration) if isinstance(configuration, str) else None
+    if spec is None:
+        raise ConfigError("configuration", f"unknown configuration {configuration!r}; known: {sorted(SCENARIO_SPECS)}")
+    return spec
 
 
-def _robot_count_fields(config: Any) -> dict[str, Any]:
-    return {f.name: getattr(config, f.name) for f in dataclasses.fields(config) if f.name in ("n_ugvs",)}
+class RandomScenarios:
+    """A scenario factory ``f(rng) -> Scenario``: a new random layout of one team per call.
 
+    ``f(None)`` is the base configuration's scenario (the env's first layout);
+    ``f(rng)`` a random configuration drawn from ``rng`` (the configuration's
+    ``random``) that keeps the base configuration's team fields (``TEAM_FIELDS``,
+    e.g. ``n_ugvs``), so every layout has the same agents. The other overrides
+    shape the base layout only. Instances pickle as their arguments.
 
-def scenario_factory(configuration: str, random_scenarios: bool = False, **overrides: Any):
-    """``f(rng) -> Scenario`` for a configuration; random layouts keep the base's robots."""
-    if configuration not in CONFIGURATIONS:
-        raise ConfigError("configuration", f"unknown configuration {configuration!r}; known: {sorted(CONFIGURATIONS)}")
-    cls = CONFIGURATIONS[configuration]
-    base = from_mapping(cls, overrides, name=configuration)
-    base_scenario = base.scenario()
-    if not random_scenarios:
-        return base_scenario
-    wanted = _robot_count_fields(base)
+    Args:
+        configuration: a registered configuration name, e.g. ``"top_observer"``.
+        overrides: fields of the configuration's dataclass for the base
+            configuration (nested dataclasses may be mappings of their fields).
 
-    def factory(rng: np.random.Generator | None) -> Scenario:
+    Raises:
+        ConfigError: naming the field, for an unknown configuration, a bad
+            override, or a team random layouts cannot keep (e.g.
+            ``"top_observer.n_ugvs"`` with its allowed range), at construction.
+    """
+
+    def __init__(self, configuration: str, overrides: Mapping[str, Any] | None = None) -> None:
+        spec = _spec(configuration)
+        self._configuration = configuration
+        self._overrides = dict(overrides or {})
+        self._base = from_mapping(spec.config_type, self._overrides, name=configuration)
+        self._team = spec.config_type.check_team({name: getattr(self._base, name) for name in spec.team_fields})
+        self._base_scenario = self._base.scenario()
+
+    @property
+    def configuration(self) -> str:
+        """The configuration's name."""
+        return self._configuration
+
+    @property
+    def overrides(self) -> dict[str, Any]:
+        """A copy of the base configuration's overrides."""
+        return dict(self._overrides)
+
+    @property
+    def base(self) -> ScenarioConfig:
+        """The base configuration (the layout of ``f(None)``)."""
+        return self._base
+
+    @property
+    def team(self) -> dict[str, int]:
+        """The team fields every random layout keeps, e.g. ``{"n_ugvs": 2}``."""
+        return dict(self._team)
+
+    def __call__(self, rng: np.random.Generator | None) -> Scenario:
+        """The base scenario for ``rng=None``, else a random one drawn from ``rng``."""
         if rng is None:
-            return base_scenario
-        for _ in range(_MAX_RANDOM_DRAWS):
-            config = cls.random(rng)
-            if _robot_count_fields(config) == wanted:
-                return config.scenario()
-        raise RuntimeError(f"no random {configuration} layout with {wanted} in {_MAX_RANDOM_DRAWS} draws")
+            return self._base_scenario
+        return _spec(self._configuration).random(rng, **self._team).scenario()
 
-    return factory
+    def __reduce__(self) -> tuple[type[RandomScenarios], tuple[str, dict[str, Any]]]:
+        return (type(self), (self._configuration, self._overrides))
+
+    def __repr__(self) -> str:
+        return f"RandomScenarios({self._configuration!r}, {self._overrides!r})"
+
+
+def scenario_factory(configuration: str, random_scenarios: bool = False, **overrides: Any) -> Scenario | RandomScenarios:
+    """The fixed :class:`Scenario` of a configuration with ``overrides``, or with
+    ``random_scenarios`` a :class:`RandomScenarios` keeping its robots."""
+    if random_scenarios:
+        return RandomScenarios(configuration, overrides)
+    spec = _spec(configuration)
+    return from_mapping(spec.config_type, overrides, name=configuration).scenario()
 
 
 def parallel_env(
@@ -102,11 +156,12 @@ def parallel_env(
         pad_observations=pad_observations,
         localiser=localiser,
     )
+    scenarios = scenario_factory(configuration, random_scenarios, **overrides)
     return MomaParallelEnv(
-        scenario_factory(configuration, random_scenarios, **overrides),
+        scenarios,
         config,
         render_mode=render_mode,
-        name=f"{configuration}_v0",
+        name=_spec(configuration).pettingzoo_module,
     )
 
 

@@ -4,7 +4,8 @@ Each UGV gets a shortest collision-free path from its start to its goal
 (:func:`moma_env.planning.paths.shortest_path`, obstacles and walls kept
 ``radius + CLEARANCE_M + PATH_SLACK_M`` away; other devices are left to the
 turn checks). Progress along a path is its arc length ``s`` (m). A schedule
-per configuration then picks, turn after turn, one device and how far it
+per configuration (named by its ``ScenarioSpec.schedule``, a callable taking the
+:class:`Team`) then picks, turn after turn, one device and how far it
 advances; every candidate leg is checked with
 :class:`~moma_env.planning.validate.RuleChecker` (leg length, collisions,
 observability) and shortened (``ADVANCE_FRACTIONS`` of the wanted advance)
@@ -13,20 +14,22 @@ omnidirectional); final turns rotate each robot in place to its goal yaw.
 
 Schedules:
 
-* ``top_observer``: the robot farthest behind (smallest fraction of its path
-  done; ties: the one farthest ahead along its way, so the front robot of a
-  formation clears the way) advances up to ``leg_length``; the coverage rule
-  shortens the leg if the team would spread too far.
-* ``caterpillar`` / ``caterpillar_multi``: rounds down the file; the leader
-  advances up to ``leg_length`` (shortened while its follower would lose its
-  board), then each follower advances up to ``leg_length`` but no farther than
-  the progress of the robot ahead (so it keeps at least its start stand-off).
-* ``caterpillar_sled``: the robot advances up to ``leg_length`` (the rope's
-  ``max_rope`` and the camera's range shorten it) with the sled static; then
-  the sled turn: the sled is reeled straight towards the robot's back anchor
-  until the rope is back to its start length (``rope_length``, whose view of
-  the board the scenario generator checked; ``min_rope`` itself can be too
-  close for a whole view), keeping its yaw.
+* ``top_observer`` (:func:`top_observer_schedule`): the robot farthest behind
+  (smallest fraction of its path done; ties: the one farthest ahead along its
+  way, so the front robot of a formation clears the way) advances up to
+  ``leg_length``; the coverage rule shortens the leg if the team would spread
+  too far.
+* ``caterpillar`` / ``caterpillar_multi`` (:func:`robot_file_schedule`): rounds
+  down the file; the leader advances up to ``leg_length`` (shortened while its
+  follower would lose its board), then each follower advances up to
+  ``leg_length`` but no farther than the progress of the robot ahead (so it
+  keeps at least its start stand-off).
+* ``caterpillar_sled`` (:func:`sled_schedule`): the robot advances up to
+  ``leg_length`` (the rope's ``max_rope`` and the camera's range shorten it)
+  with the sled static; then the sled turn: the sled is reeled straight
+  towards the robot's back anchor until the rope is back to its start length
+  (``rope_length``, whose view of the board the scenario generator checked;
+  ``min_rope`` itself can be too close for a whole view), keeping its yaw.
 
 :func:`plan` raises :class:`~moma_env.planning.plan.PlanningError` when a
 schedule stalls (no device can advance), exceeds ``max_turns``, or its result
@@ -36,7 +39,6 @@ fails :func:`~moma_env.planning.validate.validate` (never returns an invalid pla
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 
@@ -45,10 +47,15 @@ from moma_env.planning.paths import point_along, polyline_length, shortest_path
 from moma_env.planning.plan import Plan, PlanningError, Pose2D, Turn
 from moma_env.planning.validate import CLEARANCE_M, RuleChecker, enclosing_circle
 from moma_env.scenarios.base import Scenario
+from moma_env.scenarios.registry import SCENARIO_SPECS
 
 __all__ = [
     "plan",
     "SUPPORTED_CONFIGURATIONS",
+    "Team",
+    "top_observer_schedule",
+    "robot_file_schedule",
+    "sled_schedule",
     "PATH_SLACK_M",
     "ADVANCE_FRACTIONS",
     "MIN_ADVANCE_M",
@@ -72,8 +79,28 @@ MIN_ADVANCE_M = 0.01
 _DONE_M = 1e-9
 
 
-class _Team:
-    """Devices' poses, paths and progress while a plan is built."""
+class Team:
+    """Devices' poses, paths and progress while a plan is built: what a schedule works on.
+
+    A schedule (a configuration's ``ScenarioSpec.schedule``) is a callable
+    ``schedule(team) -> None`` that advances devices with :meth:`try_advance` and
+    :meth:`move_to` until every UGV's path is :meth:`done`, raising :meth:`stall`'s
+    error when no device can advance. Progress and lengths are arc lengths (m).
+
+    Args:
+        scenario: the episode layout.
+        checker: the rule checker of ``scenario`` (legs are tested with it).
+        max_turns: most turns the plan may have.
+
+    Attributes:
+        scenario, checker: as given.
+        poses: device -> current pose ``(x, y, yaw)`` (m, rad).
+        turns: turns committed so far.
+        paths: UGV -> its path (polyline of ``(x, y)``, m) from start to goal.
+        length: UGV -> its path's length (m).
+        progress: UGV -> arc length done along its path (m).
+        last_reason: the last rule violation that shortened or refused a leg.
+    """
 
     def __init__(self, scenario: Scenario, checker: RuleChecker, max_turns: int) -> None:
         self.scenario, self.checker, self.max_turns = scenario, checker, max_turns
@@ -95,9 +122,11 @@ class _Team:
             self.progress[name] = 0.0
 
     def remaining(self, name: str) -> float:
+        """Arc length (m) left on the path of UGV ``name``."""
         return self.length[name] - self.progress[name]
 
     def done(self, name: str) -> bool:
+        """Whether UGV ``name`` has reached the end of its path."""
         return self.remaining(name) <= _DONE_M
 
     def _leg(self, name: str, s_to: float) -> tuple[Pose2D, ...]:
@@ -111,6 +140,7 @@ class _Team:
         return tuple(points)
 
     def commit(self, name: str, waypoints: tuple[Pose2D, ...]) -> None:
+        """Append a turn of ``name`` along ``waypoints`` (unchecked); PlanningError past ``max_turns``."""
         if len(self.turns) >= self.max_turns:
             raise PlanningError(f"{self.scenario.name}: more than max_turns={self.max_turns} turns needed")
         self.turns.append(Turn(name, waypoints))
@@ -158,6 +188,7 @@ class _Team:
         return True
 
     def rotate_to_goals(self) -> None:
+        """Final turns rotating every UGV in place to its goal yaw; PlanningError if one is refused."""
         for name, goal in self.scenario.goals.items():
             x, y, yaw = self.poses[name]
             if abs(float(wrap_angle(goal[2] - yaw))) > 1e-12:
@@ -165,6 +196,7 @@ class _Team:
                     raise PlanningError(f"{self.scenario.name}: cannot turn to the goal yaw: {self.last_reason}")
 
     def stall(self) -> PlanningError:
+        """The error a schedule raises when no device can advance (with the last rejection)."""
         return PlanningError(f"{self.scenario.name}: no device can advance; last rejection: {self.last_reason}")
 
 
@@ -174,7 +206,8 @@ def team_spread(checker: RuleChecker, poses: dict[str, Pose2D]) -> float:
     return enclosing_circle(pts)[2] + checker.board_half_diagonal
 
 
-def _top_observer(team: _Team) -> None:
+def top_observer_schedule(team: Team) -> None:
+    """Top observer: the robot farthest behind advances (see the module docstring)."""
     names = list(team.scenario.goals)
     direction = {}
     for name in names:
@@ -195,7 +228,8 @@ def _top_observer(team: _Team) -> None:
             raise team.stall()
 
 
-def _robot_file(team: _Team) -> None:
+def robot_file_schedule(team: Team) -> None:
+    """A file of robots (caterpillar, caterpillar_multi): rounds down the file (see the module docstring)."""
     names = sorted(team.scenario.goals, key=lambda n: team.scenario.world.ugv_index(n))
     while not all(team.done(n) for n in names):
         moved = False
@@ -214,7 +248,7 @@ def _robot_file(team: _Team) -> None:
             raise team.stall()
 
 
-def _sled_target(team: _Team, sled_name: str) -> Pose2D:
+def _sled_target(team: Team, sled_name: str) -> Pose2D:
     """Sled pose with its anchor ``rope_length`` m from the robot's anchor, on the line between them, same yaw."""
     sled = team.scenario.world.sled(sled_name)
     rx, ry, ryaw = team.poses[sled.robot]
@@ -234,7 +268,9 @@ def _sled_target(team: _Team, sled_name: str) -> Pose2D:
     return (float(centre[0]), float(centre[1]), syaw)
 
 
-def _caterpillar_sled(team: _Team) -> None:
+def sled_schedule(team: Team) -> None:
+    """Robots towing sleds (caterpillar_sled): the robot advances, then its sled is reeled in
+    (see the module docstring)."""
     sleds = team.scenario.world.sleds
     robots = [s.robot for s in sleds]
     while not all(team.done(r) for r in robots):
@@ -251,22 +287,16 @@ def _caterpillar_sled(team: _Team) -> None:
             raise team.stall()
 
 
-_SCHEDULES: dict[str, Callable[[_Team], None]] = {
-    "top_observer": _top_observer,
-    "caterpillar": _robot_file,
-    "caterpillar_multi": _robot_file,
-    "caterpillar_sled": _caterpillar_sled,
-}
-
-#: Configuration names :func:`plan` schedules.
-SUPPORTED_CONFIGURATIONS = tuple(_SCHEDULES)
+#: Configuration names :func:`plan` schedules: those whose ``ScenarioSpec`` names a schedule.
+SUPPORTED_CONFIGURATIONS = tuple(name for name, spec in SCENARIO_SPECS.items() if spec.schedule is not None)
 
 
 def plan(scenario: Scenario, *, max_turns: int = 500) -> Plan:
     """Turns that take every UGV of ``scenario`` to its goal under the MOMA rules.
 
     Args:
-        scenario: the episode layout (its ``name`` selects the schedule, see the module docstring).
+        scenario: the episode layout (its ``name`` selects the configuration's
+            ``ScenarioSpec.schedule``, see the module docstring).
         max_turns: most turns the plan may have.
 
     Returns:
@@ -281,13 +311,14 @@ def plan(scenario: Scenario, *, max_turns: int = 500) -> Plan:
         raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
     if isinstance(max_turns, bool) or not isinstance(max_turns, int) or max_turns < 1:
         raise ValueError(f"max_turns must be an integer >= 1, got {max_turns!r}")
-    schedule = _SCHEDULES.get(scenario.name)
-    if schedule is None:
+    spec = SCENARIO_SPECS.get(scenario.name)
+    if spec is None or spec.schedule is None:
         raise PlanningError(
             f"configuration {scenario.name!r} is not supported yet; supported: {list(SUPPORTED_CONFIGURATIONS)}"
         )
+    schedule = spec.load_schedule()
     checker = RuleChecker(scenario)
-    team = _Team(scenario, checker, max_turns)
+    team = Team(scenario, checker, max_turns)
     schedule(team)
     team.rotate_to_goals()
     result = Plan(scenario_name=scenario.name, start=checker.start, turns=tuple(team.turns))

@@ -10,21 +10,23 @@ of rotation) along every turn's polyline:
 3. *No collision*: the moving device's disk (a UGV's radius; a sled's
    circumscribed circle) keeps ``CLEARANCE_M`` from the walls, the box
    obstacles and the static devices' disks.
-4. *Observability*, by configuration:
+4. *Observability*, as the configuration's
+   :class:`~moma_env.scenarios.spec.ScenarioSpec` states it (a scenario whose
+   name is not registered has no observability rule but the ropes'):
 
-   - ``top_observer``: the smallest circle enclosing every robot's centre,
-     grown by the boards' half-diagonal, fits in the inscribed circle of the
-     downward camera's floor footprint at the coverage height (see
-     :func:`coverage_radius`);
-   - ``caterpillar``, ``caterpillar_multi``: whenever a follower or the robot
-     ahead of it moves, the follower's forward camera sees that robot's back
-     board: depth >= the camera's ``min_range_m``, range <= ``min(max_range_m,
-     PRACTICAL_MAX_RANGE_M)``, the whole board within the horizontal
-     half-FOV minus ``BEARING_MARGIN_RAD`` and within the vertical half-FOV,
-     incidence <= ``max_incidence_deg`` minus ``INCIDENCE_MARGIN_DEG``;
-   - ``caterpillar_sled``: the same for the robot's backward camera and the
-     sled's front board, and the rope (anchor to anchor) stays within
-     ``[min_rope, max_rope]``.
+   - ``observer_coverage`` (``top_observer``): the smallest circle enclosing
+     every robot's centre, grown by the boards' half-diagonal, fits in the
+     inscribed circle of the downward camera's floor footprint at the coverage
+     height (see :func:`coverage_radius`);
+   - ``motion_views(world)`` (``caterpillar``, ``caterpillar_multi``: each
+     follower's forward camera on the back board of the robot ahead;
+     ``caterpillar_sled``: the robot's backward camera on the sled's front
+     board): whenever a camera's carrier or the board's carrier moves, the
+     camera sees the board: depth >= the camera's ``min_range_m``, range <=
+     ``min(max_range_m, PRACTICAL_MAX_RANGE_M)``, the whole board within the
+     horizontal half-FOV minus ``BEARING_MARGIN_RAD`` and within the vertical
+     half-FOV, incidence <= ``max_incidence_deg`` minus ``INCIDENCE_MARGIN_DEG``;
+   - every sled's rope (anchor to anchor) stays within ``[min_rope, max_rope]``.
 
 5. *Goals*: the final poses are within the scenario's goal tolerances.
 
@@ -46,8 +48,7 @@ from moma_env.geometry import wrap_angle
 from moma_env.planning.paths import box_distances
 from moma_env.planning.plan import Plan, Pose2D
 from moma_env.scenarios.base import Scenario
-from moma_env.scenarios.caterpillar import file_views
-from moma_env.scenarios.common import camera_name
+from moma_env.scenarios.registry import SCENARIO_SPECS
 from moma_env.world import SledConfig
 
 __all__ = [
@@ -198,12 +199,13 @@ class RuleChecker:
         self.radius.update({s.name: 0.5 * math.hypot(*s.size) for s in world.sleds})
         self.coverage: float | None = None
         self.board_half_diagonal = 0.0
-        if scenario.name == "top_observer":
+        spec = SCENARIO_SPECS.get(scenario.name)  # None: a configuration without observability rules
+        if spec is not None and spec.observer_coverage:
             self.coverage = coverage_radius(scenario)
             self.board_half_diagonal = max(
                 0.5 * math.hypot(u.board.width, u.board.height) for u in world.ugvs if u.board is not None
             )
-        self.views = self._views()
+        self.views = self._views(spec.motion_views(world) if spec is not None else {})
         cam = scenario.camera
         self.half_fov_u = math.atan((cam.width / 2.0 - cam.margin_px) / cam.fx)
         self.half_fov_v = math.atan((cam.height / 2.0 - cam.margin_px) / cam.fy)
@@ -211,29 +213,24 @@ class RuleChecker:
         self.cos_max_incidence = math.cos(math.radians(max(cam.max_incidence_deg - INCIDENCE_MARGIN_DEG, 0.0)))
         self.sleds = {s.name: s for s in world.sleds}
 
-    def _views(self) -> list[_View]:
+    def _views(self, required: Mapping[str, Sequence[str]]) -> list[_View]:
+        """The :class:`_View` of every ``camera -> board owners`` pair of ``required``, in order."""
         world = self.scenario.world
-        if self.scenario.name in ("caterpillar", "caterpillar_multi"):
-            required = file_views(len(world.ugvs))
-            owners = {camera_name(u.name): u for u in world.ugvs}
-            views = []
-            for cam, (board_owner,) in required.items():
-                robot, ahead = owners[cam], world.ugv(board_owner)
-                (mount,) = [m for m in robot.cameras if m.name == cam]
-                assert ahead.board is not None
-                half = (0.5 * ahead.board.width, 0.5 * ahead.board.height)
-                views.append(_View(cam, robot.name, mount.T_b_c, ahead.name, ahead.board_mount, *half))
-            return views
-        if self.scenario.name == "caterpillar_sled":
-            views = []
-            for sled in world.sleds:
-                robot = world.ugv(sled.robot)
-                cam = camera_name(robot.name)
-                (mount,) = [m for m in robot.cameras if m.name == cam]
-                half = (0.5 * sled.board.width, 0.5 * sled.board.height)
-                views.append(_View(cam, robot.name, mount.T_b_c, sled.name, sled.board_mount, *half))
-            return views
-        return []
+        cameras = {mount.name: (ugv, mount) for ugv in world.ugvs for mount in ugv.cameras}
+        carriers = {ugv.name: ugv for ugv in world.ugvs if ugv.board is not None}
+        carriers.update({sled.name: sled for sled in world.sleds})
+        views = []
+        for cam, owners in required.items():
+            if cam not in cameras:
+                raise ValueError(f"{self.scenario.name}: motion view of unknown camera {cam!r}; cameras: {sorted(cameras)}")
+            robot, mount = cameras[cam]
+            for owner in owners:
+                if owner not in carriers:
+                    raise ValueError(f"{self.scenario.name}: motion view of {cam!r} on {owner!r}, which carries no board")
+                carrier = carriers[owner]
+                half = (0.5 * carrier.board.width, 0.5 * carrier.board.height)
+                views.append(_View(cam, robot.name, mount.T_b_c, carrier.name, carrier.board_mount, *half))
+        return views
 
     # -- per-leg checks ------------------------------------------------------------------
 

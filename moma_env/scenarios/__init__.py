@@ -5,6 +5,8 @@
 * :class:`CaterpillarConfig` -- a follower's forward camera on its leader's back board.
 * :class:`CaterpillarSledConfig` -- one robot's backward camera on the sled it tows.
 * :class:`CaterpillarMultiConfig` -- a file of robots, each watching the one ahead.
+* :class:`ScenarioSpec` -- everything specific to one configuration, in its module
+  (``SPEC``); :data:`SPECS` / :data:`SCENARIO_SPECS` -- the registered ones.
 * :data:`CONFIGURATIONS`, :func:`make_scenario`, :func:`random_config` -- by name.
 * :func:`missing_views` -- boards a configuration's cameras fail to see at the start.
 
@@ -19,7 +21,17 @@ from moma_env.scenarios.caterpillar import CaterpillarConfig, RobotFileConfig
 from moma_env.scenarios.caterpillar_multi import CaterpillarMultiConfig
 from moma_env.scenarios.caterpillar_sled import CaterpillarSledConfig
 from moma_env.scenarios.common import ScenarioConfig
-from moma_env.scenarios.registry import CONFIGURATIONS, config_type, make_config, make_scenario, random_config
+from moma_env.scenarios.registry import (
+    CONFIGURATIONS,
+    SCENARIO_SPECS,
+    SPECS,
+    config_type,
+    make_config,
+    make_scenario,
+    random_config,
+    scenario_spec,
+)
+from moma_env.scenarios.spec import ScenarioSpec
 from moma_env.scenarios.top_observer import FORMATIONS, TopObserverConfig
 from moma_env.scenarios.views import missing_views, start_boards, start_camera_poses, visible_marker_counts
 
@@ -32,6 +44,10 @@ __all__ = [
     "RobotFileConfig",
     "CaterpillarSledConfig",
     "CaterpillarMultiConfig",
+    "ScenarioSpec",
+    "SPECS",
+    "SCENARIO_SPECS",
+    "scenario_spec",
     "CONFIGURATIONS",
     "config_type",
     "make_config",

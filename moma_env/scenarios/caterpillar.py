@@ -32,7 +32,7 @@ import numpy as np
 
 from moma_env.config import ConfigError, check_positive
 from moma_env.geometry import wrap_angle
-from moma_env.markers import board_for_robot
+from moma_env.markers import board_for_robot, team_dictionary
 from moma_env.scenarios.common import (
     Layout,
     ScenarioConfig,
@@ -49,9 +49,18 @@ from moma_env.scenarios.sampling import (
     random_heading,
     random_surroundings,
 )
-from moma_env.world import CameraMount, UGVConfig, board_on_back, camera_forward
+from moma_env.scenarios.spec import ScenarioSpec
+from moma_env.world import CameraMount, UGVConfig, WorldConfig, board_on_back, camera_forward
 
-__all__ = ["CaterpillarConfig", "RobotFileConfig", "MOUNT_HEIGHT_M", "file_layout", "file_views"]
+__all__ = [
+    "CaterpillarConfig",
+    "RobotFileConfig",
+    "MOUNT_HEIGHT_M",
+    "file_layout",
+    "file_views",
+    "file_motion_views",
+    "SPEC",
+]
 
 #: Height (m) of the followers' cameras and of the boards on the robots' backs.
 MOUNT_HEIGHT_M = 0.30
@@ -62,9 +71,10 @@ def file_layout(start: Pose2D, n_ugvs: int, distance: float, standoff: float, go
 
     ``ugv_0`` carries a back board only; ``ugv_k`` (k >= 1) a forward camera on
     ``ugv_{k-1}``'s board and, unless it is the last, a back board of its own
-    (ids of ``board_for_robot(k)``).
+    (ids of ``board_for_robot(k)``, all of ``team_dictionary(n_ugvs - 1)``).
     """
     radius = default_ugv_radius()
+    dictionary = team_dictionary(max(n_ugvs - 1, 0))
     mount_offset = 0.5 * (distance - standoff)
     leader = (start[0], start[1], float(wrap_angle(start[2])))
     ugvs, goals, disks = [], {}, []
@@ -78,7 +88,7 @@ def file_layout(start: Pose2D, n_ugvs: int, distance: float, standoff: float, go
             UGVConfig(
                 name=name,
                 initial_pose=pose,
-                board=board_for_robot(k) if has_board else None,
+                board=board_for_robot(k, dictionary=dictionary) if has_board else None,
                 board_mount=board_on_back(MOUNT_HEIGHT_M, mount_offset),
                 cameras=cameras,
             )
@@ -91,6 +101,12 @@ def file_layout(start: Pose2D, n_ugvs: int, distance: float, standoff: float, go
 def file_views(n_ugvs: int) -> dict[str, tuple[str, ...]]:
     """Camera of ``ugv_k`` -> the board of ``ugv_{k-1}``, for k >= 1."""
     return {camera_name(ugv_name(k)): (ugv_name(k - 1),) for k in range(1, n_ugvs)}
+
+
+def file_motion_views(world: WorldConfig) -> dict[str, tuple[str, ...]]:
+    """:func:`file_views` of the file of ``world``'s UGVs: every follower keeps the
+    board ahead in view while it or the robot ahead moves."""
+    return file_views(len(world.ugvs))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -154,8 +170,12 @@ class CaterpillarConfig(RobotFileConfig):
         return 2
 
     @classmethod
-    def random(cls, rng: np.random.Generator) -> CaterpillarConfig:
-        """Random heading, goal distance (1-3 m), camera, arena and obstacles; every draw from ``rng``."""
+    def random(cls, rng: np.random.Generator, **team: int) -> CaterpillarConfig:
+        """Random heading, goal distance (1-3 m), camera, arena and obstacles; every draw from ``rng``.
+
+        ``team`` must be empty (the team is always the same; ConfigError otherwise).
+        """
+        cls.check_team(team)
 
         def draw(rng: np.random.Generator) -> CaterpillarConfig:
             config = cls(
@@ -166,3 +186,14 @@ class CaterpillarConfig(RobotFileConfig):
             return replace(config, **random_surroundings(rng, config.occupied_disks))
 
         return draw_until_valid(cls, rng, draw)
+
+
+#: The two-robot caterpillar's place in the registry.
+SPEC = ScenarioSpec(
+    config_type=CaterpillarConfig,
+    gymnasium_id="moma_env/Caterpillar-v0",
+    pettingzoo_module="caterpillar_v0",
+    schedule="moma_env.planning.planner:robot_file_schedule",
+    scripted_policy="agents.policies.caterpillar_multi:CaterpillarTwo",
+    motion_views=file_motion_views,
+)

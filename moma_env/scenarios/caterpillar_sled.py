@@ -35,9 +35,10 @@ from moma_env.scenarios.sampling import (
     random_heading,
     random_surroundings,
 )
-from moma_env.world import CameraMount, SledConfig, UGVConfig, camera_backward
+from moma_env.scenarios.spec import ScenarioSpec
+from moma_env.world import CameraMount, SledConfig, UGVConfig, WorldConfig, camera_backward
 
-__all__ = ["CaterpillarSledConfig", "SLED_NAME", "CAMERA_OFFSET_M", "RANDOM_ROPE_RANGE_M"]
+__all__ = ["CaterpillarSledConfig", "SLED_NAME", "CAMERA_OFFSET_M", "RANDOM_ROPE_RANGE_M", "sled_views", "SPEC"]
 
 #: Name of the sled.
 SLED_NAME = "sled"
@@ -45,6 +46,12 @@ SLED_NAME = "sled"
 CAMERA_OFFSET_M = 0.23
 #: Range of the initial rope length (m) of a random configuration.
 RANDOM_ROPE_RANGE_M = (0.45, 1.0)
+
+
+def sled_views(world: WorldConfig) -> dict[str, tuple[str, ...]]:
+    """The camera of every sled's towing robot -> that sled's board (its robot keeps it in
+    view while either moves)."""
+    return {camera_name(sled.robot): (sled.name,) for sled in world.sleds}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -124,9 +131,13 @@ class CaterpillarSledConfig(ScenarioConfig):
         return {camera_name(ugv_name(0)): (SLED_NAME,)}
 
     @classmethod
-    def random(cls, rng: np.random.Generator) -> CaterpillarSledConfig:
+    def random(cls, rng: np.random.Generator, **team: int) -> CaterpillarSledConfig:
         """Random heading, goal distance (1-3 m), initial rope length (0.45-1.0 m),
-        camera, arena and obstacles; every draw from ``rng``."""
+        camera, arena and obstacles; every draw from ``rng``.
+
+        ``team`` must be empty (the team is always the same; ConfigError otherwise).
+        """
+        cls.check_team(team)
 
         def draw(rng: np.random.Generator) -> CaterpillarSledConfig:
             config = cls(
@@ -138,3 +149,14 @@ class CaterpillarSledConfig(ScenarioConfig):
             return replace(config, **random_surroundings(rng, config.occupied_disks))
 
         return draw_until_valid(cls, rng, draw)
+
+
+#: The single-robot caterpillar's place in the registry.
+SPEC = ScenarioSpec(
+    config_type=CaterpillarSledConfig,
+    gymnasium_id="moma_env/CaterpillarSled-v0",
+    pettingzoo_module="caterpillar_sled_v0",
+    schedule="moma_env.planning.planner:sled_schedule",
+    scripted_policy="agents.policies.caterpillar_sled:CaterpillarSled",
+    motion_views=sled_views,
+)

@@ -20,6 +20,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 import numpy as np
@@ -27,6 +28,7 @@ import numpy as np
 from moma_env.camera import CameraConfig
 from moma_env.config import ConfigError, check_count, check_finite, check_numbers, check_non_negative, check_positive, from_mapping
 from moma_env.estimator import EstimatorConfig
+from moma_env.markers import ARUCO_DICTIONARIES, MARKERS_PER_BOARD, MAX_TEAM_BOARDS, TEAM_DICTIONARIES
 from moma_env.scenarios.base import Scenario
 from moma_env.scenarios.layout import Disk, Pose2D, convex_hull
 from moma_env.world import ArenaConfig, BoxObstacle, SledConfig, UAVConfig, UGVConfig, WorldConfig
@@ -43,6 +45,7 @@ __all__ = [
     "default_ugv_radius",
     "field_default",
     "planar_pose",
+    "check_team_boards",
 ]
 
 #: Margin (m) between the start/goal footprints and the walls of a fitted arena (``arena=None``).
@@ -80,6 +83,20 @@ def default_ugv_radius() -> float:
 def planar_pose(field_name: str, value: object) -> Pose2D:
     """``value`` as a float ``(x, y, yaw)``; ConfigError naming ``field_name`` otherwise."""
     return check_numbers(field_name, value, ("x", "y", "yaw"))  # type: ignore[return-value]
+
+
+def check_team_boards(field_name: str, n_ugvs: int, n_boards: int) -> None:
+    """ConfigError naming ``field_name`` (the robot count) if a team of ``n_ugvs`` robots
+    carrying ``n_boards`` boards of ``markers.board_for_robot`` needs more distinct
+    marker ids than the largest team dictionary holds (``markers.MAX_TEAM_BOARDS`` boards)."""
+    if n_boards > MAX_TEAM_BOARDS:
+        largest = TEAM_DICTIONARIES[-1]
+        raise ConfigError(
+            field_name,
+            f"must be at most {MAX_TEAM_BOARDS + n_ugvs - n_boards}: the team's {n_boards} boards need "
+            f"{MARKERS_PER_BOARD * n_boards} distinct ArUco ids ({MARKERS_PER_BOARD} a board) and the largest "
+            f"dictionary, {largest}, holds {ARUCO_DICTIONARIES[largest]}; got {n_ugvs}",
+        )
 
 
 @dataclass(frozen=True)
@@ -136,6 +153,11 @@ class ScenarioConfig(ABC):
 
     #: Configuration name (the scenario's name and the prefix of error fields).
     NAME: ClassVar[str] = "scenario"
+    #: Fields that fix the team (the env's agents) -> inclusive range ``(low, high)`` of
+    #: the values ``random`` can keep them at (``random(rng, n_ugvs=5)``); random layouts
+    #: of an env (``random_scenarios=True``) keep its configuration's values. Empty: the
+    #: team is always the same.
+    TEAM_FIELDS: ClassVar[Mapping[str, tuple[int, int]]] = MappingProxyType({})
 
     arena: tuple[float, float] | None = None
     arena_origin: tuple[float, float] | None = None
@@ -164,8 +186,31 @@ class ScenarioConfig(ABC):
 
     @classmethod
     @abstractmethod
-    def random(cls, rng: np.random.Generator) -> ScenarioConfig:
-        """A random valid configuration; every draw comes from ``rng``."""
+    def random(cls, rng: np.random.Generator, **team: int) -> ScenarioConfig:
+        """A random valid configuration; every draw comes from ``rng``.
+
+        ``team`` keeps fields of :attr:`TEAM_FIELDS` at the given values (checked
+        by :meth:`check_team`: ConfigError naming the field otherwise).
+        """
+
+    @classmethod
+    def check_team(cls, team: Mapping[str, Any]) -> dict[str, int]:
+        """``team`` as ints if :meth:`random` can keep every value; else ConfigError naming
+        the field (``"top_observer.n_ugvs"``) and the range of :attr:`TEAM_FIELDS` it allows."""
+        checked = {}
+        for name, value in team.items():
+            field_name = f"{cls.NAME}.{name}"
+            if name not in cls.TEAM_FIELDS:
+                kept = sorted(cls.TEAM_FIELDS) or "none"
+                raise ConfigError(field_name, f"random layouts cannot keep this field; the fields they keep: {kept}")
+            low, high = cls.TEAM_FIELDS[name]
+            check_count(field_name, value, minimum=low)
+            if value > high:
+                raise ConfigError(
+                    field_name, f"must be in [{low}, {high}] for random layouts (random_scenarios=True), got {value!r}"
+                )
+            checked[name] = int(value)
+        return checked
 
     # -- construction -------------------------------------------------------------------
 

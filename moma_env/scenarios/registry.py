@@ -1,4 +1,11 @@
-"""The configurations by name: build one with overrides, or draw a random one.
+"""The registered configurations: build one by name with overrides, or draw a random one.
+
+:data:`SPECS` lists every configuration's :class:`~moma_env.scenarios.spec.ScenarioSpec`
+(defined in its own module); every lookup by name derives from it:
+:data:`SCENARIO_SPECS`, :data:`CONFIGURATIONS`, ``moma_env.registration.GYMNASIUM_IDS``,
+``agents.policies.SCRIPTED_POLICIES``, the planner's schedules and the plan checker's
+observability rules. To add a configuration, write its module with its ``SPEC``, add
+the ``SPEC`` here and a thin ``moma_env/<name>_v0.py``.
 
 Names: ``"top_observer"``, ``"caterpillar"``, ``"caterpillar_sled"``,
 ``"caterpillar_multi"``. Overrides are the configuration's fields as keyword
@@ -16,30 +23,56 @@ from typing import Any
 import numpy as np
 
 from moma_env.config import ConfigError, from_mapping
+from moma_env.scenarios import caterpillar, caterpillar_multi, caterpillar_sled, top_observer
 from moma_env.scenarios.base import Scenario
-from moma_env.scenarios.caterpillar import CaterpillarConfig
-from moma_env.scenarios.caterpillar_multi import CaterpillarMultiConfig
-from moma_env.scenarios.caterpillar_sled import CaterpillarSledConfig
 from moma_env.scenarios.common import ScenarioConfig
-from moma_env.scenarios.top_observer import TopObserverConfig
+from moma_env.scenarios.spec import ScenarioSpec
 
-__all__ = ["CONFIGURATIONS", "config_type", "make_config", "make_scenario", "random_config"]
+__all__ = [
+    "SPECS",
+    "SCENARIO_SPECS",
+    "CONFIGURATIONS",
+    "scenario_spec",
+    "config_type",
+    "make_config",
+    "make_scenario",
+    "random_config",
+]
+
+#: Every registered configuration's spec, in a fixed order (the order of the name views).
+SPECS: tuple[ScenarioSpec, ...] = (top_observer.SPEC, caterpillar.SPEC, caterpillar_sled.SPEC, caterpillar_multi.SPEC)
+
+
+def _by_name(specs: tuple[ScenarioSpec, ...]) -> Mapping[str, ScenarioSpec]:
+    """Name -> spec (read-only); RuntimeError if two specs share a name, a Gymnasium id or a module."""
+    for key in ("name", "gymnasium_id", "pettingzoo_module"):
+        values = [getattr(spec, key) for spec in specs]
+        duplicates = sorted({v for v in values if values.count(v) > 1})
+        if duplicates:
+            raise RuntimeError(f"scenario specs share a {key}: {duplicates}")
+    return MappingProxyType({spec.name: spec for spec in specs})
+
+
+#: Configuration name -> its :class:`ScenarioSpec` (read-only).
+SCENARIO_SPECS: Mapping[str, ScenarioSpec] = _by_name(SPECS)
 
 #: Configuration name -> configuration class (read-only).
 CONFIGURATIONS: Mapping[str, type[ScenarioConfig]] = MappingProxyType(
-    {
-        cls.NAME: cls
-        for cls in (TopObserverConfig, CaterpillarConfig, CaterpillarSledConfig, CaterpillarMultiConfig)
-    }
+    {name: spec.config_type for name, spec in SCENARIO_SPECS.items()}
 )
+
+
+def scenario_spec(name: str) -> ScenarioSpec:
+    """The spec of configuration ``name``; ConfigError listing the known names otherwise."""
+    try:
+        return SCENARIO_SPECS[name]
+    except (KeyError, TypeError):
+        raise ConfigError("scenario", f"unknown configuration {name!r}; known: {sorted(SCENARIO_SPECS)}") from None
 
 
 def config_type(name: str) -> type[ScenarioConfig]:
     """The configuration class called ``name``; ConfigError listing the known names otherwise."""
-    try:
-        return CONFIGURATIONS[name]
-    except (KeyError, TypeError):
-        raise ConfigError("scenario", f"unknown configuration {name!r}; known: {sorted(CONFIGURATIONS)}") from None
+    return scenario_spec(name).config_type
 
 
 def make_config(name: str, **overrides: Any) -> ScenarioConfig:
@@ -62,4 +95,4 @@ def make_scenario(name: str, **overrides: Any) -> Scenario:
 
 def random_config(name: str, rng: np.random.Generator) -> ScenarioConfig:
     """A random valid configuration ``name`` (its class's ``random``); every draw from ``rng``."""
-    return config_type(name).random(rng)
+    return scenario_spec(name).random(rng)

@@ -7,6 +7,14 @@ over, a required board out of view) is thrown away and drawn again, at most
 :data:`MAX_ATTEMPTS` times; then a RuntimeError names the configuration and the
 last reason.
 
+A generator keeps a team field (``n_ugvs``) at a given value in one of two ways,
+both giving the free generator's distribution conditioned on that value: for a
+value the free generator draws itself, :func:`first_with_team` takes the first
+free configuration that has it (the stream of layouts the environment has always
+drawn, bit for bit); beyond that range the generator skips that field's draw and
+draws the others as the free generator does given the value, rejecting the same
+invalid layouts.
+
 Ranges (m, rad, px): arena sides 4-10 m, 0-4 box obstacles of 0.2-1.0 m sides,
 goal distance 1-3 m, headings uniform, camera fx 350-600 px, corner noise 0-1
 px, mild radial distortion, UAV altitude 1.2-2.5 m.
@@ -15,7 +23,7 @@ px, mild radial distortion, UAV altitude 1.2-2.5 m.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any, TypeVar
 
 import numpy as np
@@ -45,12 +53,16 @@ __all__ = [
     "random_camera",
     "random_surroundings",
     "draw_until_valid",
+    "MAX_TEAM_DRAWS",
+    "first_with_team",
 ]
 
 C = TypeVar("C", bound=ScenarioConfig)
 
 #: Draws tried before giving up.
 MAX_ATTEMPTS = 100
+#: Free configurations :func:`first_with_team` draws before giving up.
+MAX_TEAM_DRAWS = 200
 #: Range of each arena side (m).
 ARENA_SIDE_RANGE_M = (4.0, 10.0)
 #: Smallest gap (m) between a start or goal footprint and a wall in a random arena.
@@ -170,3 +182,18 @@ def draw_until_valid(config_type: type[C], rng: np.random.Generator, draw: Calla
     raise RuntimeError(
         f"no valid random {config_type.NAME} configuration in {MAX_ATTEMPTS} draws; last rejection: {reason}"
     )
+
+
+def first_with_team(
+    config_type: type[C], rng: np.random.Generator, draw_free: Callable[[np.random.Generator], C], team: Mapping[str, int]
+) -> C:
+    """The first configuration ``draw_free(rng)`` returns whose fields have the values of ``team``.
+
+    For values the free generator draws itself (each team then has a fair chance
+    per draw). Raises RuntimeError after :data:`MAX_TEAM_DRAWS` draws without it.
+    """
+    for _ in range(MAX_TEAM_DRAWS):
+        config = draw_free(rng)
+        if all(getattr(config, name) == value for name, value in team.items()):
+            return config
+    raise RuntimeError(f"no random {config_type.NAME} configuration with {dict(team)} in {MAX_TEAM_DRAWS} draws")

@@ -2,9 +2,11 @@
 
 The paper's main configuration (section IV, the 1 m square): UGVs ``ugv_0`` ..
 ``ugv_{N-1}`` carry face-up ArUco boards (``markers.board_for_robot(i)``: ids
-``4i..4i+3``) and an observer (an Ar.Drone quadcopter or a hand-held camera)
-looks down on them from ``altitude``. All robots start static; each one's goal
-is its start shifted by ``goal_offset``.
+``4i..4i+3``, of ``markers.team_dictionary(N)``: DICT_4X4_50 up to 12 robots, a
+larger 4x4 dictionary beyond, at most ``markers.MAX_TEAM_BOARDS`` robots) and an
+observer (an Ar.Drone quadcopter or a hand-held camera) looks down on them from
+``altitude``. All robots start static; each one's goal is its start shifted by
+``goal_offset``.
 
 Formation (m, in the frame of ``start``: x along the robots' heading, y to
 their left), ``spacing`` between neighbours, centred on ``start``:
@@ -24,16 +26,18 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 from typing import ClassVar
 
 import numpy as np
 
 from moma_env.config import ConfigError, check_choice, check_count, check_positive, check_range
 from moma_env.geometry import wrap_angle
-from moma_env.markers import board_for_robot
+from moma_env.markers import board_for_robot, team_dictionary
 from moma_env.scenarios.common import (
     Layout,
     ScenarioConfig,
+    check_team_boards,
     default_ugv_radius,
     field_default,
     planar_pose,
@@ -43,19 +47,25 @@ from moma_env.scenarios.layout import Pose2D, in_body_frame, shifted
 from moma_env.scenarios.sampling import (
     ALTITUDE_RANGE_M,
     draw_until_valid,
+    first_with_team,
     random_camera,
     random_goal_distance,
     random_heading,
     random_surroundings,
 )
+from moma_env.scenarios.spec import ScenarioSpec
 from moma_env.world import UAV_KINDS, UAVConfig, UGVConfig
 
-__all__ = ["TopObserverConfig", "FORMATIONS", "formation_offsets", "MAX_RANDOM_UGVS"]
+__all__ = ["TopObserverConfig", "FORMATIONS", "formation_offsets", "MAX_RANDOM_UGVS", "MAX_KEPT_UGVS", "SPEC"]
 
 #: Formations the robots may start in.
 FORMATIONS = ("compact", "row")
 #: Largest number of robots a random configuration draws (at least 2).
 MAX_RANDOM_UGVS = 4
+#: Largest team a random configuration keeps (``random(rng, n_ugvs=k)``): at 12 robots
+#: about one draw in four still sees every board from the observer (a compact team
+#: under a high observer with a short lens), so the generator's attempts suffice.
+MAX_KEPT_UGVS = 12
 #: Largest turn (rad) of a random goal relative to the start.
 _MAX_RANDOM_GOAL_TURN = math.pi / 2
 
@@ -91,6 +101,7 @@ class TopObserverConfig(ScenarioConfig):
     """
 
     NAME: ClassVar[str] = "top_observer"
+    TEAM_FIELDS: ClassVar[Mapping[str, tuple[int, int]]] = MappingProxyType({"n_ugvs": (2, MAX_KEPT_UGVS)})
 
     n_ugvs: int = 2
     spacing: float = 0.6
@@ -102,6 +113,7 @@ class TopObserverConfig(ScenarioConfig):
 
     def _check_fields(self) -> None:
         check_count(self._field("n_ugvs"), self.n_ugvs, minimum=2)
+        check_team_boards(self._field("n_ugvs"), self.n_ugvs, self.n_ugvs)
         check_positive(self._field("spacing"), self.spacing)
         diameter = 2.0 * default_ugv_radius()
         if self.spacing < diameter:
@@ -118,13 +130,14 @@ class TopObserverConfig(ScenarioConfig):
     def _make_layout(self) -> Layout:
         radius = default_ugv_radius()
         ugvs, goals, disks = [], {}, []
+        dictionary = team_dictionary(self.n_ugvs)
         for i, (forward, left) in enumerate(formation_offsets(self.n_ugvs, self.spacing, self.formation).tolist()):
             name = ugv_name(i)
             start = in_body_frame(self.start, forward, left)
             start = (start[0], start[1], float(wrap_angle(start[2])))
             goal = shifted(start, self.goal_offset)
             goal = (goal[0], goal[1], float(wrap_angle(goal[2])))
-            ugvs.append(UGVConfig(name=name, initial_pose=start, board=board_for_robot(i)))
+            ugvs.append(UGVConfig(name=name, initial_pose=start, board=board_for_robot(i, dictionary=dictionary)))
             goals[name] = goal
             disks += [(f"{name} start", start[0], start[1], radius), (f"{name} goal", goal[0], goal[1], radius)]
         x, y, yaw = self.start
@@ -146,13 +159,22 @@ class TopObserverConfig(ScenarioConfig):
         return {uav.camera_name: tuple(ugv_name(i) for i in range(self.n_ugvs))}
 
     @classmethod
-    def random(cls, rng: np.random.Generator) -> TopObserverConfig:
+    def random(cls, rng: np.random.Generator, **team: int) -> TopObserverConfig:
         """Random robots (2-4, random formation), start heading, goal (1-3 m in a random
         direction, turned by up to 90 degrees), observer kind and altitude (1.2-2.5 m),
-        camera, arena and obstacles; every draw from ``rng``."""
+        camera, arena and obstacles; every draw from ``rng``.
+
+        ``n_ugvs=k`` keeps the team at ``k`` robots, 2 to :data:`MAX_KEPT_UGVS`
+        (ConfigError naming ``top_observer.n_ugvs`` otherwise): for ``k <= 4`` the
+        first free draw with ``k`` robots, beyond that a draw with ``k`` fixed (see
+        :mod:`moma_env.scenarios.sampling`).
+        """
+        kept = cls.check_team(team).get("n_ugvs")
+        if kept is not None and kept <= MAX_RANDOM_UGVS:
+            return first_with_team(cls, rng, cls.random, {"n_ugvs": kept})
 
         def draw(rng: np.random.Generator) -> TopObserverConfig:
-            n_ugvs = int(rng.integers(2, MAX_RANDOM_UGVS + 1))
+            n_ugvs = int(rng.integers(2, MAX_RANDOM_UGVS + 1)) if kept is None else kept
             formation = FORMATIONS[int(rng.integers(len(FORMATIONS)))]
             heading = random_heading(rng)
             distance, direction = random_goal_distance(rng), random_heading(rng)
@@ -171,3 +193,15 @@ class TopObserverConfig(ScenarioConfig):
             return replace(config, **random_surroundings(rng, config.occupied_disks))
 
         return draw_until_valid(cls, rng, draw)
+
+
+#: The top observer's place in the registry: the plan checker keeps the team within
+#: the observer's coverage (no per-camera motion views).
+SPEC = ScenarioSpec(
+    config_type=TopObserverConfig,
+    gymnasium_id="moma_env/TopObserver-v0",
+    pettingzoo_module="top_observer_v0",
+    schedule="moma_env.planning.planner:top_observer_schedule",
+    scripted_policy="agents.policies.top_observer:TopObserverLeapfrog",
+    observer_coverage=True,
+)
