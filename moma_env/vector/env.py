@@ -1,0 +1,196 @@
+"""A batched multi-agent env: ``num_envs`` copies of one MOMA configuration stepped together.
+
+:func:`make` returns a :class:`MomaVectorEnv`. Every copy is the PettingZoo env's
+own step (:class:`~moma_env.env.parallel.MomaParallelEnv` over its
+:class:`~moma_env.sim.Simulation`): one implementation of the camera, the
+estimator, the rules, the rewards and the observations, whatever ``num_envs`` is.
+
+Arrays, per agent of ``possible_agents`` (every copy has the same agents):
+
+* ``reset(seed=None, options=None) -> (observations, infos)`` and
+  ``step(actions) -> (observations, rewards, terminations, truncations, infos)``;
+* ``observations[agent]``: shape ``(num_envs, *obs_shape)`` (a dict of such arrays
+  for a ``Dict`` observation space); ``actions[agent]``: shape
+  ``(num_envs, *act_shape)`` (``(num_envs,)`` integers for a ``Discrete`` space);
+  ``rewards[agent]``, ``terminations[agent]``, ``truncations[agent]``: ``(num_envs,)``;
+* ``infos``: a tuple of ``num_envs`` dicts, copy ``i``'s PettingZoo infos (agent ->
+  info dict).
+
+Seeding (Gymnasium's vector rule): ``reset(seed=s)`` seeds copy ``i`` with ``s + i``,
+so copy ``i`` behaves bit for bit like ``parallel_env(...)`` reset with ``seed=s + i``
+and then driven with the same actions; ``seed`` may also be a sequence of
+``num_envs`` seeds. ``reset()`` without a seed continues every copy's generator.
+
+Autoreset (Gymnasium's ``SAME_STEP`` mode): a copy whose episode ends in a step is
+reset in that step; the step returns its first observation of the new episode, its
+flags and reward of the step that ended, and in ``infos[i]`` the keys
+``"final_observation"`` (agent -> the last observation) and ``"final_info"`` (the
+last infos). :meth:`reset_at` resets one copy alone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from numbers import Integral
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from moma_env.env.factory import parallel_env
+from moma_env.env.parallel import MomaParallelEnv, checked_seed
+
+__all__ = ["MomaVectorEnv", "make"]
+
+
+def make(name: str, num_envs: int, **options: Any) -> MomaVectorEnv:
+    """``num_envs`` copies of configuration ``name``; ``options`` are every option of
+    :func:`moma_env.env.factory.parallel_env` (env options and configuration fields)."""
+    return MomaVectorEnv(name, num_envs, **options)
+
+
+def _stack(values: Sequence[Any]) -> Any:
+    if isinstance(values[0], dict):
+        return {key: np.stack([v[key] for v in values]) for key in values[0]}
+    return np.stack(values)
+
+
+class MomaVectorEnv:
+    """``num_envs`` copies of one configuration; see the module docstring.
+
+    Args:
+        name: configuration name (``"top_observer"``, ...).
+        num_envs: number of copies (>= 1).
+        options: options of :func:`moma_env.env.factory.parallel_env`.
+    """
+
+    def __init__(self, name: str, num_envs: int, **options: Any):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, Integral) or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        self.num_envs = int(num_envs)
+        self.envs: tuple[MomaParallelEnv, ...] = tuple(parallel_env(name, **options) for _ in range(self.num_envs))
+        first = self.envs[0]
+        self.possible_agents = list(first.possible_agents)
+        self.agents = list(self.possible_agents)
+        self.metadata = dict(first.metadata)
+        self.render_mode = first.render_mode
+        self._started = False
+
+    # ------------------------------------------------------------------ spaces
+    def single_observation_space(self, agent: str) -> spaces.Space:
+        """One copy's observation space of ``agent``."""
+        return self.envs[0].observation_space(agent)
+
+    def single_action_space(self, agent: str) -> spaces.Space:
+        """One copy's action space of ``agent``."""
+        return self.envs[0].action_space(agent)
+
+    # ------------------------------------------------------------------ reset
+    def _seeds(self, seed: int | Sequence[int] | None) -> list[int | None]:
+        if seed is None:
+            return [None] * self.num_envs
+        if isinstance(seed, Sequence) and not isinstance(seed, str):
+            if len(seed) != self.num_envs:
+                raise ValueError(f"seed: a sequence must hold num_envs={self.num_envs} seeds, got {len(seed)}")
+            return [checked_seed(s) for s in seed]
+        base = checked_seed(seed)
+        return [base + i for i in range(self.num_envs)]
+
+    def reset(self, seed: int | Sequence[int] | None = None, options: dict | None = None) -> tuple[dict[str, Any], tuple[dict, ...]]:
+        """Reset every copy (see the module docstring for the seeds)."""
+        results = [env.reset(seed=s, options=options) for env, s in zip(self.envs, self._seeds(seed))]
+        self._started = True
+        observations = {a: _stack([obs[a] for obs, _ in results]) for a in self.possible_agents}
+        return observations, tuple(infos for _, infos in results)
+
+    def reset_at(self, index: int, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, Any], dict]:
+        """Reset copy ``index`` alone; its observations (agent -> one copy's observation) and infos."""
+        return self.envs[self._checked_index(index)].reset(seed=checked_seed(seed), options=options)
+
+    def _checked_index(self, index: object) -> int:
+        if isinstance(index, bool) or not isinstance(index, Integral) or not 0 <= index < self.num_envs:
+            raise IndexError(f"copy index must be an integer in [0, {self.num_envs}), got {index!r}")
+        return int(index)
+
+    # ------------------------------------------------------------------ step
+    def _checked_actions(self, actions: Mapping[str, Any]) -> dict[str, np.ndarray]:
+        if not isinstance(actions, Mapping):
+            raise TypeError(f"actions must be a mapping agent -> array of shape (num_envs, ...), got {type(actions).__name__}")
+        unknown = sorted(set(actions) - set(self.possible_agents))
+        if unknown:
+            raise KeyError(f"actions for unknown agent(s) {unknown}; agents are {self.possible_agents}")
+        out = {}
+        for agent in self.possible_agents:
+            space = self.single_action_space(agent)
+            if agent not in actions:
+                raise KeyError(f"no action for agent {agent!r}: every agent acts in every copy")
+            if isinstance(space, spaces.Discrete):
+                shape, what = (self.num_envs,), f"integers in [0, {space.n})"
+            else:
+                shape, what = (self.num_envs, *space.shape), "finite real numbers"
+            try:
+                a = np.asarray(actions[agent])
+            except Exception:  # noqa: BLE001 - whatever numpy refuses is refused below
+                a = np.asarray(None)
+            expected = f"an array of shape {shape} of {what} (space {space})"
+            if a.shape != shape:
+                raise ValueError(f"actions of {agent!r} must be {expected}, got shape {a.shape}")
+            if isinstance(space, spaces.Discrete):
+                if a.dtype.kind not in "iu":
+                    raise ValueError(f"actions of {agent!r} must be {expected}, got dtype {a.dtype}")
+                bad = np.flatnonzero((a < 0) | (a >= space.n))
+                if bad.size:
+                    raise ValueError(f"actions of {agent!r} must be {expected}; copy {int(bad[0])} has {a[bad[0]].item()!r}")
+            else:
+                if a.dtype.kind not in "iuf":
+                    raise ValueError(f"actions of {agent!r} must be {expected}, got dtype {a.dtype}")
+                finite = np.isfinite(a).reshape(self.num_envs, -1).all(axis=1)
+                if not finite.all():
+                    raise ValueError(f"actions of {agent!r} must be {expected}; copy {int(np.flatnonzero(~finite)[0])} is not finite")
+            out[agent] = a
+        return out
+
+    def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
+        """Step every copy with its row of ``actions``; a copy whose episode ends resets (``SAME_STEP``)."""
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        checked = self._checked_actions(actions)
+        agents = self.possible_agents
+        n = self.num_envs
+        obs_rows: list[dict] = []
+        rewards = {a: np.zeros(n, dtype=np.float64) for a in agents}
+        terminations = {a: np.zeros(n, dtype=bool) for a in agents}
+        truncations = {a: np.zeros(n, dtype=bool) for a in agents}
+        infos: list[dict] = []
+        for i, env in enumerate(self.envs):
+            obs, rew, term, trunc, info = env.step({a: checked[a][i] for a in agents})
+            for a in agents:
+                rewards[a][i] = rew[a]
+                terminations[a][i] = term[a]
+                truncations[a][i] = trunc[a]
+            if not env.agents:
+                final = {"final_observation": obs, "final_info": info}
+                obs, info = env.reset()
+                info = dict(info) | final
+            obs_rows.append(obs)
+            infos.append(info)
+        observations = {a: _stack([row[a] for row in obs_rows]) for a in agents}
+        return observations, rewards, terminations, truncations, tuple(infos)
+
+    # ------------------------------------------------------------------ the rest
+    def action_masks(self) -> dict[str, np.ndarray]:
+        """Switching mode: agent -> ``(num_envs, n)`` int8, each copy's ``action_masks()``."""
+        masks = [env.action_masks() for env in self.envs]
+        return {a: np.stack([m[a] for m in masks]) for a in masks[0]}
+
+    def state(self) -> np.ndarray:
+        """``(num_envs, state_dim)`` float32: each copy's ``state()``."""
+        return np.stack([env.state() for env in self.envs])
+
+    def render(self, index: int = 0) -> np.ndarray | None:
+        """Copy ``index``'s ``render()``."""
+        return self.envs[self._checked_index(index)].render()
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()

@@ -1,0 +1,98 @@
+"""The batched env (moma_env.vector): copy i of a batch seeded s is the single env seeded s + i."""
+
+import numpy as np
+import pytest
+
+from moma_env import vector
+from moma_env.env.factory import parallel_env
+from training.fingerprint import serialise
+
+CASES = [(name, mode) for name in ("top_observer", "caterpillar", "caterpillar_sled", "caterpillar_multi") for mode in ("switching", "velocity")]
+
+
+def text(value) -> str:
+    out: list[str] = []
+    serialise(value, out)
+    return "|".join(out)
+
+
+def batch_actions(envs, steps, seed):
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(steps):
+        joint = {}
+        for agent in envs.possible_agents:
+            space = envs.single_action_space(agent)
+            if hasattr(space, "n"):
+                joint[agent] = rng.integers(0, space.n, size=envs.num_envs)
+            else:
+                joint[agent] = rng.uniform(-1.0, 1.0, size=(envs.num_envs, *space.shape)).astype(np.float32)
+        out.append(joint)
+    return out
+
+
+@pytest.mark.parametrize("num_envs", [1, 7, 64])
+@pytest.mark.parametrize("name,mode", CASES)
+def test_copy_i_is_the_single_env_seeded_s_plus_i(name, mode, num_envs):
+    steps = 30 if num_envs == 64 else 70
+    envs = vector.make(name, num_envs, action_mode=mode, max_cycles=25)
+    observations, infos = envs.reset(seed=11)
+    plan = batch_actions(envs, steps, seed=num_envs)
+    record = [(observations, infos)]
+    for joint in plan:
+        record.append(envs.step(joint))
+    for i in sorted({0, num_envs // 2, num_envs - 1}):
+        single = parallel_env(name, action_mode=mode, max_cycles=25)
+        obs, info = single.reset(seed=11 + i)
+        assert text({a: o[i] for a, o in record[0][0].items()}) == text(obs)
+        assert text(record[0][1][i]) == text(info)
+        for k, joint in enumerate(plan):
+            obs, rew, term, trunc, info = single.step({a: joint[a][i] for a in single.agents})
+            b_obs, b_rew, b_term, b_trunc, b_info = record[k + 1]
+            assert all(b_rew[a][i] == rew[a] and b_term[a][i] == term[a] and b_trunc[a][i] == trunc[a] for a in rew)
+            if not single.agents:  # the batch reset this copy in the same step
+                assert text(b_info[i]["final_observation"]) == text(obs)
+                assert text({a: v for a, v in b_info[i]["final_info"].items()}) == text(info)
+                obs, info = single.reset()
+            assert text({a: o[i] for a, o in b_obs.items()}) == text(obs), (i, k)
+
+
+def test_shapes_masks_state_and_reset_at():
+    envs = vector.make("caterpillar_sled", 5, max_cycles=20)
+    observations, infos = envs.reset(seed=0)
+    for agent in envs.agents:
+        assert observations[agent].shape == (5, *envs.single_observation_space(agent).shape)
+    masks = envs.action_masks()
+    assert masks["ugv_0"].shape == (5, envs.single_action_space("ugv_0").n) and masks["ugv_0"].dtype == np.int8
+    assert envs.state().shape == (5, envs.envs[0].state_space.shape[0])
+    obs, info = envs.reset_at(3, seed=9)
+    single = parallel_env("caterpillar_sled", max_cycles=20)
+    assert text(obs) == text(single.reset(seed=9)[0])
+    with pytest.raises(IndexError, match=r"copy index must be an integer in \[0, 5\)"):
+        envs.reset_at(5)
+
+
+def test_bad_batched_actions_name_the_agent_and_the_shape():
+    envs = vector.make("top_observer", 3)
+    with pytest.raises(RuntimeError, match="reset"):
+        envs.step({})
+    envs.reset(seed=0)
+    good = {"ugv_0": np.zeros(3, dtype=int), "ugv_1": np.zeros(3, dtype=int)}
+    envs.step(good)
+    with pytest.raises(ValueError, match=r"actions of 'ugv_0' must be an array of shape \(3,\)"):
+        envs.step(good | {"ugv_0": np.zeros(4, dtype=int)})
+    with pytest.raises(ValueError, match=r"actions of 'ugv_1' .* copy 2 has 2"):
+        envs.step(good | {"ugv_1": np.array([0, 1, 2])})
+    with pytest.raises(ValueError, match="got dtype float64"):
+        envs.step(good | {"ugv_1": np.array([0.0, 1.0, 1.0])})
+    with pytest.raises(KeyError, match="no action for agent 'ugv_1'"):
+        envs.step({"ugv_0": good["ugv_0"]})
+    velocity = vector.make("top_observer", 2, action_mode="velocity")
+    velocity.reset(seed=0)
+    ok = {a: np.zeros((2, 4), dtype=np.float32) for a in velocity.agents}
+    nan = np.zeros((2, 4))
+    nan[1, 2] = np.nan
+    with pytest.raises(ValueError, match=r"actions of 'observer' .*shape \(2, 4\).*copy 1 is not finite"):
+        velocity.step(ok | {"observer": nan})
+    with pytest.raises(ValueError, match="num_envs must be an integer >= 1"):
+        vector.make("top_observer", 0)
