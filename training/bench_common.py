@@ -1,8 +1,9 @@
 """What every benchmark of ``training`` shares: resident memory, timed calls, step rates, rounds, MPE2.
 
-:mod:`training.bench` (``moma-env bench``), :mod:`training.bench_rendered` and
-:mod:`training.bench_step` build their rows from these; :mod:`training.bench`
-exports them too, where they have always been importable. Measurements only: nothing here asserts a speed.
+:mod:`training.bench` (``moma-env bench``), :mod:`training.bench_rendered`,
+:mod:`training.bench_step` and :mod:`training.bench_memory` build their rows from
+these; :mod:`training.bench` exports them too, where they have always been
+importable. Measurements only: nothing here asserts a speed.
 """
 
 from __future__ import annotations
