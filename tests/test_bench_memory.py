@@ -13,6 +13,8 @@ def test_reset_memory_rows_count_resets_and_growth():
     assert row["start_mb"] == row["samples"][0][1] and row["end_mb"] == row["samples"][-1][1]
     assert row["per_1000_mb"] == (row["end_mb"] - row["start_mb"]) / 4 * 1000.0
     assert row["peak_mb"] == max(mb for _, mb in row["samples"])
+    (_, a), (_, b), (_, c) = row["samples"][1:]
+    assert row["steepest_per_1000_mb"] == max((b - a) / 2 * 1000.0, (c - b) * 1000.0)
     assert "world" in format_reset_memory([row])
 
 

@@ -13,21 +13,27 @@ and samples the resident set size (:func:`training.bench_common.resident_mb`) ev
   ``env.reset()`` then ``--steps`` joint steps of random actions drawn from the
   action spaces beforehand (a pool used in turn, as in ``moma-env bench``).
 
+Each target runs in a fresh process (the resident memory of a process is all of
+it: a target run after another would start with what the first left behind).
 Reported per target: the RSS after the first episode (``start``), at the end,
-the peak, and the growth per 1,000 resets over the whole run and over its second
-half (after the allocator and the caches have warmed up). Each pymunk space the
-world replaces at a reset holds about 280 KiB outside Python's view until the
-cyclic garbage collector frees it (see :mod:`moma_env.world.world`), which is
-what this benchmark watches. A measurement, not an assertion.
+the peak, the growth per 1,000 resets over the whole run, and the steepest
+growth between two samples after the first (a run whose memory grows until
+Python's garbage collector happens to run a full collection and then drops
+grows like a sawtooth: its end can be close to its start). Each pymunk space
+the world replaces at a reset holds about 280 KiB outside Python's view until
+the cyclic garbage collector frees it (see :mod:`moma_env.world.world`), which
+is what this benchmark watches. A measurement, not an assertion.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 
 __all__ = ["TARGETS", "reset_memory", "format_reset_memory"]
 
@@ -91,11 +97,13 @@ def _env_episode(configuration: str, steps: int, seed: int) -> Callable[[], None
 def reset_memory(target: str, resets: int, steps: int = 20, every: int = 1000, seed: int = 0) -> dict:
     """RSS (MB) of ``resets`` episodes of ``steps`` steps of ``target`` (one of :data:`TARGETS`).
 
-    Returns a row: ``target``, ``resets``, ``steps``, ``samples`` (pairs of resets
-    done and RSS in MB, every ``every`` resets and at the end), ``start_mb`` (after
-    the first episode), ``end_mb``, ``peak_mb``, ``per_1000_mb`` (growth per 1,000
-    resets from the first episode to the end), ``per_1000_late_mb`` (the same over
-    the second half of the run), ``seconds`` (wall time of the episodes).
+    Runs in this process. Returns a row: ``target``, ``resets``, ``steps``,
+    ``samples`` (pairs of resets done and RSS in MB, after the first episode,
+    every ``every`` resets and at the end), ``start_mb`` (after the first
+    episode), ``end_mb``, ``peak_mb``, ``per_1000_mb`` (growth per 1,000 resets
+    from the first episode to the end), ``steepest_per_1000_mb`` (the largest
+    growth per 1,000 resets between two consecutive samples after the first
+    interval, which holds the warm-up), ``seconds`` (wall time of the episodes).
     """
     from training.bench_common import resident_mb
 
@@ -112,12 +120,11 @@ def reset_memory(target: str, resets: int, steps: int = 20, every: int = 1000, s
         if k % every == 0 or k == resets:
             samples.append((k, resident_mb()))
     seconds = time.perf_counter() - start
-    half = resets // 2
-    middle = min(samples, key=lambda sample: abs(sample[0] - half))
 
     def per_1000(a: tuple[int, float], b: tuple[int, float]) -> float:
-        return (b[1] - a[1]) / (b[0] - a[0]) * 1000.0 if b[0] > a[0] else float("nan")
+        return (b[1] - a[1]) / (b[0] - a[0]) * 1000.0
 
+    later = [per_1000(a, b) for a, b in zip(samples[1:], samples[2:])]
     return {
         "target": target,
         "resets": resets,
@@ -127,7 +134,7 @@ def reset_memory(target: str, resets: int, steps: int = 20, every: int = 1000, s
         "end_mb": samples[-1][1],
         "peak_mb": max(mb for _, mb in samples),
         "per_1000_mb": per_1000(samples[0], samples[-1]),
-        "per_1000_late_mb": per_1000(middle, samples[-1]),
+        "steepest_per_1000_mb": max(later) if later else float("nan"),
         "seconds": seconds,
     }
 
@@ -136,19 +143,25 @@ def format_reset_memory(rows: list[dict]) -> str:
     """The table of :func:`reset_memory` rows."""
     lines = [
         f"{'target':<14}{'resets':>8}{'steps':>7}{'start MB':>10}{'end MB':>9}{'peak MB':>9}"
-        f"{'MB/1000':>9}{'late MB/1000':>14}{'time s':>8}",
-        "-" * 88,
+        f"{'MB/1000':>9}{'steepest MB/1000':>18}{'time s':>8}",
+        "-" * 92,
     ]
     for r in rows:
         lines.append(
             f"{r['target']:<14}{r['resets']:>8}{r['steps']:>7}{r['start_mb']:>10.1f}{r['end_mb']:>9.1f}{r['peak_mb']:>9.1f}"
-            f"{r['per_1000_mb']:>9.2f}{r['per_1000_late_mb']:>14.2f}{r['seconds']:>8.0f}"
+            f"{r['per_1000_mb']:>9.2f}{r['steepest_per_1000_mb']:>18.2f}{r['seconds']:>8.0f}"
         )
     lines.append(
-        "(resident set size; start: after the first episode; MB/1000: growth per 1,000 resets over the run, "
-        f"late: over its second half; {os.cpu_count()} cores)"
+        "(resident set size, each target in a fresh process; start: after the first episode; MB/1000: growth per "
+        f"1,000 resets over the run; steepest: between two samples after the first; {os.cpu_count()} cores)"
     )
     return "\n".join(lines)
+
+
+def _in_fresh_process(target: str, resets: int, steps: int, every: int) -> dict:
+    """:func:`reset_memory` in a new interpreter (spawned, so it inherits none of this one's memory)."""
+    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return pool.submit(reset_memory, target, resets, steps, every).result()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -165,7 +178,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--steps must be >= 0")
     if args.every < 1:
         parser.error("--every must be >= 1")
-    rows = [reset_memory(target, args.resets, args.steps, args.every) for target in args.targets]
+    rows = [_in_fresh_process(target, args.resets, args.steps, args.every) for target in args.targets]
     print(json.dumps(rows, indent=2) if args.json else format_reset_memory(rows))
     return 0
 
