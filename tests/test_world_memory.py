@@ -29,7 +29,7 @@ def config() -> WorldConfig:
 
 
 def live_spaces() -> int:
-    return sum(isinstance(o, pymunk.Space) for o in gc.get_objects())
+    return sum(type(o) is pymunk.Space for o in gc.get_objects())
 
 
 @pytest.fixture
