@@ -15,6 +15,7 @@ def test_reset_memory_rows_count_resets_and_growth():
     assert row["peak_mb"] == max(mb for _, mb in row["samples"])
     (_, a), (_, b), (_, c) = row["samples"][1:]
     assert row["steepest_per_1000_mb"] == max((b - a) / 2 * 1000.0, (c - b) * 1000.0)
+    assert isinstance(row["full_collections"], int) and row["full_collections"] >= 0
     assert "world" in format_reset_memory([row])
 
 

@@ -19,7 +19,9 @@ Reported per target: the RSS after the first episode (``start``), at the end,
 the peak, the growth per 1,000 resets over the whole run, and the steepest
 growth between two samples after the first (a run whose memory grows until
 Python's garbage collector happens to run a full collection and then drops
-grows like a sawtooth: its end can be close to its start). Each pymunk space
+grows like a sawtooth: its end can be close to its start), and how many full
+garbage collections ran (Python's own and those the world runs to reclaim its
+replaced spaces; about 0.1 s each in such a process). Each pymunk space
 the world replaces at a reset holds about 280 KiB outside Python's view until
 the cyclic garbage collector frees it (see :mod:`moma_env.world.world`), which
 is what this benchmark watches. A measurement, not an assertion.
@@ -28,6 +30,7 @@ is what this benchmark watches. A measurement, not an assertion.
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import multiprocessing
 import os
@@ -103,7 +106,8 @@ def reset_memory(target: str, resets: int, steps: int = 20, every: int = 1000, s
     episode), ``end_mb``, ``peak_mb``, ``per_1000_mb`` (growth per 1,000 resets
     from the first episode to the end), ``steepest_per_1000_mb`` (the largest
     growth per 1,000 resets between two consecutive samples after the first
-    interval, which holds the warm-up), ``seconds`` (wall time of the episodes).
+    interval, which holds the warm-up), ``full_collections`` (full garbage
+    collections during the episodes), ``seconds`` (wall time of the episodes).
     """
     from training.bench_common import resident_mb
 
@@ -114,12 +118,14 @@ def reset_memory(target: str, resets: int, steps: int = 20, every: int = 1000, s
     episode = _world_episode(steps, seed) if target == "world" else _env_episode(target, steps, seed)
     episode()
     samples = [(1, resident_mb())]
+    collections = gc.get_stats()[-1]["collections"]
     start = time.perf_counter()
     for k in range(2, resets + 1):
         episode()
         if k % every == 0 or k == resets:
             samples.append((k, resident_mb()))
     seconds = time.perf_counter() - start
+    collections = gc.get_stats()[-1]["collections"] - collections
 
     def per_1000(a: tuple[int, float], b: tuple[int, float]) -> float:
         return (b[1] - a[1]) / (b[0] - a[0]) * 1000.0
@@ -135,6 +141,7 @@ def reset_memory(target: str, resets: int, steps: int = 20, every: int = 1000, s
         "peak_mb": max(mb for _, mb in samples),
         "per_1000_mb": per_1000(samples[0], samples[-1]),
         "steepest_per_1000_mb": max(later) if later else float("nan"),
+        "full_collections": collections,
         "seconds": seconds,
     }
 
@@ -143,17 +150,18 @@ def format_reset_memory(rows: list[dict]) -> str:
     """The table of :func:`reset_memory` rows."""
     lines = [
         f"{'target':<14}{'resets':>8}{'steps':>7}{'start MB':>10}{'end MB':>9}{'peak MB':>9}"
-        f"{'MB/1000':>9}{'steepest MB/1000':>18}{'time s':>8}",
-        "-" * 92,
+        f"{'MB/1000':>9}{'steepest MB/1000':>18}{'full GCs':>10}{'time s':>8}",
+        "-" * 102,
     ]
     for r in rows:
         lines.append(
             f"{r['target']:<14}{r['resets']:>8}{r['steps']:>7}{r['start_mb']:>10.1f}{r['end_mb']:>9.1f}{r['peak_mb']:>9.1f}"
-            f"{r['per_1000_mb']:>9.2f}{r['steepest_per_1000_mb']:>18.2f}{r['seconds']:>8.0f}"
+            f"{r['per_1000_mb']:>9.2f}{r['steepest_per_1000_mb']:>18.2f}{r['full_collections']:>10}{r['seconds']:>8.0f}"
         )
     lines.append(
         "(resident set size, each target in a fresh process; start: after the first episode; MB/1000: growth per "
-        f"1,000 resets over the run; steepest: between two samples after the first; {os.cpu_count()} cores)"
+        "1,000 resets over the run; steepest: between two samples after the first; full GCs: full garbage "
+        f"collections during the run; {os.cpu_count()} cores)"
     )
     return "\n".join(lines)
 
