@@ -1,9 +1,9 @@
 """Resident memory over many short episodes: does memory grow with resets?
 
 ``python -m training.bench_memory [--resets 20000] [--steps 20] [--targets world top_observer]``
-runs, in this one process, ``--resets`` episodes of ``--steps`` steps for each target
-and samples the resident set size (:func:`training.bench_common.resident_mb`) every
-``--every`` resets:
+runs ``--resets`` episodes of ``--steps`` steps of each target and samples the
+resident set size (:func:`training.bench_common.resident_mb`) every ``--every``
+resets:
 
 * ``world``: the top_observer scenario's :class:`~moma_env.world.World` alone,
   ``World.reset()`` then ``--steps`` steps with every robot released and driven
@@ -14,7 +14,8 @@ and samples the resident set size (:func:`training.bench_common.resident_mb`) ev
   action spaces beforehand (a pool used in turn, as in ``moma-env bench``).
 
 Each target runs in a fresh process (the resident memory of a process is all of
-it: a target run after another would start with what the first left behind).
+it: a target run after another would start with what the first left behind);
+:func:`reset_memory` alone runs in the calling process.
 Reported per target: the RSS after the first episode (``start``), at the end,
 the peak, the growth per 1,000 resets over the whole run, and the steepest
 growth between two samples after the first (a run whose memory grows until
