@@ -63,7 +63,7 @@ class _CameraTimes:
 
     def _instrument(self) -> None:
         """Time the stages of the camera the env holds now (a reset may build a new one)."""
-        from training.bench import time_calls
+        from training.bench_common import time_calls
 
         camera = self.camera
         if camera is self._instrumented:
@@ -99,10 +99,10 @@ def bench_rendered(steps: int, seed: int = 0, rounds: int = 1) -> list[dict]:
     """One row per variant: steps/s and the mean step, render and detection times (ms)
     of its fastest round (``rounds_steps_per_s``: every round's rate).
 
-    Steps are timed by :func:`training.bench.steps_per_second` (random actions
+    Steps are timed by :func:`training.bench_common.steps_per_second` (random actions
     drawn before the clock starts, episodes reset when they end).
     """
-    from training.bench import best_of_rounds
+    from training.bench_common import best_of_rounds
 
     return best_of_rounds([lambda variant=variant: _rendered_row(variant, steps, seed) for variant in VARIANTS], rounds)
 
@@ -111,7 +111,7 @@ def _rendered_row(variant: tuple, steps: int, seed: int) -> dict:
     """One timed run of one variant (see :data:`VARIANTS`)."""
     from moma_env.camera import RenderConfig
     from moma_env.env.factory import parallel_env
-    from training.bench import steps_per_second
+    from training.bench_common import steps_per_second
 
     floor_name, floor, render = variant
     env = parallel_env("top_observer", camera_backend="rendered", floor=floor, render=render)

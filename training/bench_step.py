@@ -31,7 +31,7 @@ TARGET_X_MPE2 = 5.0
 def step_breakdown(scenario: str = "top_observer", steps: int = 5000, warmup: int = 500, seed: int = 0) -> dict[str, float]:
     """Mean microseconds per step: ``step`` and its ``camera``, ``estimator``, ``world`` and ``rest``."""
     from moma_env.env.factory import parallel_env
-    from training.bench import time_calls
+    from training.bench_common import time_calls
 
     env = parallel_env(scenario)
     env.reset(seed=seed)
@@ -73,7 +73,7 @@ def step_breakdown(scenario: str = "top_observer", steps: int = 5000, warmup: in
 def mpe2_step_us(steps: int = 5000, seed: int = 0) -> float | None:
     """Mean microseconds per joint step of MPE2 ``simple_spread`` (N=3, parallel API,
     random actions drawn before the clock starts); None if mpe2 is not installed."""
-    from training.bench import mpe2_reference, steps_per_second
+    from training.bench_common import mpe2_reference, steps_per_second
 
     make_mpe2 = mpe2_reference()
     return None if make_mpe2 is None else 1e6 / steps_per_second(make_mpe2, steps, seed=seed)

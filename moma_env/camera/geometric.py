@@ -119,7 +119,9 @@ class GeometricCamera:
 
     The camera keeps a small cache of marker geometry per sequence of board
     layout objects it is shown; it never caches poses or results, so every call
-    depends only on its arguments.
+    depends only on its arguments. Copies (:mod:`copy`, :mod:`pickle`) start with
+    an empty cache: its keys are ids of the original's layout objects, which mean
+    nothing to a copy (and could name other objects in another process).
     """
 
     def __init__(self, camera_id: str, config: CameraConfig) -> None:
@@ -364,6 +366,12 @@ class GeometricCamera:
             return cv2.solvePnP(object_points, image_xy, _IDENTITY_K, None, flags=flags)
         except cv2.error:
             return False, None, None
+
+    def __getstate__(self) -> dict[str, object]:
+        """The camera's attributes, for :mod:`copy` and :mod:`pickle`, with an empty geometry cache."""
+        state = self.__dict__.copy()
+        state["_geometries"] = {}
+        return state
 
     def _geometry(self, boards: Sequence[BoardView]) -> _BoardSetGeometry:
         """Cached marker geometry of the boards' layouts (built on first use).

@@ -41,6 +41,12 @@ State: the camera keeps its latest image (:attr:`last_image`, for pixel
 observations), the cached floor view and the previous frame's poses (for
 interlacing); detections depend only on the arguments and the rng, except
 through interlacing, which needs the previous frame.
+
+Copies (:mod:`copy`, :mod:`pickle`) keep all of that state and continue like
+the original; they leave out what is rebuilt on first use and cannot be
+copied or would be wrong in a copy: the OpenCV detectors (not picklable) and
+the board rasters and marker lookups (keyed by ids of the original's layout
+objects).
 """
 
 from __future__ import annotations
@@ -127,6 +133,15 @@ class RenderedCamera:
         self.last_image: np.ndarray | None = None
         self.last_render_s = math.nan
         self.last_detect_s = math.nan
+
+    def __getstate__(self) -> dict[str, object]:
+        """The camera's attributes, for :mod:`copy` and :mod:`pickle`, without the caches
+        that are rebuilt on first use (see the module's notes on copies)."""
+        state = self.__dict__.copy()
+        state["_detectors"] = {}
+        state["_rasters"] = {}
+        state["_lookups"] = {}
+        return state
 
     # ------------------------------------------------------------------ public
     def measure(

@@ -37,8 +37,7 @@ from moma_env.config import (
     from_mapping,
 )
 from moma_env.markers import BoardLayout, board_for_robot
-from moma_env.world.arena import (
-    WALL_NAME,
+from moma_env.world.footprints import (
     box_inside_rectangle,
     boxes_overlap,
     disk_inside_rectangle,
@@ -57,7 +56,14 @@ __all__ = [
     "WorldConfig",
     "world_config_from_mapping",
     "unknown_name",
+    "WALL_NAME",
+    "obstacle_name",
 ]
+
+#: Name reported for the walls in collision pairs (reserved: no robot or sled may take it).
+WALL_NAME = "wall"
+#: Start of the names reported for the obstacles in collision pairs (reserved, see :func:`obstacle_name`).
+_OBSTACLE_PREFIX = "obstacle["
 
 #: Kinds of observer the UAV state models.
 UAV_KINDS = ("quadcopter", "handheld")
@@ -73,6 +79,16 @@ _HANDHELD_DEFAULTS: Mapping[str, Any] = MappingProxyType(
         "tilt_time_constant": 0.5,
     }
 )
+
+
+def obstacle_name(index: int) -> str:
+    """Name reported for obstacle ``index`` (its position in ``ArenaConfig.obstacles``) in collision pairs."""
+    return f"{_OBSTACLE_PREFIX}{index}]"
+
+
+def _reserved(name: str) -> bool:
+    """Whether ``name`` is one of the names of the static shapes (walls, obstacles)."""
+    return name == WALL_NAME or name.startswith(_OBSTACLE_PREFIX)
 
 
 def unknown_name(kind: str, name: object, known: Sequence[str]) -> KeyError:
@@ -221,7 +237,7 @@ class UGVConfig:
 
     def __post_init__(self) -> None:
         _check_name("ugv.name", self.name)
-        if self.name == WALL_NAME or self.name.startswith("obstacle["):
+        if _reserved(self.name):
             raise ConfigError("ugv.name", f"{self.name!r} is reserved for static shapes")
         object.__setattr__(self, "initial_pose", _planar_pose("ugv.initial_pose", self.initial_pose))
         for name in ("radius", "mass", "max_speed", "max_yaw_rate", "max_accel", "max_yaw_accel"):
@@ -394,7 +410,7 @@ class SledConfig:
 
     def __post_init__(self) -> None:
         _check_name("sled.name", self.name)
-        if self.name == WALL_NAME or self.name.startswith("obstacle["):
+        if _reserved(self.name):
             raise ConfigError("sled.name", f"{self.name!r} is reserved for static shapes")
         _check_name("sled.robot", self.robot)
         object.__setattr__(self, "initial_pose", _planar_pose("sled.initial_pose", self.initial_pose))
