@@ -1,6 +1,6 @@
 """Resident memory over many short episodes: does memory grow with resets?
 
-``python -m training.bench_memory [--resets 20000] [--steps 20] [--targets world top_observer]``
+``python -m training.bench_memory [--resets 20000] [--steps 20] [--targets world top_observer top_observer_random]``
 runs ``--resets`` episodes of ``--steps`` steps of each target and samples the
 resident set size (:func:`training.bench_common.resident_mb`) every ``--every``
 resets:
@@ -11,7 +11,9 @@ resets:
   0.2 m/s and 0.2 rad/s), and the UAV flown a little;
 * ``top_observer``: the environment (switching mode, geometric camera),
   ``env.reset()`` then ``--steps`` joint steps of random actions drawn from the
-  action spaces beforehand (a pool used in turn, as in ``moma-env bench``).
+  action spaces beforehand (a pool used in turn, as in ``moma-env bench``);
+* ``top_observer_random``: the same with ``random_scenarios=True``: a new layout,
+  hence a new simulation and world, at every reset.
 
 Each target runs in a fresh process (the resident memory of a process is all of
 it: a target run after another would start with what the first left behind);
@@ -41,8 +43,9 @@ from concurrent.futures import ProcessPoolExecutor
 
 __all__ = ["TARGETS", "reset_memory", "format_reset_memory"]
 
-#: What can be measured: the world alone, or the whole environment.
-TARGETS = ("world", "top_observer")
+#: What can be measured: the world alone, the whole environment, or the environment
+#: with a new random layout (a new simulation) at every reset.
+TARGETS = ("world", "top_observer", "top_observer_random")
 
 
 def _world_episode(steps: int, seed: int) -> Callable[[], None]:
@@ -73,11 +76,11 @@ def _world_episode(steps: int, seed: int) -> Callable[[], None]:
     return episode
 
 
-def _env_episode(configuration: str, steps: int, seed: int) -> Callable[[], None]:
+def _env_episode(configuration: str, steps: int, seed: int, random_scenarios: bool = False) -> Callable[[], None]:
     """One episode of the environment: reset, then ``steps`` joint steps of pre-drawn random actions."""
     from moma_env.env.factory import parallel_env
 
-    env = parallel_env(configuration)
+    env = parallel_env(configuration, random_scenarios=random_scenarios)
     env.reset(seed=seed)
     agents = list(env.possible_agents)
     for agent in agents:
@@ -116,7 +119,10 @@ def reset_memory(target: str, resets: int, steps: int = 20, every: int = 1000, s
         raise ValueError(f"unknown target {target!r}; known: {list(TARGETS)}")
     if resets < 2 or steps < 0 or every < 1:
         raise ValueError(f"need resets >= 2, steps >= 0 and every >= 1, got {resets}, {steps}, {every}")
-    episode = _world_episode(steps, seed) if target == "world" else _env_episode(target, steps, seed)
+    if target == "world":
+        episode = _world_episode(steps, seed)
+    else:
+        episode = _env_episode("top_observer", steps, seed, random_scenarios=target == "top_observer_random")
     episode()
     samples = [(1, resident_mb())]
     collections = gc.get_stats()[-1]["collections"]
@@ -178,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--resets", type=int, default=20_000, help="episodes per target (default 20000)")
     parser.add_argument("--steps", type=int, default=20, help="steps per episode (default 20)")
     parser.add_argument("--every", type=int, default=1000, help="resets between two RSS samples (default 1000)")
-    parser.add_argument("--targets", nargs="+", choices=TARGETS, default=list(TARGETS), help="what to measure (default both)")
+    parser.add_argument("--targets", nargs="+", choices=TARGETS, default=list(TARGETS), help="what to measure (default all)")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON")
     args = parser.parse_args(argv)
     if args.resets < 2:

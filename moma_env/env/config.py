@@ -104,9 +104,10 @@ class EnvConfig:
             agent's ``infos`` (see :meth:`MomaParallelEnv.action_mask`). Off by
             default: it costs a motion-rules check per UGV and step.
         pad_observations: pad every agent's vector observation with zeros to
-            the longest one, so that all agents share one observation shape
-            (parameter-sharing wrappers need it; e.g. the observer beside the
-            UGVs in ``velocity`` mode). Off by default.
+            the longest one, and give every agent one observation space (the
+            union of their bounds), so that parameter-sharing wrappers (SuperSuit's
+            vector envs) take the observer beside the UGVs in ``velocity`` mode.
+            Off by default.
         localiser: builds each episode's localiser from the scenario's
             ``EstimatorConfig`` (a :class:`moma_env.sim.Localiser`); None: the
             MOMA estimator. Pass a class or a module-level function so that the

@@ -162,7 +162,7 @@ class MomaParallelEnv(ParallelEnv):
         self._floor = floor_for(self.config, wc.arena.bounds, self._floor)
         cameras = build_cameras(camera_names, scenario.camera, self.config, self._floor)
         localiser = {} if self.config.localiser is None else {"localiser": self.config.localiser}
-        self.simulation = Simulation(scenario, cameras, **localiser)
+        self.simulation = Simulation(scenario, cameras, replaces=getattr(self, "simulation", None), **localiser)
         self._mode: ActionMode = action_mode(self.config.action_mode, self._tows, {u.name: (u.max_speed, u.max_yaw_rate) for u in wc.ugvs})
         self._reward = TeamReward(scenario, self._ugvs, self.config.rewards)
         self._max_cycles = self._max_cycles_set or self.config.max_cycles or scenario.max_cycles
@@ -178,8 +178,12 @@ class MomaParallelEnv(ParallelEnv):
             vector_spaces = self.layout.spaces
             self._pad = None
             if self.config.pad_observations:
+                # One Box for every agent: zeros appended, bounds the union of the agents'.
                 self._pad = max(space.shape[0] for space in vector_spaces.values())
-                vector_spaces = {a: padded(space, self._pad) for a, space in vector_spaces.items()}
+                grown = [padded(space, self._pad) for space in vector_spaces.values()]
+                low = np.minimum.reduce([space.low for space in grown])
+                high = np.maximum.reduce([space.high for space in grown])
+                vector_spaces = {a: spaces.Box(low=low, high=high, dtype=np.float32) for a in vector_spaces}
             self._observation_spaces = observation_spaces(vector_spaces, OBSERVER, self.config.observer_image)
             self._action_spaces = {a: self._make_action_space(a) for a in self.possible_agents}
         if self._has_uav:

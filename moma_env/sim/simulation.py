@@ -94,6 +94,9 @@ class Simulation:
         measure_at_reset: take a camera frame at time 0 in :meth:`reset` (the
             envs do, so that the first observation holds detections); the
             paper's experiments start with the first step.
+        replaces: a simulation this one takes the place of (an env's previous
+            layout): the new world shares the old one's record of retired physics
+            spaces, so that memory stays flat across layouts (``World(replaces=...)``).
     """
 
     def __init__(
@@ -105,6 +108,7 @@ class Simulation:
         rules: bool = True,
         planar_ugvs: bool = True,
         measure_at_reset: bool = True,
+        replaces: Simulation | None = None,
     ):
         if not isinstance(scenario, Scenario):
             raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
@@ -112,7 +116,9 @@ class Simulation:
             raise TypeError(f"localiser must be a callable EstimatorConfig -> Localiser, got {type(localiser).__name__}")
         self.scenario = scenario
         wc = scenario.world
-        self.world = World(wc)
+        if replaces is not None and not isinstance(replaces, Simulation):
+            raise TypeError(f"replaces must be a Simulation or None, got {type(replaces).__name__}")
+        self.world = World(wc, replaces=None if replaces is None else replaces.world)
         self._ugvs = wc.ugv_names
         sleds = tuple(wc.sleds)
         self._sleds = tuple(s.name for s in sleds)
