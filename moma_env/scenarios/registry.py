@@ -23,10 +23,13 @@ from typing import Any
 import numpy as np
 
 from moma_env.config import ConfigError, from_mapping
-from moma_env.scenarios import caterpillar, caterpillar_multi, caterpillar_sled, top_observer
+from moma_env.scenarios.caterpillar import SPEC as CATERPILLAR
+from moma_env.scenarios.caterpillar_multi import SPEC as CATERPILLAR_MULTI
+from moma_env.scenarios.caterpillar_sled import SPEC as CATERPILLAR_SLED
 from moma_env.scenarios.base import Scenario
 from moma_env.scenarios.common import ScenarioConfig
 from moma_env.scenarios.spec import ScenarioSpec
+from moma_env.scenarios.top_observer import SPEC as TOP_OBSERVER
 
 __all__ = [
     "SPECS",
@@ -40,7 +43,7 @@ __all__ = [
 ]
 
 #: Every registered configuration's spec, in a fixed order (the order of the name views).
-SPECS: tuple[ScenarioSpec, ...] = (top_observer.SPEC, caterpillar.SPEC, caterpillar_sled.SPEC, caterpillar_multi.SPEC)
+SPECS: tuple[ScenarioSpec, ...] = (TOP_OBSERVER, CATERPILLAR, CATERPILLAR_SLED, CATERPILLAR_MULTI)
 
 
 def _by_name(specs: tuple[ScenarioSpec, ...]) -> Mapping[str, ScenarioSpec]:
