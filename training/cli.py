@@ -112,6 +112,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--rounds", type=_int_at_least(1, "round count"), default=3,
         help="interleaved rounds of the step-rate rows; each row reports its best round (default 3)",
     )
+    bench.add_argument(
+        "--vector", action="store_true",
+        help="instead: env-steps per second of the batched env (moma_env.vector) against MPE2 and VMAS (training.bench_vector)",
+    )
+    bench.add_argument(
+        "--num-envs", type=_int_at_least(1, "batch size"), nargs="+", default=[1, 64, 256, 1024],
+        help="with --vector: the batch sizes (default 1 64 256 1024)",
+    )
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
     bench.set_defaults(handler=_run_bench)
 
@@ -226,6 +234,12 @@ def _run_flips(args: argparse.Namespace) -> int:
 
 
 def _run_bench(args: argparse.Namespace) -> int:
+    if args.vector:
+        from training.bench_vector import format_vector_bench, run_vector_bench
+
+        result = run_vector_bench(args.num_envs, args.rounds, min_env_steps=args.steps)
+        print(json.dumps(result, indent=2) if args.json else format_vector_bench(result))
+        return 0
     from training.bench import format_bench, run_bench
 
     result = run_bench(args.steps, args.memory_steps, args.rendered_steps, args.rendered_only, args.train_steps, args.rounds)

@@ -1,0 +1,26 @@
+"""The vector benchmark (training.bench_vector): what it reports, not how fast anything is."""
+
+import pytest
+
+from training.bench_vector import CASES, format_vector_bench, run_vector_bench
+from training.cli import main
+
+
+def test_the_vector_bench_reports_every_row_and_stage():
+    result = run_vector_bench([1, 3], rounds=2, min_env_steps=6)
+    for label in CASES:
+        for n in (1, 3):
+            rates = result["rates"][f"{label}, num_envs={n}"]
+            assert len(rates) == 2 and all(r > 0 for r in rates)
+    stages = result["breakdown_ms"]
+    assert set(stages) == {"batch step", "camera", "estimator", "world", "rest"}
+    assert 0 < stages["camera"] + stages["estimator"] + stages["world"] <= stages["batch step"]
+    text = format_vector_bench(result)
+    assert "top_observer 8 UGVs switching, num_envs=3" in text and "estimator" in text
+
+
+def test_the_vector_bench_refuses_bad_sizes():
+    with pytest.raises(ValueError, match="num_envs >= 1"):
+        run_vector_bench([0])
+    with pytest.raises(SystemExit):
+        main(["bench", "--vector", "--num-envs", "0"])

@@ -1,0 +1,203 @@
+"""Env-steps per second of the batched env (:mod:`moma_env.vector`) against MPE2 and VMAS.
+
+``moma-env bench --vector`` (or ``python -m training.bench_vector``) times, in
+interleaved rounds of one run:
+
+* the batched MOMA env (``moma_env.vector.make``, geometric camera, random actions
+  drawn before the clock starts) at each ``num_envs`` of ``--num-envs``, for
+  ``top_observer`` (2 UGVs) in switching and velocity mode, ``caterpillar_multi``
+  and ``top_observer`` with 8 UGVs (switching);
+* MPE2 ``simple_spread`` (N=3, one env, parallel API, random actions), the
+  single-env reference;
+* VMAS ``navigation`` (its default agents, CPU, one torch thread) at the same
+  ``num_envs``, the vectorised reference (when ``vmas`` is installed);
+
+and prints each rate's best and median over the rounds, its ratio to MPE2's rate
+of the same round (best and median), and the breakdown of one MOMA batch step by
+stage (camera, estimator, world, the rest) at the largest ``num_envs``. An
+env-step is one step of one copy. A measurement, not an assertion.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = ["CASES", "moma_rate", "vmas_rate", "stage_breakdown", "run_vector_bench", "format_vector_bench", "main"]
+
+#: The MOMA rows: label -> (configuration, options).
+CASES: dict[str, tuple[str, dict[str, Any]]] = {
+    "top_observer switching": ("top_observer", {"action_mode": "switching"}),
+    "top_observer velocity": ("top_observer", {"action_mode": "velocity"}),
+    "caterpillar_multi switching": ("caterpillar_multi", {"action_mode": "switching"}),
+    "top_observer 8 UGVs switching": ("top_observer", {"action_mode": "switching", "n_ugvs": 8}),
+}
+
+
+def _random_batches(envs, count: int, seed: int) -> list[dict[str, np.ndarray]]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(count):
+        joint = {}
+        for agent in envs.possible_agents:
+            space = envs.single_action_space(agent)
+            if hasattr(space, "n"):
+                joint[agent] = rng.integers(0, space.n, size=envs.num_envs)
+            else:
+                joint[agent] = rng.uniform(-1.0, 1.0, size=(envs.num_envs, *space.shape)).astype(np.float32)
+        out.append(joint)
+    return out
+
+
+def moma_rate(envs, batches: Sequence[dict[str, np.ndarray]], min_env_steps: int) -> float:
+    """Env-steps per second of ``envs`` (a reset :class:`~moma_env.vector.MomaVectorEnv`) stepped
+    with ``batches`` in turn until at least ``min_env_steps`` env-steps (and one batch step)."""
+    n = max(1, -(-min_env_steps // envs.num_envs))
+    start = time.perf_counter()
+    for i in range(n):
+        envs.step(batches[i % len(batches)])
+    return n * envs.num_envs / (time.perf_counter() - start)
+
+
+def vmas_factory(num_envs: int, seed: int = 0) -> Callable[[int], float] | None:
+    """A timer ``f(min_env_steps) -> env-steps/s`` of VMAS ``navigation`` on CPU, or None without vmas."""
+    try:
+        import torch
+        from vmas import make_env
+    except ImportError:
+        return None
+    torch.set_num_threads(1)
+    env = make_env(scenario="navigation", num_envs=num_envs, device="cpu", continuous_actions=True, seed=seed)
+    env.reset()
+    generator = torch.Generator().manual_seed(seed)
+    pool = [
+        [torch.rand(num_envs, agent.action_size, generator=generator) * 2.0 - 1.0 for agent in env.agents] for _ in range(20)
+    ]
+
+    def rate(min_env_steps: int) -> float:
+        n = max(1, -(-min_env_steps // num_envs))
+        start = time.perf_counter()
+        for i in range(n):
+            env.step(pool[i % len(pool)])
+        return n * num_envs / (time.perf_counter() - start)
+
+    return rate
+
+
+def vmas_rate(num_envs: int, min_env_steps: int, seed: int = 0) -> float | None:
+    """Env-steps per second of VMAS ``navigation`` at ``num_envs`` (None without vmas)."""
+    timer = vmas_factory(num_envs, seed)
+    return None if timer is None else timer(min_env_steps)
+
+
+def stage_breakdown(envs, batches: Sequence[dict[str, np.ndarray]], batch_steps: int) -> dict[str, float]:
+    """Mean milliseconds of one batch step and of its stages: ``camera`` (every copy's
+    cameras' ``measure``), ``estimator`` (every copy's localiser ``update``), ``world``
+    (every copy's ``World.step``) and ``rest`` (rules, action modes, rewards,
+    observations, stacking). Copies reset by autoreset during the run are re-wrapped."""
+    from training.bench_common import time_calls
+
+    totals = {"camera": 0.0, "estimator": 0.0, "world": 0.0}
+
+    def instrument() -> None:
+        for env in envs.envs:
+            sim = env.simulation
+            for camera in sim.cameras.values():
+                time_calls(camera, "measure", totals, "camera")
+            time_calls(sim.localiser, "update", totals, "estimator")
+            time_calls(sim.world, "step", totals, "world")
+
+    instrument()
+    start = time.perf_counter()
+    for i in range(batch_steps):
+        envs.step(batches[i % len(batches)])
+        instrument()
+    elapsed = time.perf_counter() - start
+    out = {"batch step": elapsed / batch_steps * 1e3}
+    out.update({key: value / batch_steps * 1e3 for key, value in totals.items()})
+    out["rest"] = out["batch step"] - out["camera"] - out["estimator"] - out["world"]
+    return out
+
+
+def run_vector_bench(num_envs: Sequence[int], rounds: int = 3, min_env_steps: int = 2000, seed: int = 0) -> dict:
+    """Every row in ``rounds`` interleaved rounds (see the module docstring)."""
+    from moma_env import vector
+    from training.bench_common import mpe2_reference, steps_per_second
+
+    if rounds < 1 or min_env_steps < 1 or not num_envs or min(num_envs) < 1:
+        raise ValueError(f"need rounds >= 1, min_env_steps >= 1 and num_envs >= 1, got {rounds}, {min_env_steps}, {list(num_envs)}")
+    make_mpe2 = mpe2_reference()
+    moma: dict[tuple[str, int], Any] = {}
+    for label, (name, options) in CASES.items():
+        for n in num_envs:
+            envs = vector.make(name, n, **options)
+            envs.reset(seed=seed)
+            moma[(label, n)] = (envs, _random_batches(envs, 16, seed))
+    vmas = {n: vmas_factory(n, seed) for n in num_envs}
+    rates: dict[str, list[float]] = {}
+    ratios: dict[str, list[float]] = {}
+    for _ in range(rounds):
+        mpe2 = steps_per_second(make_mpe2, min_env_steps, seed=seed) if make_mpe2 is not None else None
+        rates.setdefault("mpe2 simple_spread N=3 (one env)", []).append(mpe2 if mpe2 is not None else float("nan"))
+        rows: dict[str, float] = {}
+        for (label, n), (envs, batches) in moma.items():
+            rows[f"{label}, num_envs={n}"] = moma_rate(envs, batches, min_env_steps)
+        for n, timer in vmas.items():
+            if timer is not None:
+                rows[f"vmas navigation, num_envs={n}"] = timer(min_env_steps)
+        for key, value in rows.items():
+            rates.setdefault(key, []).append(value)
+            if mpe2:
+                ratios.setdefault(key, []).append(value / mpe2)
+    largest = max(num_envs)
+    envs, batches = moma[("top_observer switching", largest)]
+    breakdown = stage_breakdown(envs, batches, max(2, -(-min_env_steps // largest)))
+    for envs, _ in moma.values():
+        envs.close()
+    return {
+        "rounds": rounds,
+        "min_env_steps": min_env_steps,
+        "num_envs": list(num_envs),
+        "rates": rates,
+        "ratios": ratios,
+        "breakdown_num_envs": largest,
+        "breakdown_ms": breakdown,
+    }
+
+
+def format_vector_bench(result: dict) -> str:
+    """The table of :func:`run_vector_bench`'s result."""
+    lines = [f"{'row':<52}{'best/s':>10}{'median/s':>10}{'x MPE2 best':>13}{'median':>8}", "-" * 93]
+    for key, values in result["rates"].items():
+        ratio = result["ratios"].get(key)
+        extra = f"{max(ratio):>13.2f}{statistics.median(ratio):>8.2f}" if ratio else ""
+        lines.append(f"{key:<52}{max(values):>10.0f}{statistics.median(values):>10.0f}{extra}")
+    lines.append(
+        f"(env-steps per second, {result['rounds']} interleaved rounds of at least {result['min_env_steps']} env-steps per row; "
+        "x MPE2: the rate over MPE2's in the same round)"
+    )
+    lines.append(f"one batch step of top_observer switching at num_envs={result['breakdown_num_envs']}:")
+    for key, value in result["breakdown_ms"].items():
+        lines.append(f"  {key:<12}{value:9.2f} ms")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Env-steps per second of the batched env against MPE2 and VMAS.")
+    parser.add_argument("--num-envs", type=int, nargs="+", default=[1, 64, 256, 1024], help="batch sizes (default 1 64 256 1024)")
+    parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (default 3)")
+    parser.add_argument("--min-env-steps", type=int, default=2000, help="env-steps per row and round (default 2000)")
+    args = parser.parse_args(argv)
+    if args.rounds < 1 or args.min_env_steps < 1 or min(args.num_envs) < 1:
+        parser.error("--rounds, --min-env-steps and --num-envs must be >= 1")
+    print(format_vector_bench(run_vector_bench(args.num_envs, args.rounds, args.min_env_steps)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
