@@ -71,8 +71,8 @@ class _CameraTimes:
         owners = {
             "floor": (camera.floor, "draw"),
             "boards": (camera, "_draw_board"),
-            "blur": (camera._sensor, "blur"),
-            "read_out": (camera._sensor, "read_out"),
+            "blur": (camera.sensor, "blur"),
+            "read_out": (camera.sensor, "read_out"),
         }
         for stage, (owner, method) in owners.items():
             if owner is not None:  # a plain floor has no texture to resample

@@ -120,7 +120,8 @@ class RenderedCamera:
             raise TypeError(f"floor must be a FloorTexture or None, got {type(floor).__name__}")
         self.floor = floor
         self.rays = PixelRays(self.camera)
-        self._sensor = SensorModel(self.render_config)
+        #: The image formation after the optics (blur, then noise, quantisation and interlacing at read-out).
+        self.sensor = SensorModel(self.render_config)
         self._plain_gray = int(round(FloorConfig.gray))
         self._rasters: dict[int, BoardRaster] = {}
         self._lookups: dict[tuple[int, ...], tuple[tuple[BoardLayout, ...], dict[str, dict[int, tuple[int, int]]]]] = {}
@@ -183,7 +184,7 @@ class RenderedCamera:
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         poses = {b.board_id: b.T_w_m for b in boards}
-        scene = self._sensor.blur(*self._scene(T_w_c, boards, [b.T_w_m for b in boards], occluded, cache_floor=True))
+        scene = self.sensor.blur(*self._scene(T_w_c, boards, [b.T_w_m for b in boards], occluded, cache_floor=True))
         if time is not None:
             time = float(time)
             if not math.isfinite(time):
@@ -191,7 +192,7 @@ class RenderedCamera:
             if self.render_config.interlaced:
                 self._draw_odd_field(scene, T_w_c, boards, time, occluded)
             self._previous = (time, T_w_c.copy(), {k: v.copy() for k, v in poses.items()})
-        image = self._sensor.read_out(scene, rng)
+        image = self.sensor.read_out(scene, rng)
         self.last_image = image
         self.last_render_s = _time.perf_counter() - start
         return image
@@ -400,7 +401,7 @@ class RenderedCamera:
             return
         camera_then = interpolate_pose(T0, T_w_c, f)
         boards_then = [interpolate_pose(boards0.get(b.board_id, b.T_w_m), b.T_w_m, f) for b in boards]
-        earlier = self._sensor.blur(*self._scene(camera_then, boards, boards_then, occluded, cache_floor=False))
+        earlier = self.sensor.blur(*self._scene(camera_then, boards, boards_then, occluded, cache_floor=False))
         scene[1::2] = earlier[1::2]
 
     # ------------------------------------------------------------------ detection set-up
