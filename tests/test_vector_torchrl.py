@@ -1,16 +1,22 @@
 """The batched env as a TorchRL EnvBase (moma_env/vector/torchrl.py): TorchRL's spec check,
 its multi-agent grouping, copy i is the PettingZoo env seeded s + i, seeding, masks."""
 
+import importlib.util
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
-torch = pytest.importorskip("torch")
-pytest.importorskip("torchrl")
+if importlib.util.find_spec("torchrl") is None:  # not importorskip: importing torchrl first would set the start method
+    pytest.skip("needs the torchrl extra", allow_module_level=True)
 
+from moma_env.vector.torchrl import MomaTorchRLEnv  # noqa: E402 - first: it keeps multiprocessing's start method
+
+import torch  # noqa: E402
 from torchrl.envs.utils import check_env_specs  # noqa: E402
 
 from moma_env.env.factory import parallel_env  # noqa: E402
-from moma_env.vector.torchrl import MomaTorchRLEnv  # noqa: E402
 
 CASES = [
     ("top_observer", {"action_mode": "switching"}, {"ugv": ["ugv_0", "ugv_1"]}),
@@ -144,3 +150,16 @@ def test_bad_actions_and_spaces_are_refused_naming_the_group_or_the_agent():
         velocity.step(td)
     with pytest.raises(ValueError, match="observer_image"):
         MomaTorchRLEnv("top_observer", 1, action_mode="velocity", camera_backend="rendered", observer_image=(32, 24))
+
+
+def test_importing_the_adapter_keeps_multiprocessings_start_method():
+    code = (
+        "import multiprocessing as mp; before = mp.get_start_method(allow_none=True); "
+        "import moma_env.vector.torchrl; print(before, mp.get_start_method(allow_none=True)); "
+        "import torchrl.envs; print(mp.get_start_method(allow_none=True))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["None", "None", "None"]
+    bare = subprocess.run([sys.executable, "-c", "import multiprocessing as mp, torchrl; print(mp.get_start_method(allow_none=True))"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    assert bare == "spawn"  # what the adapter undoes

@@ -1,7 +1,11 @@
 """The batched MOMA env as a TorchRL ``EnvBase``, grouped as TorchRL's multi-agent envs are.
 
 Needs the ``torchrl`` extra (``pip install "moma_env[torchrl]"``); ``import moma_env``
-never imports this module.
+never imports this module. Importing ``torchrl`` sets multiprocessing's global start
+method to ``"spawn"`` when none was set; this module puts it back as it was, so that
+importing the adapter does not change how other code (e.g. Gymnasium's
+``AsyncVectorEnv`` over a registered id) starts processes. TorchRL's own components
+choose their start method explicitly and are not affected.
 
 >>> from moma_env.vector.torchrl import MomaTorchRLEnv          # doctest: +SKIP
 >>> env = MomaTorchRLEnv("top_observer", num_envs=8, seed=0)
@@ -43,12 +47,15 @@ no final state or masks).
 
 from __future__ import annotations
 
+import multiprocessing
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 
+#: multiprocessing's global start method before torchrl's import (None: not set).
+_START_METHOD_BEFORE = multiprocessing.get_start_method(allow_none=True)
 try:
     import torch
     from tensordict import TensorDict, TensorDictBase
@@ -56,6 +63,8 @@ try:
     from torchrl.envs import EnvBase
 except ImportError as err:  # pragma: no cover - depends on the installed extras
     raise ImportError(f"moma_env.vector.torchrl needs the 'torchrl' extra (pip install 'moma_env[torchrl]'): {err}") from err
+if multiprocessing.get_start_method(allow_none=True) != _START_METHOD_BEFORE:
+    multiprocessing.set_start_method(_START_METHOD_BEFORE, force=True)
 
 from moma_env.env.parallel import OBSERVER
 from moma_env.vector.env import MomaVectorEnv
