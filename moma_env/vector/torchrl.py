@@ -21,7 +21,7 @@ of batch ``(B, n_agents)`` whose agents are stacked along dim 1:
   that TorchRL's ``PettingZooWrapper`` makes by default, and BenchMARL reads);
 * ``(group, "observation")``: ``(B, n, D)`` float32; ``(group, "action")``: ``(B, n)``
   int64 for a ``Discrete`` agent (categorical encoding, switching mode) or
-  ``(B, n, 4)`` float32 in [-1, 1]; ``(group, "reward")``: ``(B, n, 1)`` float32
+  ``(B, n, *shape)`` float32 in [-1, 1]; ``(group, "reward")``: ``(B, n, 1)`` float32
   (the team reward, rounded to float32); ``(group, "done" | "terminated" |
   "truncated")``: ``(B, n, 1)`` bool;
 * ``(group, "action_mask")``: ``(B, n, n_actions)`` bool for a group of discrete
