@@ -4,7 +4,10 @@ Every configuration of :data:`moma_env.scenarios.SPECS` is registered under the 
 its :class:`~moma_env.scenarios.ScenarioSpec` names:
 
 * Gymnasium, the whole team as one agent: ``gymnasium.make("moma_env/TopObserver-v0")``,
-  ``moma_env/Caterpillar-v0``, ``moma_env/CaterpillarSled-v0``, ``moma_env/CaterpillarMulti-v0``.
+  ``moma_env/Caterpillar-v0``, ``moma_env/CaterpillarSled-v0``, ``moma_env/CaterpillarMulti-v0``;
+  ``gymnasium.make_vec(id, num_envs=K)`` builds the batched
+  :class:`moma_env.vector.team.TeamVectorEnv` (the ``vector_entry_point``), and
+  ``vectorization_mode="sync"`` / ``"async"`` Gymnasium's own vector envs of ``make``'s.
 * PettingZoo (where the installed version has ``pettingzoo.register``):
   ``pettingzoo.make("parallel", "moma_env/top_observer-v0")`` and ``"aec"``, for
   every configuration, from its versioned module (``moma_env.top_observer_v0``).
@@ -33,6 +36,7 @@ def register_envs() -> None:
             gymnasium.register(
                 id=spec.gymnasium_id,
                 entry_point="moma_env.env.factory:centralised_env",
+                vector_entry_point="moma_env.vector.team:TeamVectorEnv",
                 kwargs={"configuration": spec.name},
             )
     register = getattr(pettingzoo, "register", None)

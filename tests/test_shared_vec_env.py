@@ -8,6 +8,9 @@ import torch
 from gymnasium import spaces
 from stable_baselines3 import PPO
 
+from moma_env.env.factory import parallel_env
+from moma_env.vector import MomaVectorEnv
+from training.fingerprint import serialise
 from training.train.models import training_logger
 from training.train.shared_vec_env import SharedPolicyVecEnv
 from training.train.team_slots import EnvSpec
@@ -64,6 +67,55 @@ def test_worker_processes_give_the_same_rollout_as_in_process():
     finally:
         local.close()
         remote.close()
+
+
+def _text(value) -> str:
+    out: list[str] = []
+    serialise(value, out)
+    return "|".join(out)
+
+
+@pytest.mark.parametrize("mode", ["switching", "velocity"])
+def test_the_in_process_engine_is_the_vector_env_and_gives_the_workers_slots_infos_included(mode):
+    spec = EnvSpec("caterpillar_multi", {"max_cycles": 9, "random_scenarios": True, "action_mode": mode})
+    local, remote = SharedPolicyVecEnv(spec, 2), SharedPolicyVecEnv(spec, 2, subproc=True)
+    try:
+        assert isinstance(local.engine.vector, MomaVectorEnv) and local.engine.vector.num_envs == 2
+        records = []
+        for venv in (local, remote):
+            venv.seed(3)
+            record = [venv.reset(), venv.reset_infos]
+            rng = np.random.default_rng(2)
+            for _ in range(20):  # two auto-resets per copy
+                if mode == "switching":
+                    actions = rng.integers(0, venv.action_space.n, venv.num_envs)
+                else:
+                    actions = rng.uniform(-1, 1, (venv.num_envs, *venv.action_space.shape)).astype(np.float32)
+                record.append(venv.step(actions))
+            records.append(record)
+        ends = [info for _, _, dones, infos in records[0][2:] for info in infos if "episode" in info]
+        assert len(ends) == 2 * 6 and all(info["episode"]["l"] == 9 for info in ends)
+        assert all(info["episode"]["t"] > 0 for info in ends)
+        assert _text(records[0]) == _text(records[1])  # terminal observations, episode statistics and all
+    finally:
+        local.close()
+        remote.close()
+
+
+def test_copy_k_resets_with_its_first_slots_seed():
+    spec = EnvSpec("top_observer", {"max_cycles": 12})
+    venv = SharedPolicyVecEnv(spec, 3)
+    try:
+        venv.seed(20)
+        obs = venv.reset()
+        for k in range(3):
+            single, _ = parallel_env("top_observer", max_cycles=12).reset(seed=20 + 2 * k)
+            np.testing.assert_array_equal(obs[2 * k : 2 * k + 2], np.stack([single["ugv_0"], single["ugv_1"]]))
+        venv.set_options([{"a": 1}] * 2 + [None] * 4)
+        with pytest.raises(ValueError, match="one options dict"):
+            venv.reset()
+    finally:
+        venv.close()
 
 
 def test_a_worker_error_is_raised_with_its_traceback():

@@ -34,11 +34,10 @@ def tiny(**changes) -> TrainConfig:
 
 
 def _copy_masks(venv: SharedPolicyVecEnv) -> np.ndarray:
-    """Every slot's mask read from the parallel env behind it, in slot order."""
+    """Every slot's mask read from the parallel env behind it (its ``action_mask``), in slot order."""
     rows = []
-    for k in range(len(venv._copies)):
-        env = venv._copies[k]._slots.env
-        rows += [env.action_mask(agent) for agent in venv.agents]
+    for first in range(0, venv.num_envs, venv.n_agents):
+        rows += [venv.env_method("action_mask", agent, indices=[first])[0] for agent in venv.agents]
     return np.array(rows, dtype=bool)
 
 

@@ -6,10 +6,15 @@ every agent is discrete (``switching`` mode), else a ``Box`` in [-1, 1] where a
 discrete agent's slot is decoded by rounding into its range. Reward: the team
 reward. The episode ends when the team's episode ends. ``info`` holds each
 agent's info under its name.
+
+:class:`TeamLayout` holds that mapping (spaces, observation concatenation,
+action decoding, masks) for one copy or a batch of copies; it is shared by
+:class:`CentralisedTeamEnv` and the batched :class:`moma_env.vector.team.TeamVectorEnv`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -18,11 +23,138 @@ from gymnasium import spaces
 
 from moma_env.env.parallel import MomaParallelEnv
 
-__all__ = ["CentralisedTeamEnv"]
+__all__ = ["CentralisedTeamEnv", "TeamLayout"]
+
+
+class TeamLayout:
+    """How a team of agents is one agent: the team's spaces and the (de)composition.
+
+    Args:
+        agents: the agents in team order (``possible_agents``).
+        observation_spaces: each agent's observation space (``Box`` only).
+        action_spaces: each agent's action space (``Discrete`` or ``Box``).
+
+    Attributes:
+        agents: the agents in team order.
+        observation_space: ``Box`` of shape ``(D,)`` float32, ``D`` the sum of the
+            agents' observation sizes.
+        action_space: ``MultiDiscrete`` of the agents' ``n`` when every agent is
+            discrete (``switching`` mode), else ``Box(-1, 1, (A,))`` float32 with
+            one slot per discrete agent and ``prod(shape)`` slots per ``Box`` agent.
+        discrete: whether ``action_space`` is the ``MultiDiscrete``.
+
+    Raises:
+        ValueError: an observation space is not a ``Box`` (e.g. ``observer_image``'s ``Dict``).
+    """
+
+    def __init__(self, agents: Sequence[str], observation_spaces: Sequence[spaces.Space], action_spaces: Sequence[spaces.Space]):
+        self.agents: tuple[str, ...] = tuple(agents)
+        if not all(isinstance(s, spaces.Box) for s in observation_spaces):
+            raise ValueError("the centralised env concatenates vector observations; it cannot take observer_image (a Dict)")
+        self.observation_space = spaces.Box(
+            low=np.concatenate([s.low for s in observation_spaces]),
+            high=np.concatenate([s.high for s in observation_spaces]),
+            dtype=np.float32,
+        )
+        self._act_spaces: tuple[spaces.Space, ...] = tuple(action_spaces)
+        self.discrete = all(isinstance(s, spaces.Discrete) for s in action_spaces)
+        self.action_space: spaces.MultiDiscrete | spaces.Box
+        if self.discrete:
+            self.action_space = spaces.MultiDiscrete([int(s.n) for s in action_spaces])
+        else:
+            size = sum(1 if isinstance(s, spaces.Discrete) else int(np.prod(s.shape)) for s in action_spaces)
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(size,), dtype=np.float32)
+
+    @classmethod
+    def of(cls, parallel_env: MomaParallelEnv) -> TeamLayout:
+        """The layout of ``parallel_env``'s ``possible_agents``."""
+        agents = list(parallel_env.possible_agents)
+        return cls(agents, [parallel_env.observation_space(a) for a in agents], [parallel_env.action_space(a) for a in agents])
+
+    def observation(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The agents' observations concatenated along the last axis, in team order (float32):
+        ``(D,)`` for one copy's observations, ``(K, D)`` for ``(K, D_agent)`` arrays."""
+        return np.concatenate([observations[a] for a in self.agents], axis=-1).astype(np.float32, copy=False)
+
+    def batch_actions(self, actions: Any) -> dict[str, np.ndarray]:
+        """``K`` team actions, shape ``(K, A)``, split into agent -> the agent's ``K`` actions.
+
+        A discrete agent gets ``(K,)`` integers: in the ``MultiDiscrete`` mode its
+        column, checked in range; in the ``Box`` mode its slot in [-1, 1] decoded by
+        rounding into ``[0, n)`` (``floor((clip(x, -1, 1) + 1) / 2 * n)``, ``n - 1`` at
+        ``x = 1``). A ``Box`` agent gets its slots reshaped to ``(K, *shape)``.
+
+        Raises:
+            ValueError: wrong shape, a non-integer or out-of-range ``MultiDiscrete``
+                entry, or a non-finite slot of a discrete agent; naming the agent
+                and the copy.
+        """
+        a = np.asarray(actions)
+        expected = (a.shape[0] if a.ndim else 0, *self.action_space.shape)
+        if a.ndim != 2 or a.shape != expected:
+            raise ValueError(f"team actions must have shape (num_envs, {self.action_space.shape[0]}) for {self.action_space}, got {a.shape}")
+        out: dict[str, np.ndarray] = {}
+        if self.discrete:
+            if a.dtype.kind not in "iu":
+                raise ValueError(f"team actions of {self.action_space} must be integers, got dtype {a.dtype}")
+            for i, (agent, space) in enumerate(zip(self.agents, self._act_spaces)):
+                column = a[:, i]
+                bad = np.flatnonzero((column < 0) | (column >= space.n))
+                if bad.size:
+                    raise ValueError(
+                        f"team action column {i} (agent {agent!r}) must be an integer in [0, {space.n}); copy {int(bad[0])} has {column[bad[0]].item()!r}"
+                    )
+                out[agent] = column
+            return out
+        k = 0
+        for agent, space in zip(self.agents, self._act_spaces):
+            if isinstance(space, spaces.Discrete):
+                value = a[:, k].astype(np.float64)
+                finite = np.isfinite(value)
+                if not finite.all():
+                    raise ValueError(f"team action slot {k} (agent {agent!r}, {space}) must be finite; copy {int(np.flatnonzero(~finite)[0])} is not")
+                value = np.clip(value, -1.0, 1.0)
+                out[agent] = np.minimum(space.n - 1, np.floor((value + 1.0) / 2.0 * space.n)).astype(np.int64)
+                k += 1
+            else:
+                n = int(np.prod(space.shape))
+                out[agent] = a[:, k : k + n].reshape(a.shape[0], *space.shape)
+                k += n
+        return out
+
+    def agent_actions(self, action: Any) -> dict[str, Any]:
+        """One team action, shape ``(A,)``, split into the agents' actions (a discrete
+        agent's as a Python ``int``, a ``Box`` agent's as an array of its shape)."""
+        a = np.asarray(action)
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
+        if self.discrete:  # any number: int() of it, as the parallel env's parser expects
+            return {agent: int(a[i]) for i, agent in enumerate(self.agents)}
+        batch = self.batch_actions(a[None])
+        return {
+            agent: int(batch[agent][0]) if isinstance(space, spaces.Discrete) else batch[agent][0]
+            for agent, space in zip(self.agents, self._act_spaces)
+        }
+
+    def reward(self, rewards: Mapping[str, Any]) -> Any:
+        """The team reward: every agent gets it, read from the first agent's (a float,
+        or a ``(K,)`` array from the batched rewards)."""
+        return rewards[self.agents[0]]
+
+    def masks(self, agent_masks: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The agents' action masks side by side along the last axis (bool): ``(sum n,)``
+        from one copy's ``action_masks()``, ``(K, sum n)`` from ``(K, n)`` arrays.
+
+        Raises:
+            ValueError: the team action is not the ``MultiDiscrete`` of the switching mode.
+        """
+        if not self.discrete:
+            raise ValueError("action masks need the MultiDiscrete team action of action_mode='switching'")
+        return np.concatenate([agent_masks[a] for a in self.agents], axis=-1).astype(bool)
 
 
 class CentralisedTeamEnv(gym.Env):
-    """Wrap a :class:`MomaParallelEnv` as a single-agent ``gymnasium.Env``."""
+    """Wrap a :class:`MomaParallelEnv` as a single-agent ``gymnasium.Env`` (see the module docstring)."""
 
     def __init__(self, parallel_env: MomaParallelEnv):
         if not isinstance(parallel_env, MomaParallelEnv):
@@ -30,58 +162,24 @@ class CentralisedTeamEnv(gym.Env):
         self.parallel_env = parallel_env
         self.metadata = {"render_modes": parallel_env.metadata["render_modes"], "render_fps": parallel_env.metadata["render_fps"]}
         self.render_mode = parallel_env.render_mode
-        self._agents = list(parallel_env.possible_agents)
-        obs_spaces = [parallel_env.observation_space(a) for a in self._agents]
-        if not all(isinstance(s, spaces.Box) for s in obs_spaces):
-            raise ValueError("the centralised env concatenates vector observations; it cannot take observer_image (a Dict)")
-        self.observation_space = spaces.Box(
-            low=np.concatenate([s.low for s in obs_spaces]),
-            high=np.concatenate([s.high for s in obs_spaces]),
-            dtype=np.float32,
-        )
-        act_spaces = [parallel_env.action_space(a) for a in self._agents]
-        self._act_spaces = act_spaces
-        if all(isinstance(s, spaces.Discrete) for s in act_spaces):
-            self.action_space = spaces.MultiDiscrete([int(s.n) for s in act_spaces])
-            self._discrete = True
-        else:
-            size = sum(1 if isinstance(s, spaces.Discrete) else int(np.prod(s.shape)) for s in act_spaces)
-            self.action_space = spaces.Box(-1.0, 1.0, shape=(size,), dtype=np.float32)
-            self._discrete = False
+        self.layout = TeamLayout.of(parallel_env)
+        self.observation_space = self.layout.observation_space
+        self.action_space = self.layout.action_space
 
-    def team_observation(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+    def team_observation(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         """The agents' observations concatenated in ``possible_agents`` order (float32)."""
-        return np.concatenate([obs[a] for a in self._agents]).astype(np.float32, copy=False)
+        return self.layout.observation(obs)
 
     def agent_actions(self, action: Any) -> dict[str, Any]:
         """The team action split into the agents' actions (what ``step`` sends to the parallel env)."""
-        a = np.asarray(action)
-        if a.shape != self.action_space.shape:
-            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
-        if self._discrete:
-            return {agent: int(a[i]) for i, agent in enumerate(self._agents)}
-        out: dict[str, Any] = {}
-        k = 0
-        for agent, space in zip(self._agents, self._act_spaces):
-            if isinstance(space, spaces.Discrete):
-                value = float(np.clip(a[k], -1.0, 1.0))
-                out[agent] = int(min(space.n - 1, np.floor((value + 1.0) / 2.0 * space.n)))
-                k += 1
-            else:
-                n = int(np.prod(space.shape))
-                out[agent] = a[k : k + n].reshape(space.shape)
-                k += n
-        return out
+        return self.layout.agent_actions(action)
 
     def action_masks(self) -> np.ndarray:
         """Flat boolean mask over the ``MultiDiscrete`` team action (switching mode): the
         agents' :meth:`MomaParallelEnv.action_mask` side by side in ``possible_agents``
         order, the one-dimensional form sb3-contrib's ``MaskablePPO`` asks an env for.
         Each agent's part assumes the other agents keep their state."""
-        if not self._discrete:
-            raise ValueError("action masks need the MultiDiscrete team action of action_mode='switching'")
-        masks = self.parallel_env.action_masks()
-        return np.concatenate([masks[a] for a in self._agents]).astype(bool)
+        return self.layout.masks(self.parallel_env.action_masks() if self.layout.discrete else {})
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
@@ -90,7 +188,7 @@ class CentralisedTeamEnv(gym.Env):
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         obs, rewards, terms, truncs, infos = self.parallel_env.step(self.agent_actions(action))
-        reward = float(next(iter(rewards.values())))
+        reward = float(self.layout.reward(rewards))
         return self.team_observation(obs), reward, any(terms.values()), any(truncs.values()), dict(infos)
 
     def render(self) -> np.ndarray | None:

@@ -1,7 +1,8 @@
 """The vectorised training envs of a :class:`~training.train.config.TrainConfig`.
 
 * ``shared`` route: :class:`~training.train.shared_vec_env.SharedPolicyVecEnv`
-  (K copies, one slot per UGV; worker processes with ``subproc``).
+  (K copies, one slot per UGV; in this process on one ``moma_env.vector.MomaVectorEnv``,
+  or one worker process per copy with ``subproc``).
 * ``centralised`` route: K :class:`moma_env.env.centralised.CentralisedTeamEnv`
   each in SB3's ``Monitor`` (episode statistics), in ``DummyVecEnv`` or, with
   ``subproc``, ``SubprocVecEnv``. Their rewards are rounded to float32 first:

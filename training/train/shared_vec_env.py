@@ -3,9 +3,11 @@
 Every UGV agent of every copy is one slot (``num_envs = K * N`` for N UGVs), so
 one policy is shared by all the robots (parameter sharing): the observations are
 each robot's own (egocentric, from its estimates), the reward is the team's.
-The copies run in this process or, with ``subproc=True``, one per worker
-process (:mod:`training.train.team_slots` holds the engine and the pipe
-protocol; the workers import neither SB3 nor torch).
+The K copies run in this process on one :class:`moma_env.vector.MomaVectorEnv`
+(the default) or, with ``subproc=True``, one per worker process;
+:mod:`training.train.team_slots` holds both engines (:class:`VectorSlots`,
+:class:`TeamSlots`) and the pipe protocol, and the workers import neither SB3
+nor torch. Both give the same slots bit for bit.
 
 Contract (Stable-Baselines3 ``VecEnv``): ``reset()`` returns the stacked
 observations ``(K*N, D)`` and stores the infos in ``reset_infos``;
@@ -30,38 +32,19 @@ not need.
 from __future__ import annotations
 
 import multiprocessing as mp
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
-from training.train.team_slots import EnvSpec, TeamSlots, worker
+from training.train.team_slots import EnvSpec, VectorSlots, worker
 
 __all__ = ["ACTION_MASKS", "SharedPolicyVecEnv", "default_start_method"]
 
 #: The method through which sb3-contrib's MaskablePPO asks a VecEnv for every slot's mask.
 ACTION_MASKS = "action_masks"
-
-
-class _LocalCopy:
-    """A copy in this process (same interface as :class:`_RemoteCopy`)."""
-
-    def __init__(self, spec: EnvSpec):
-        self._slots = TeamSlots(spec)
-        self.agents = self._slots.agents
-        self.observation_space = self._slots.observation_space
-        self.action_space = self._slots.action_space
-        self._pending: tuple[str, Any] | None = None
-
-    def send(self, command: str, payload: Any) -> None:
-        self._pending = (command, payload)
-
-    def receive(self) -> Any:
-        command, payload = self._pending
-        self._pending = None
-        return self._slots.handle(command, payload)
 
 
 class _RemoteCopy:
@@ -106,6 +89,61 @@ class _RemoteCopy:
         self._conn.close()
 
 
+class _Workers:
+    """K copies, one per worker process (the same interface as :class:`VectorSlots`)."""
+
+    def __init__(self, spec: EnvSpec, n_copies: int, context: mp.context.BaseContext):
+        self.copies: list[_RemoteCopy] = []
+        try:
+            for _ in range(n_copies):
+                self.copies.append(_RemoteCopy(spec, context))
+        except BaseException:
+            self.close()
+            raise
+        first = self.copies[0]
+        self.agents, self.observation_space, self.action_space = first.agents, first.observation_space, first.action_space
+
+    def _all(self, command: str, payloads: Sequence[Any]) -> list[Any]:
+        """Send one command to every worker (they run in parallel), then read every answer."""
+        for copy, payload in zip(self.copies, payloads):
+            copy.send(command, payload)
+        try:
+            return [copy.receive() for copy in self.copies]
+        except RuntimeError:
+            for copy in self.copies:
+                copy.drain()
+            raise
+
+    def reset(self, seeds: Sequence[int | None], options: Sequence[dict | None]) -> tuple[np.ndarray, list[dict]]:
+        results = self._all("reset", list(zip(seeds, options)))
+        return np.concatenate([obs for obs, _ in results]), [info for _, infos in results for info in infos]
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        n = len(self.agents)
+        results = self._all("step", [actions[k * n : (k + 1) * n] for k in range(len(self.copies))])
+        obs, rewards, dones, infos = zip(*results)
+        return np.concatenate(obs), np.concatenate(rewards), np.concatenate(dones), [i for part in infos for i in part]
+
+    def command(self, k: int, command: str, payload: Any) -> Any:
+        """One command to worker ``k`` and its answer (one at a time: an error leaves no answer owed)."""
+        self.copies[k].send(command, payload)
+        return self.copies[k].receive()
+
+    def action_masks(self) -> np.ndarray:
+        return np.concatenate([self.command(k, "masks", None) for k in range(len(self.copies))])
+
+    def close(self) -> None:
+        for copy in self.copies:
+            copy.drain()
+        for copy in self.copies:
+            try:
+                copy.send("close", None)
+                copy.receive()
+            except (EOFError, BrokenPipeError, RuntimeError):
+                pass
+            copy.close()
+
+
 def default_start_method() -> str:
     """forkserver where the platform has it (workers start from a clean server process), else spawn."""
     methods = mp.get_all_start_methods()
@@ -119,8 +157,14 @@ class SharedPolicyVecEnv(VecEnv):
         spec: how to build a copy (configuration and env options; the observer
             must not be an agent).
         n_copies: K >= 1.
-        subproc: one worker process per copy.
-        start_method: multiprocessing start method (default forkserver, else spawn).
+        subproc: one worker process per copy (default: every copy in this
+            process, on one :class:`moma_env.vector.MomaVectorEnv`).
+        start_method: multiprocessing start method of the workers (default
+            forkserver, else spawn).
+
+    Attributes:
+        engine: :class:`VectorSlots` (in this process; its ``vector`` is the
+            batched env) or the workers.
     """
 
     def __init__(self, spec: EnvSpec, n_copies: int, subproc: bool = False, start_method: str | None = None):
@@ -129,85 +173,53 @@ class SharedPolicyVecEnv(VecEnv):
         self.spec = spec
         self.subproc = subproc
         if subproc:
-            context = mp.get_context(start_method or default_start_method())
-            self._copies: list[Any] = []
-            try:
-                for _ in range(n_copies):
-                    self._copies.append(_RemoteCopy(spec, context))
-            except BaseException:
-                self._closed = False
-                self.close()
-                raise
+            self.engine: VectorSlots | _Workers = _Workers(spec, n_copies, mp.get_context(start_method or default_start_method()))
         else:
-            self._copies = [_LocalCopy(spec) for _ in range(n_copies)]
+            self.engine = VectorSlots(spec, n_copies)
         self._closed = False
-        first = self._copies[0]
-        self.agents = list(first.agents)
+        self.n_copies = n_copies
+        self.agents = list(self.engine.agents)
         self.n_agents = len(self.agents)
-        super().__init__(n_copies * self.n_agents, first.observation_space, first.action_space)
-
-    # -------------------------------------------------------------- slots <-> copies
-    def _copy_slices(self) -> Iterable[tuple[int, slice]]:
-        n = self.n_agents
-        return ((k, slice(k * n, (k + 1) * n)) for k in range(len(self._copies)))
-
-    def _copies_of(self, indices: VecEnvIndices) -> list[int]:
-        return [i // self.n_agents for i in self._get_indices(indices)]
+        super().__init__(n_copies * self.n_agents, self.engine.observation_space, self.engine.action_space)
 
     # -------------------------------------------------------------- VecEnv API
     def reset(self) -> VecEnvObs:
-        for k, copy in enumerate(self._copies):
-            first = k * self.n_agents
-            copy.send("reset", (self._seeds[first], self._options[first] or None))
-        observations = []
-        for k, copy in enumerate(self._copies):
-            obs, infos = copy.receive()
-            observations.append(obs)
-            self.reset_infos[k * self.n_agents : (k + 1) * self.n_agents] = infos
+        """Reset every copy, copy k with its first slot's seed (``seed(s)``: ``s + k * N``); see the module docstring."""
+        firsts = range(0, self.num_envs, self.n_agents)
+        seeds = [self._seeds[i] for i in firsts]
+        options = [self._options[i] or None for i in firsts]
+        if self.subproc:
+            observations, infos = self.engine.reset(seeds, options)
+        else:
+            if any(o != options[0] for o in options):
+                raise ValueError(
+                    "the copies in this process reset together with one options dict; "
+                    f"set_options gave different options per copy: {options}"
+                )
+            observations, infos = self.engine.reset(seeds, options[0])
+        self.reset_infos = infos
         self._reset_seeds()
         self._reset_options()
-        return np.concatenate(observations)
+        return observations
 
     def step_async(self, actions: np.ndarray) -> None:
         actions = np.asarray(actions)
         if actions.shape[0] != self.num_envs:
             raise ValueError(f"expected {self.num_envs} actions (one per slot), got shape {actions.shape}")
-        for k, part in self._copy_slices():
-            self._copies[k].send("step", actions[part])
+        self._actions = actions
 
     def step_wait(self) -> VecEnvStepReturn:
-        try:
-            results = [copy.receive() for copy in self._copies]
-        except RuntimeError:
-            for copy in self._copies:
-                if isinstance(copy, _RemoteCopy):
-                    copy.drain()
-            raise
-        obs, rewards, dones, infos = zip(*results)
-        return np.concatenate(obs), np.concatenate(rewards), np.concatenate(dones), [i for part in infos for i in part]
+        return self.engine.step(self._actions)
 
     def close(self) -> None:
         if self._closed:
             return
-        for copy in self._copies:
-            if isinstance(copy, _RemoteCopy):
-                copy.drain()
-        for copy in self._copies:
-            try:
-                copy.send("close", None)
-                copy.receive()
-            except (EOFError, BrokenPipeError, RuntimeError):
-                pass
-            if isinstance(copy, _RemoteCopy):
-                copy.close()
+        self.engine.close()
         self._closed = True
 
     def _per_slot(self, command: str, payload: Any, indices: VecEnvIndices) -> list[Any]:
-        wanted = self._copies_of(indices)
-        values = {}
-        for k in sorted(set(wanted)):
-            self._copies[k].send(command, payload)
-            values[k] = self._copies[k].receive()
+        wanted = [i // self.n_agents for i in self._get_indices(indices)]
+        values = {k: self.engine.command(k, command, payload) for k in sorted(set(wanted))}
         return [values[k] for k in wanted]
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
@@ -237,11 +249,7 @@ class SharedPolicyVecEnv(VecEnv):
         its robot at the next step if it were the only change (switching mode only)."""
         if not isinstance(self.action_space, spaces.Discrete):
             raise ValueError(f"action masks need the switching mode's discrete actions; the slots act in {self.action_space}")
-        rows = []
-        for copy in self._copies:  # one at a time, as _per_slot: an error leaves no answer owed
-            copy.send("masks", None)
-            rows.append(copy.receive())
-        return np.concatenate(rows)
+        return self.engine.action_masks()
 
     def env_is_wrapped(self, wrapper_class: type, indices: VecEnvIndices = None) -> list[bool]:
         """The copies are bare parallel envs: never wrapped."""

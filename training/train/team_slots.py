@@ -1,9 +1,11 @@
-"""One MOMA env copy seen as N slots (one per UGV agent), in-process or in a worker.
+"""MOMA env copies seen as slots (one per UGV agent), in this process or in a worker.
 
-This is the engine of :class:`training.train.shared_vec_env.SharedPolicyVecEnv`
-and deliberately imports neither Stable-Baselines3 nor torch, so that worker
-processes stay light. A copy implements the VecEnv contract of
-Stable-Baselines3 for its slots:
+These are the engines of :class:`training.train.shared_vec_env.SharedPolicyVecEnv`
+and deliberately import neither Stable-Baselines3 nor torch, so that worker
+processes stay light. :class:`VectorSlots` runs K copies in this process on one
+:class:`moma_env.vector.MomaVectorEnv` (the default); :class:`TeamSlots` runs one
+copy, in a worker process. Both implement the VecEnv contract of
+Stable-Baselines3 for their slots (slot ``k * N + j`` is UGV ``j`` of copy ``k``):
 
 * ``step`` returns per slot the observation, the team reward, ``done``
   (terminated or truncated) and the agent's info dict (a new plain ``dict``)
@@ -14,6 +16,8 @@ Stable-Baselines3 for its slots:
   itself at once, so the returned observation is the next episode's first;
 * ``reset(seed)`` reseeds the env's generator (every later random layout comes
   from it, so a seed fixes the whole run).
+
+The two engines give the same slots bit for bit (``tests/test_shared_vec_env.py``).
 
 Worker protocol (:func:`worker`, over a ``multiprocessing`` pipe): the parent
 sends ``(command, payload)`` tuples and receives ``("ok", result)`` or
@@ -35,6 +39,7 @@ command        payload                     result
 from __future__ import annotations
 
 import traceback
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -42,9 +47,10 @@ import numpy as np
 from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
-from moma_env.env.parallel import OBSERVER
+from moma_env.env.parallel import OBSERVER, MomaParallelEnv
+from moma_env.vector import MomaVectorEnv
 
-__all__ = ["EnvSpec", "TeamSlots", "worker", "slot_spaces"]
+__all__ = ["EnvSpec", "TeamSlots", "VectorSlots", "worker", "slot_spaces", "slot_infos", "env_command"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +89,43 @@ def slot_spaces(env) -> tuple[list[str], spaces.Space, spaces.Space]:
     low = np.min([o.low for o in obs_spaces], axis=0)
     high = np.max([o.high for o in obs_spaces], axis=0)
     return agents, spaces.Box(low, high, dtype=np.float32), first_act
+
+
+def slot_infos(
+    agents: Sequence[str],
+    infos: Mapping[str, Mapping[str, Any]],
+    terminated: bool,
+    truncated: bool,
+    last_observations: np.ndarray | None = None,
+    episode: dict[str, float] | None = None,
+) -> list[dict]:
+    """One copy's step infos as its slots' SB3 infos: per agent a new plain dict of its
+    info with ``"TimeLimit.truncated"`` (truncated and not terminated); at an
+    episode's end (``episode`` given) also ``"terminal_observation"`` (row ``k`` of
+    ``last_observations``, ``(N, D)`` float32) and ``"episode"`` (``r``, ``l``, ``t``)."""
+    out = []
+    for k, agent in enumerate(agents):
+        info = dict(infos[agent])
+        info["TimeLimit.truncated"] = bool(truncated and not terminated)
+        if episode is not None:
+            info["terminal_observation"] = last_observations[k].copy()
+            info["episode"] = dict(episode)
+        out.append(info)
+    return out
+
+
+def env_command(env: MomaParallelEnv, command: str, payload: Any) -> Any:
+    """The ``getattr``, ``setattr`` and ``call`` commands of the protocol on one parallel env."""
+    if command == "getattr":
+        return getattr(env, payload)
+    if command == "setattr":
+        name, value = payload
+        setattr(env, name, value)
+        return None
+    if command == "call":
+        method, args, kwargs = payload
+        return getattr(env, method)(*args, **kwargs)
+    raise ValueError(f"unknown command {command!r}")
 
 
 class TeamSlots:
@@ -128,14 +171,8 @@ class TeamSlots:
         done = terminated or truncated
         self._return += reward
         self._length += 1
-        out_infos = []
-        for k, agent in enumerate(self.agents):
-            info = dict(infos[agent])
-            info["TimeLimit.truncated"] = bool(truncated and not terminated)
-            if done:
-                info["terminal_observation"] = obs[k].copy()
-                info["episode"] = {"r": self._return, "l": self._length, "t": float(self.env.frame.time)}
-            out_infos.append(info)
+        episode = {"r": self._return, "l": self._length, "t": float(self.env.frame.time)} if done else None
+        out_infos = slot_infos(self.agents, infos, terminated, truncated, obs, episode)
         if done:
             obs, _ = self.reset()
         rewards_out = np.full(self.n_slots, reward, dtype=np.float32)
@@ -155,21 +192,102 @@ class TeamSlots:
         if command == "reset":
             seed, options = payload
             return self.reset(seed, options)
-        if command == "getattr":
-            return getattr(self.env, payload)
-        if command == "setattr":
-            name, value = payload
-            setattr(self.env, name, value)
-            return None
-        if command == "call":
-            method, args, kwargs = payload
-            return getattr(self.env, method)(*args, **kwargs)
         if command == "masks":
             return self.action_masks()
         if command == "close":
             self.env.close()
             return None
-        raise ValueError(f"unknown command {command!r}")
+        return env_command(self.env, command, payload)
+
+
+class VectorSlots:
+    """K copies in this process as ``K * N`` slots, on one :class:`MomaVectorEnv`
+    (see the module docstring; the same slots as K :class:`TeamSlots`).
+
+    Args:
+        spec: how to build a copy (the observer must not be an agent).
+        n_copies: K >= 1.
+
+    Attributes:
+        vector: the batched env (its ``envs[k]`` is copy k's parallel env).
+    """
+
+    def __init__(self, spec: EnvSpec, n_copies: int):
+        self.vector = MomaVectorEnv(spec.configuration, n_copies, **spec.options)
+        self.agents, self.observation_space, self.action_space = slot_spaces(self.vector.envs[0])
+        self._discrete = isinstance(self.action_space, spaces.Discrete)
+        k = self.vector.num_envs
+        self._returns = [0.0] * k
+        self._lengths = [0] * k
+        self._dt = [0.0] * k  # each copy's control step (s) in its current episode
+
+    @property
+    def n_copies(self) -> int:
+        return self.vector.num_envs
+
+    def _slots(self, per_agent: Mapping[str, np.ndarray], dtype: type = np.float32) -> np.ndarray:
+        """agent -> ``(K, ...)`` arrays as ``(K * N, ...)`` rows of ``dtype``, slot ``k * N + j``."""
+        stacked = np.stack([np.asarray(per_agent[a], dtype=dtype) for a in self.agents], axis=1)
+        return stacked.reshape(-1, *stacked.shape[2:])
+
+    def _episode_started(self, k: int) -> None:
+        self._returns[k], self._lengths[k] = 0.0, 0
+        self._dt[k] = float(self.vector.envs[k].world.dt)
+
+    def reset(self, seeds: Sequence[int | None], options: dict | None = None) -> tuple[np.ndarray, list[dict]]:
+        """Reset copy k with ``seeds[k]`` (None: its generator continues): ``(observations
+        (K * N, D) float32, infos: K * N plain dicts)``."""
+        observations, infos = self.vector.reset(seed=list(seeds), options=options or None)
+        for k in range(self.n_copies):
+            self._episode_started(k)
+        return self._slots(observations), [dict(info[a]) for info in infos for a in self.agents]
+
+    def _actions(self, actions: np.ndarray) -> dict[str, np.ndarray]:
+        k, n = self.n_copies, len(self.agents)
+        if self._discrete:
+            rows = np.asarray(actions).reshape(k, n)
+        else:
+            rows = np.asarray(actions, dtype=np.float32).reshape(k, n, *self.action_space.shape)
+        return {agent: rows[:, j] for j, agent in enumerate(self.agents)}
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        """One step of every copy with one action row per slot (``(K * N,)`` or ``(K * N, *shape)``);
+        a copy whose episode ends resets (the returned observations are its next episode's first)."""
+        actions = np.asarray(actions)
+        if actions.shape[0] != self.n_copies * len(self.agents):
+            raise ValueError(f"expected {self.n_copies * len(self.agents)} action rows (one per UGV slot), got {actions.shape[0]}")
+        observations, rewards, terminations, truncations, infos = self.vector.step(self._actions(actions))
+        team_rewards = np.asarray(rewards[self.agents[0]], dtype=np.float64)
+        out_infos: list[dict] = []
+        dones = np.zeros(self.n_copies, dtype=bool)
+        for k, info in enumerate(infos):
+            reward = float(team_rewards[k])
+            terminated = any(bool(terminations[a][k]) for a in self.agents)
+            truncated = any(bool(truncations[a][k]) for a in self.agents)
+            self._returns[k] += reward
+            self._lengths[k] += 1
+            if terminated or truncated:
+                dones[k] = True
+                last = self._slots({a: np.asarray(info["final_observation"][a])[None] for a in self.agents})  # (N, D)
+                # the copy has reset: its last time (s) is its step count times the control step
+                episode = {"r": self._returns[k], "l": self._lengths[k], "t": float(self._lengths[k] * self._dt[k])}
+                out_infos += slot_infos(self.agents, info["final_info"], terminated, truncated, last, episode)
+                self._episode_started(k)
+            else:
+                out_infos += slot_infos(self.agents, info, terminated, truncated)
+        n = len(self.agents)
+        return self._slots(observations), np.repeat(team_rewards.astype(np.float32), n), np.repeat(dones, n), out_infos
+
+    def action_masks(self) -> np.ndarray:
+        """``(K * N, n_actions)`` bool, one row per slot (``MomaParallelEnv.action_mask``; switching mode)."""
+        return self._slots(self.vector.action_masks(), dtype=bool)
+
+    def command(self, k: int, command: str, payload: Any) -> Any:
+        """:func:`env_command` on copy ``k``'s parallel env."""
+        return env_command(self.vector.envs[k], command, payload)
+
+    def close(self) -> None:
+        self.vector.close()
 
 
 def worker(connection, spec: EnvSpec) -> None:

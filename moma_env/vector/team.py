@@ -1,0 +1,139 @@
+"""The centralised team as a Gymnasium ``VectorEnv``: ``num_envs`` copies of
+:class:`~moma_env.env.centralised.CentralisedTeamEnv`, batched.
+
+``gymnasium.make_vec("moma_env/TopObserver-v0", num_envs=8)`` builds a
+:class:`TeamVectorEnv` for every registered id (the ``vector_entry_point``;
+``vectorization_mode="sync"`` / ``"async"`` still wrap ``gymnasium.make``'s envs).
+It steps a :class:`~moma_env.vector.env.MomaVectorEnv` and maps each copy with the
+centralised env's own :class:`~moma_env.env.centralised.TeamLayout`, so copy ``i``
+is bit for bit ``gymnasium.make(id)`` reset with seed ``s + i`` and driven with the
+same actions.
+
+Shapes (``K = num_envs``, ``D`` the team observation size, ``A`` the team action size):
+
+* ``reset(seed=None, options=None) -> (observations (K, D) float32, infos)``;
+* ``step(actions (K, A)) -> (observations (K, D) float32, rewards (K,) float64,
+  terminated (K,) bool, truncated (K,) bool, infos)``; ``actions`` are integers
+  (``MultiDiscrete``, switching mode) or floats in [-1, 1] (``Box``);
+* ``infos``: Gymnasium's vector form, a dict of arrays over the copies: each
+  copy's centralised info (agent -> that agent's info dict) batched key by key,
+  every key ``k`` with its boolean mask ``"_k"`` (which copies have it);
+* :meth:`TeamVectorEnv.action_masks`: ``(K, sum n)`` bool (switching mode).
+
+Seeding: ``reset(seed=s)`` seeds copy ``i`` with ``s + i`` (or ``seed`` is a list of
+``K`` seeds); ``reset()`` continues every copy's generator.
+
+Autoreset (``metadata["autoreset_mode"] == AutoresetMode.SAME_STEP``): a copy whose
+episode ends in a step is reset within that step; the step returns its new
+episode's first observation and infos, and the reward, ``terminated`` and
+``truncated`` of the step that ended the episode, with ``infos["final_obs"]`` (an
+object array: the last team observation, ``(D,)``, where ``infos["_final_obs"]``
+is True) and ``infos["final_info"]`` (the last infos, batched the same way),
+as Gymnasium's ``SyncVectorEnv`` does in this mode.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from moma_env.env.centralised import TeamLayout
+from moma_env.vector.env import MomaVectorEnv
+
+__all__ = ["TeamVectorEnv"]
+
+#: Keys :class:`MomaVectorEnv` adds to a copy's infos when it autoresets it.
+_FINAL_KEYS = ("final_observation", "final_info")
+
+
+class TeamVectorEnv(VectorEnv):
+    """``num_envs`` copies of the centralised team env (see the module docstring).
+
+    Args:
+        configuration: configuration name (``"top_observer"``, ...).
+        num_envs: number of copies ``K`` >= 1.
+        options: options of :func:`moma_env.env.factory.parallel_env` (env options
+            and configuration fields), as ``gymnasium.make(id, **options)`` takes.
+
+    Attributes:
+        vector: the :class:`MomaVectorEnv` stepped (per-agent arrays, ``state()``, ``reset_at``).
+        layout: the team layout shared with :class:`CentralisedTeamEnv`.
+
+    Raises:
+        ValueError: ``num_envs`` < 1, or an observation that is not a vector (``observer_image``).
+    """
+
+    def __init__(self, configuration: str, num_envs: int = 1, **options: Any):
+        self.vector = MomaVectorEnv(configuration, num_envs, **options)
+        self.num_envs = self.vector.num_envs
+        first = self.vector.envs[0]
+        self.layout = TeamLayout.of(first)
+        self.single_observation_space = self.layout.observation_space
+        self.single_action_space = self.layout.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.metadata = {
+            "render_modes": first.metadata["render_modes"],
+            "render_fps": first.metadata["render_fps"],
+            "autoreset_mode": AutoresetMode.SAME_STEP,
+        }
+        self.render_mode = self.vector.render_mode
+
+    def reset(self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset every copy: ``(observations (K, D) float32, infos)``; copy ``i`` gets seed ``s + i``.
+
+        Raises:
+            ValueError: ``options["reset_mask"]`` (Gymnasium's partial reset, for
+                ``AutoresetMode.DISABLED``): these copies reset themselves.
+        """
+        if options is not None and "reset_mask" in options:
+            raise ValueError(
+                "options['reset_mask'] is for AutoresetMode.DISABLED; this env resets a finished copy in the same step "
+                "(AutoresetMode.SAME_STEP): reset() resets every copy, vector.reset_at(i) one"
+            )
+        observations, copy_infos = self.vector.reset(seed=seed, options=options)
+        infos: dict[str, Any] = {}
+        for i, info in enumerate(copy_infos):
+            infos = self._add_info(infos, dict(info), i)
+        return self.layout.observation(observations), infos
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """One step of every copy with its row of ``actions`` (``(K, A)``); see the module docstring.
+
+        Raises:
+            ValueError: ``actions`` of another shape, or an entry outside an agent's
+                range (naming the agent and the copy).
+            RuntimeError: before the first :meth:`reset`.
+        """
+        observations, rewards, terminations, truncations, copy_infos = self.vector.step(self.layout.batch_actions(actions))
+        agents = self.layout.agents
+        terminated = np.any([terminations[a] for a in agents], axis=0)
+        truncated = np.any([truncations[a] for a in agents], axis=0)
+        infos: dict[str, Any] = {}
+        for i, info in enumerate(copy_infos):
+            if "final_observation" in info:
+                final = {"final_obs": self.layout.observation(info["final_observation"]), "final_info": dict(info["final_info"])}
+                infos = self._add_info(infos, final, i)
+            infos = self._add_info(infos, {k: v for k, v in info.items() if k not in _FINAL_KEYS}, i)
+        reward = np.asarray(self.layout.reward(rewards), dtype=np.float64)
+        return self.layout.observation(observations), reward, terminated, truncated, infos
+
+    def action_masks(self) -> np.ndarray:
+        """``(K, sum n)`` bool: each copy's :meth:`CentralisedTeamEnv.action_masks` (switching mode).
+
+        Raises:
+            ValueError: the team action is not the switching mode's ``MultiDiscrete``.
+        """
+        return self.layout.masks(self.vector.action_masks() if self.layout.discrete else {})
+
+    def render(self) -> tuple[np.ndarray | None, ...]:
+        """Every copy's ``render()`` (with ``render_mode="rgb_array"``: ``(H, W, 3)`` uint8 frames)."""
+        return tuple(self.vector.render(i) for i in range(self.num_envs))
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Close the copies."""
+        self.vector.close()

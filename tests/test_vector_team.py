@@ -1,0 +1,197 @@
+"""The centralised team as a Gymnasium VectorEnv (moma_env/vector/team.py): copy i of a
+batch seeded s is gymnasium.make(id) seeded s + i, infos as Gymnasium's SyncVectorEnv
+gives them in the SAME_STEP mode, registered as every id's vector_entry_point."""
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode, SyncVectorEnv
+from gymnasium.vector.utils import batch_space
+from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
+
+from moma_env.registration import GYMNASIUM_IDS
+from moma_env.scenarios import SCENARIO_SPECS
+from moma_env.vector import TeamVectorEnv
+from training.fingerprint import serialise
+
+ID = {name: SCENARIO_SPECS[name].gymnasium_id for name in SCENARIO_SPECS}
+#: (configuration, options): the MultiDiscrete and Box team actions, and a Box with discrete slots.
+CASES = [
+    ("top_observer", {"action_mode": "switching"}),
+    ("top_observer", {"action_mode": "velocity"}),
+    ("top_observer", {"action_mode": "switching", "observer_agent": True}),
+    ("caterpillar_multi", {"action_mode": "switching", "random_scenarios": True}),
+    ("caterpillar_sled", {"action_mode": "velocity"}),
+]
+
+
+def plain(value):
+    """``value`` with object arrays as lists (their bytes are pointers), for :func:`text`."""
+    if isinstance(value, np.ndarray) and value.dtype == object:
+        return [plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(plain(v) for v in value)
+    return value
+
+
+def text(value) -> str:
+    out: list[str] = []
+    serialise(plain(value), out)
+    return "|".join(out)
+
+
+def team_actions(space, steps: int, seed: int) -> list[np.ndarray]:
+    space.seed(seed)
+    return [space.sample() for _ in range(steps)]
+
+
+@pytest.mark.parametrize("name, options", CASES)
+def test_copy_i_is_gymnasium_make_seeded_s_plus_i_and_infos_are_sync_vector_envs(name, options):
+    k, steps, seed = 3, 26, 7  # 26 steps of 12-step episodes: two autoresets per copy
+    options = options | {"max_cycles": 12}
+    envs = gymnasium.make_vec(ID[name], num_envs=k, **options)
+    assert isinstance(envs, TeamVectorEnv)
+    reference = gymnasium.make_vec(ID[name], num_envs=k, vectorization_mode="sync", vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP}, **options)
+    assert isinstance(reference, SyncVectorEnv)
+    singles = [gymnasium.make(ID[name], **options) for _ in range(k)]
+    assert envs.single_observation_space == singles[0].observation_space == reference.single_observation_space
+    assert envs.single_action_space == singles[0].action_space
+    assert envs.observation_space == batch_space(envs.single_observation_space, k) == reference.observation_space
+    assert envs.action_space == reference.action_space
+
+    record = [envs.reset(seed=seed)]
+    assert text(record[0]) == text(reference.reset(seed=seed))
+    plan = team_actions(envs.action_space, steps, seed)
+    ends = 0
+    for actions in plan:
+        out = envs.step(actions)
+        obs, rewards, terminated, truncated, infos = out
+        assert obs.shape == (k, envs.single_observation_space.shape[0]) and obs.dtype == np.float32
+        assert rewards.shape == terminated.shape == truncated.shape == (k,) and rewards.dtype == np.float64
+        assert terminated.dtype == truncated.dtype == bool
+        assert envs.observation_space.contains(obs)
+        assert text(out) == text(reference.step(actions))  # infos included, key by key
+        ends += int(np.sum(terminated | truncated))
+        record.append(out)
+    assert ends >= 2 * k
+    for i in range(k):
+        obs, info = singles[i].reset(seed=seed + i)
+        assert text(obs) == text(record[0][0][i])
+        for t, actions in enumerate(plan):
+            obs, reward, term, trunc, info = singles[i].step(actions[i])
+            b_obs, b_rew, b_term, b_trunc, b_info = record[t + 1]
+            assert (b_rew[i], b_term[i], b_trunc[i]) == (reward, term, trunc)
+            if term or trunc:
+                assert b_info["_final_obs"][i] and text(b_info["final_obs"][i]) == text(obs)
+                assert b_info["_final_info"][i]
+                obs, info = singles[i].reset()
+            else:
+                assert "_final_obs" not in b_info or not b_info["_final_obs"][i]
+            assert text(b_obs[i]) == text(obs), (i, t)
+    envs.close()
+    reference.close()
+
+
+def test_every_id_has_the_vector_entry_point_and_the_other_modes_still_work():
+    for env_id, name in GYMNASIUM_IDS.items():
+        assert gymnasium.spec(env_id).vector_entry_point == "moma_env.vector.team:TeamVectorEnv"
+        envs = gymnasium.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", max_cycles=5)
+        assert isinstance(envs, TeamVectorEnv) and envs.num_envs == 2 and envs.vector.envs[0].scenario.name == name
+        assert envs.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP
+        assert envs.spec is not None and envs.spec.id == env_id
+        envs.close()
+    for mode in ("sync", "async"):
+        envs = gymnasium.make_vec(ID["top_observer"], num_envs=2, vectorization_mode=mode, max_cycles=5)
+        try:
+            obs, _ = envs.reset(seed=0)
+            assert obs.shape == (2, 60)
+            envs.step(envs.action_space.sample())
+        finally:
+            envs.close()
+    single = gymnasium.make(ID["caterpillar"], max_cycles=5)
+    assert single.reset(seed=0)[0].shape == single.observation_space.shape
+
+
+def test_gymnasiums_vector_wrappers_read_the_same_step_autoreset():
+    envs = RecordEpisodeStatistics(TeamVectorEnv("top_observer", 2, max_cycles=6))
+    envs.reset(seed=1)
+    returns = np.zeros(2)
+    for t in range(6):
+        _, rewards, terminated, truncated, infos = envs.step(np.ones((2, 2), dtype=np.int64))
+        returns += rewards
+    assert truncated.all() and not terminated.any()
+    np.testing.assert_array_equal(infos["_episode"], [True, True])
+    np.testing.assert_array_equal(infos["episode"]["l"], [6, 6])
+    np.testing.assert_allclose(infos["episode"]["r"], returns, rtol=1e-6)
+    listed = DictInfoToList(TeamVectorEnv("caterpillar", 2, max_cycles=3))
+    _, infos = listed.reset(seed=0)
+    assert isinstance(infos, list) and len(infos) == 2 and set(infos[0]) == {"ugv_0", "ugv_1"}
+    for _ in range(3):
+        _, _, _, truncated, infos = listed.step(np.zeros((2, 2), dtype=np.int64))
+    assert truncated.all() and infos[1]["final_obs"].shape == listed.single_observation_space.shape
+
+
+def test_action_masks_are_each_copys_centralised_masks():
+    envs = TeamVectorEnv("caterpillar_multi", 3)
+    envs.reset(seed=4)
+    singles = [gymnasium.make(ID["caterpillar_multi"]).unwrapped for _ in range(3)]
+    for i, single in enumerate(singles):
+        single.reset(seed=4 + i)
+    rng = np.random.default_rng(0)
+    for _ in range(15):
+        masks = envs.action_masks()
+        assert masks.shape == (3, int(envs.single_action_space.nvec.sum())) and masks.dtype == bool
+        np.testing.assert_array_equal(masks, np.stack([s.action_masks() for s in singles]))
+        actions = rng.integers(0, 2, size=(3, 3))
+        envs.step(actions)
+        for i, single in enumerate(singles):
+            single.step(actions[i])
+    with pytest.raises(ValueError, match="MultiDiscrete"):
+        TeamVectorEnv("top_observer", 2, action_mode="velocity").action_masks()
+
+
+def test_bad_actions_and_resets_are_refused_naming_the_agent():
+    envs = TeamVectorEnv("top_observer", 3)
+    with pytest.raises(RuntimeError, match="reset"):
+        envs.step(np.zeros((3, 2), dtype=np.int64))
+    envs.reset(seed=0)
+    with pytest.raises(ValueError, match=r"team actions must have shape \(num_envs, 2\).*got \(3,\)"):
+        envs.step(np.zeros(3, dtype=np.int64))
+    with pytest.raises(ValueError, match=r"got \(3, 3\)"):
+        envs.step(np.zeros((3, 3), dtype=np.int64))
+    with pytest.raises(ValueError, match=r"column 1 \(agent 'ugv_1'\) must be an integer in \[0, 2\); copy 2 has 2"):
+        envs.step(np.array([[0, 0], [1, 1], [0, 2]]))
+    with pytest.raises(ValueError, match="must be integers, got dtype float64"):
+        envs.step(np.zeros((3, 2)))
+    with pytest.raises(ValueError, match=r"num_envs=3 seeds, got 2"):
+        envs.reset(seed=[1, 2])
+    with pytest.raises(ValueError, match="reset_mask"):
+        envs.reset(options={"reset_mask": np.array([True, False, False])})
+    mixed = TeamVectorEnv("top_observer", 2, observer_agent=True)  # Box: UGV slots decoded by rounding
+    mixed.reset(seed=0)
+    nan = np.zeros((2, 6), dtype=np.float32)
+    nan[1, 1] = np.nan
+    with pytest.raises(ValueError, match=r"slot 1 \(agent 'ugv_1', Discrete\(2\)\) must be finite; copy 1"):
+        mixed.step(nan)
+    nan = np.zeros((2, 6), dtype=np.float32)
+    nan[0, 4] = np.nan
+    with pytest.raises(ValueError, match=r"actions of 'observer' .*copy 0 is not finite"):
+        mixed.step(nan)
+    with pytest.raises(ValueError, match="num_envs must be an integer >= 1"):
+        TeamVectorEnv("top_observer", 0)
+    with pytest.raises(ValueError, match="observer_image"):
+        TeamVectorEnv("top_observer", 1, action_mode="velocity", camera_backend="rendered", observer_image=(32, 24))
+
+
+def test_box_team_actions_round_into_the_discrete_agents_range():
+    layout = TeamVectorEnv("top_observer", 1, observer_agent=True).layout
+    column = np.array([-5.0, -1.0, -0.01, 0.0, 0.99, 1.0, 7.0], dtype=np.float32)
+    actions = np.zeros((column.size, 6), dtype=np.float32)
+    actions[:, 0] = column
+    decoded = layout.batch_actions(actions)
+    np.testing.assert_array_equal(decoded["ugv_0"], [0, 0, 0, 1, 1, 1, 1])
+    assert decoded["observer"].shape == (column.size, 4)
+    for row, expected in zip(actions, decoded["ugv_0"]):  # one copy's decoding is the batch's
+        assert layout.agent_actions(row)["ugv_0"] == expected
