@@ -52,6 +52,10 @@ def test_copy_i_is_the_single_env_seeded_s_plus_i(name, mode, num_envs):
             assert all(b_rew[a][i] == rew[a] and b_term[a][i] == term[a] and b_trunc[a][i] == trunc[a] for a in rew)
             if not single.agents:  # the batch reset this copy in the same step
                 assert text(b_info[i]["final_observation"]) == text(obs)
+                assert b_info[i]["final_state"].tobytes() == single.state().tobytes()
+                assert b_info[i]["final_time"] == single.frame.time
+                if mode == "switching":
+                    assert text(b_info[i]["final_action_masks"]) == text(single.action_masks())
                 assert text({a: v for a, v in b_info[i]["final_info"].items()}) == text(info)
                 obs, info = single.reset()
             assert text({a: o[i] for a, o in b_obs.items()}) == text(obs), (i, k)

@@ -24,8 +24,10 @@ and then driven with the same actions; ``seed`` may also be a sequence of
 Autoreset (Gymnasium's ``SAME_STEP`` mode): a copy whose episode ends in a step is
 reset in that step; the step returns its first observation of the new episode, its
 flags and reward of the step that ended, and in ``infos[i]`` the keys
-``"final_observation"`` (agent -> the last observation) and ``"final_info"`` (the
-last infos). :meth:`reset_at` resets one copy alone.
+``"final_observation"`` (agent -> the last observation), ``"final_info"`` (the
+last infos), ``"final_state"`` (the last ``state()``), ``"final_time"`` (the
+episode's simulated duration, s) and, in switching mode, ``"final_action_masks"``.
+:meth:`reset_at` resets one copy alone.
 """
 
 from __future__ import annotations
@@ -74,6 +76,7 @@ class MomaVectorEnv:
         self.agents = list(self.possible_agents)
         self.metadata = dict(first.metadata)
         self.render_mode = first.render_mode
+        self._masks = first.config.action_mode == "switching"
         self._started = False
 
     # ------------------------------------------------------------------ spaces
@@ -169,7 +172,9 @@ class MomaVectorEnv:
                 terminations[a][i] = term[a]
                 truncations[a][i] = trunc[a]
             if not env.agents:
-                final = {"final_observation": obs, "final_info": info}
+                final = {"final_observation": obs, "final_info": info, "final_state": env.state(), "final_time": env.frame.time}
+                if self._masks:
+                    final["final_action_masks"] = env.action_masks()
                 obs, info = env.reset()
                 info = dict(info) | final
             obs_rows.append(obs)
