@@ -42,7 +42,10 @@ from gymnasium import spaces
 from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
 
-__all__ = ["MomaVectorEnv", "make"]
+__all__ = ["FINAL_KEYS", "MomaVectorEnv", "make"]
+
+#: The keys the autoreset adds to a copy's infos (see the module docstring).
+FINAL_KEYS = ("final_observation", "final_info", "final_state", "final_time", "final_action_masks")
 
 
 def make(name: str, num_envs: int, **options: Any) -> MomaVectorEnv:

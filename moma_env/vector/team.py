@@ -42,13 +42,9 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from moma_env.env.centralised import TeamLayout
-from moma_env.vector.env import MomaVectorEnv
+from moma_env.vector.env import FINAL_KEYS, MomaVectorEnv
 
 __all__ = ["TeamVectorEnv"]
-
-#: Keys :class:`MomaVectorEnv` adds to a copy's infos when it autoresets it.
-_FINAL_KEYS = ("final_observation", "final_info")
-
 
 class TeamVectorEnv(VectorEnv):
     """``num_envs`` copies of the centralised team env (see the module docstring).
@@ -118,7 +114,7 @@ class TeamVectorEnv(VectorEnv):
             if "final_observation" in info:
                 final = {"final_obs": self.layout.observation(info["final_observation"]), "final_info": dict(info["final_info"])}
                 infos = self._add_info(infos, final, i)
-            infos = self._add_info(infos, {k: v for k, v in info.items() if k not in _FINAL_KEYS}, i)
+            infos = self._add_info(infos, {k: v for k, v in info.items() if k not in FINAL_KEYS}, i)
         reward = np.asarray(self.layout.reward(rewards), dtype=np.float64)
         return self.layout.observation(observations), reward, terminated, truncated, infos
 
