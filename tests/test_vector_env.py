@@ -18,17 +18,7 @@ def text(value) -> str:
 
 def batch_actions(envs, steps, seed):
     rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(steps):
-        joint = {}
-        for agent in envs.possible_agents:
-            space = envs.single_action_space(agent)
-            if hasattr(space, "n"):
-                joint[agent] = rng.integers(0, space.n, size=envs.num_envs)
-            else:
-                joint[agent] = rng.uniform(-1.0, 1.0, size=(envs.num_envs, *space.shape)).astype(np.float32)
-        out.append(joint)
-    return out
+    return [envs.sample_actions(rng) for _ in range(steps)]
 
 
 @pytest.mark.parametrize("num_envs", [1, 7, 64])

@@ -41,17 +41,7 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
 
 def _random_batches(envs, count: int, seed: int) -> list[dict[str, np.ndarray]]:
     rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(count):
-        joint = {}
-        for agent in envs.possible_agents:
-            space = envs.single_action_space(agent)
-            if hasattr(space, "n"):
-                joint[agent] = rng.integers(0, space.n, size=envs.num_envs)
-            else:
-                joint[agent] = rng.uniform(-1.0, 1.0, size=(envs.num_envs, *space.shape)).astype(np.float32)
-        out.append(joint)
-    return out
+    return [envs.sample_actions(rng) for _ in range(count)]
 
 
 def moma_rate(envs, batches: Sequence[dict[str, np.ndarray]], min_env_steps: int) -> float:

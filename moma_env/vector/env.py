@@ -185,6 +185,18 @@ class MomaVectorEnv:
         observations = {a: _stack([row[a] for row in obs_rows]) for a in agents}
         return observations, rewards, terminations, truncations, tuple(infos)
 
+    def sample_actions(self, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """Uniform random actions of every agent for every copy, drawn from ``rng``: integers
+        ``(num_envs,)`` for a Discrete agent, float32 ``(num_envs, *shape)`` in [-1, 1] for a Box one."""
+        out = {}
+        for agent in self.possible_agents:
+            space = self.single_action_space(agent)
+            if isinstance(space, spaces.Discrete):
+                out[agent] = rng.integers(0, space.n, size=self.num_envs)
+            else:
+                out[agent] = rng.uniform(-1.0, 1.0, size=(self.num_envs, *space.shape)).astype(np.float32)
+        return out
+
     # ------------------------------------------------------------------ the rest
     def action_masks(self) -> dict[str, np.ndarray]:
         """Switching mode: agent -> ``(num_envs, n)`` int8, each copy's ``action_masks()``."""
