@@ -2,7 +2,7 @@
 
 import pytest
 
-from training.bench_vector import CASES, format_vector_bench, run_vector_bench
+from training.bench_vector import CASES, format_vector_bench, run_vector_bench, vector_memory
 from training.cli import main
 
 
@@ -24,3 +24,11 @@ def test_the_vector_bench_refuses_bad_sizes():
         run_vector_bench([0])
     with pytest.raises(SystemExit):
         main(["bench", "--vector", "--num-envs", "0"])
+
+
+def test_the_memory_row_samples_the_start_and_even_points():
+    samples = vector_memory(2, 8, samples=3)
+    assert [done for done, _ in samples] == [0, 4, 8]
+    assert all(mb > 0 for _, mb in samples)
+    with pytest.raises(ValueError, match="env_steps >= num_envs"):
+        vector_memory(4, 2)

@@ -15,7 +15,9 @@ interleaved rounds of one run:
 and prints each rate's best and median over the rounds, its ratio to MPE2's rate
 of the same round (best and median), and the breakdown of one MOMA batch step by
 stage (camera, estimator, world, the rest) at the largest ``num_envs``. An
-env-step is one step of one copy. A measurement, not an assertion.
+env-step is one step of one copy. ``--memory-steps N`` instead prints the resident
+memory over ``N`` env-steps of ``top_observer`` at the largest ``num_envs``, after a
+warm-up episode (start, three points between, end). A measurement, not an assertion.
 """
 
 from __future__ import annotations
@@ -28,7 +30,16 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CASES", "moma_rate", "vmas_rate", "stage_breakdown", "run_vector_bench", "format_vector_bench", "main"]
+__all__ = [
+    "CASES",
+    "moma_rate",
+    "vmas_rate",
+    "stage_breakdown",
+    "run_vector_bench",
+    "format_vector_bench",
+    "vector_memory",
+    "main",
+]
 
 #: The MOMA rows: label -> (configuration, options).
 CASES: dict[str, tuple[str, dict[str, Any]]] = {
@@ -160,6 +171,31 @@ def run_vector_bench(num_envs: Sequence[int], rounds: int = 3, min_env_steps: in
     }
 
 
+def vector_memory(num_envs: int, env_steps: int, samples: int = 3, seed: int = 0) -> list[tuple[int, float]]:
+    """Resident memory (MB) of a batch of ``num_envs`` top_observer copies (switching mode,
+    random actions, autoresets included) over ``env_steps`` env-steps after one warm-up
+    episode: ``(env-steps done, RSS)`` at the start and at ``samples - 1`` even points after."""
+    from moma_env import vector
+    from training.bench_common import resident_mb
+
+    if num_envs < 1 or env_steps < num_envs or samples < 2:
+        raise ValueError(f"need num_envs >= 1, env_steps >= num_envs and samples >= 2, got {num_envs}, {env_steps}, {samples}")
+    envs = vector.make("top_observer", num_envs, max_cycles=200)
+    envs.reset(seed=seed)
+    batches = _random_batches(envs, 16, seed)
+    for i in range(200):  # one whole episode of every copy: the warm-up
+        envs.step(batches[i % len(batches)])
+    total = env_steps // num_envs
+    marks = {round(total * k / (samples - 1)) for k in range(1, samples)}
+    out = [(0, resident_mb())]
+    for i in range(1, total + 1):
+        envs.step(batches[i % len(batches)])
+        if i in marks:
+            out.append((i * num_envs, resident_mb()))
+    envs.close()
+    return out
+
+
 def format_vector_bench(result: dict) -> str:
     """The table of :func:`run_vector_bench`'s result."""
     lines = [f"{'row':<52}{'best/s':>10}{'median/s':>10}{'x MPE2 best':>13}{'median':>8}", "-" * 93]
@@ -182,9 +218,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--num-envs", type=int, nargs="+", default=[1, 64, 256, 1024], help="batch sizes (default 1 64 256 1024)")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (default 3)")
     parser.add_argument("--min-env-steps", type=int, default=2000, help="env-steps per row and round (default 2000)")
+    parser.add_argument(
+        "--memory-steps", type=int, default=0,
+        help="instead: RSS over this many env-steps of top_observer at the largest --num-envs (e.g. 1000000; default 0: off)",
+    )
     args = parser.parse_args(argv)
-    if args.rounds < 1 or args.min_env_steps < 1 or min(args.num_envs) < 1:
-        parser.error("--rounds, --min-env-steps and --num-envs must be >= 1")
+    if args.rounds < 1 or args.min_env_steps < 1 or min(args.num_envs) < 1 or args.memory_steps < 0:
+        parser.error("--rounds, --min-env-steps and --num-envs must be >= 1, --memory-steps >= 0")
+    if args.memory_steps:
+        n = max(args.num_envs)
+        for done, mb in vector_memory(n, args.memory_steps, samples=5):
+            print(f"num_envs={n}  after {done:>9} env-steps  RSS {mb:8.1f} MB")
+        return 0
     print(format_vector_bench(run_vector_bench(args.num_envs, args.rounds, args.min_env_steps)))
     return 0
 
