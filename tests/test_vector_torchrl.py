@@ -89,6 +89,11 @@ def test_copy_i_is_the_pettingzoo_env_seeded_s_plus_i_across_resets(mode):
                     assert stepped["next", group, "reward"][i, j, 0].item() == np.float32(rewards[a])
                     assert bool(stepped["next", group, "truncated"][i, j, 0]) == truncs[a]
             assert bool(stepped["next", "done"][i, 0]) == (not single.agents)
+            assert np.array_equal(stepped["next", "state"][i].numpy(), single.state())  # a done step's state is the episode's last
+            if mode == "switching":
+                masks = single.action_masks()
+                expected = np.stack([masks[a] for a in env.group_map["ugv"]]).astype(bool)
+                assert np.array_equal(stepped["next", "ugv", "action_mask"][i].numpy(), expected)
             if not single.agents:
                 obs, _ = single.reset()
                 assert all(np.array_equal(obs[a], o) for a, o in rows(after, i).items())

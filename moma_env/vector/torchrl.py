@@ -37,12 +37,11 @@ Seeding: ``set_seed(s)`` resets copy ``i`` with seed ``s + i`` at once (the next
 reset with ``seed=s + i``; every later reset continues each copy's generator.
 
 Resets: the underlying :class:`~moma_env.vector.MomaVectorEnv` resets a copy in the
-step that ends its episode. This env returns that step's last observations (from
-``final_observation``) and keeps the new episode's first ones until TorchRL resets
+step that ends its episode. This env returns that step's last observations, state
+and action masks (from ``final_observation``, ``final_state`` and
+``final_action_masks``) and keeps the new episode's first ones until TorchRL resets
 the copy (``_reset`` mask, or a full ``reset()``), so the data is TorchRL's: a done
-step's ``"next"`` holds the episode's end. Only ``"state"`` and ``"action_mask"``
-of a done step already show the next episode's first state (the batched env gives
-no final state or masks).
+step's ``"next"`` holds the episode's end.
 """
 
 from __future__ import annotations
@@ -214,7 +213,7 @@ class MomaTorchRLEnv(EnvBase):
         source["terminated"] = torch.as_tensor(any_terminated[:, None])
         source["truncated"] = torch.as_tensor(any_truncated[:, None])
         source["done"] = torch.as_tensor((any_terminated | any_truncated)[:, None])
-        source["state"] = torch.as_tensor(self._state)
+        source["state"] = torch.as_tensor(self._state.copy())  # a copy: a later reset of a copy rewrites self._state in place
         return TensorDict(source, batch_size=self.batch_size, device=self.device)
 
     # ------------------------------------------------------------------ reset
@@ -301,13 +300,18 @@ class MomaTorchRLEnv(EnvBase):
         for i in np.flatnonzero(done):  # the step's data is the episode's end
             for agent, o in infos[i]["final_observation"].items():
                 self._observations[agent][i] = o
-        self._masks = masks
-        self._state = state
         if done.any():
             for agent in masks:
                 self._next_masks[agent][done] = masks[agent][done]
             self._next_state[done] = state[done]
             self._waiting |= done
+            for i in np.flatnonzero(done):  # the step's state and masks are the episode's last ones
+                state[i] = infos[i]["final_state"]
+                for agent, mask in infos[i].get("final_action_masks", {}).items():
+                    if agent in masks:
+                        masks[agent][i] = mask.astype(bool)
+        self._masks = masks
+        self._state = state
         return self._tensordict(rewards, terminations, truncations)
 
     def _set_seed(self, seed: int | None) -> None:
