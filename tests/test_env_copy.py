@@ -154,3 +154,14 @@ def test_gymnasium_async_vector_env_over_every_id():
             assert np.isfinite(rewards).all()
         finally:
             vec.close()
+
+
+def test_a_rendered_env_copies_and_continues_bit_for_bit():
+    env = parallel_env("top_observer", camera_backend="rendered", observer_agent=True, observer_image=(48, 40), max_cycles=40)
+    env.reset(seed=4)
+    actions = sampled_actions(env, 16, seed=4)
+    run(env, actions[:6])
+    twins = (copy.deepcopy(env), pickle_copy(env))
+    expected = run(env, actions[6:])
+    for twin in twins:
+        assert run(twin, actions[6:]) == expected
