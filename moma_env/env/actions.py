@@ -24,6 +24,7 @@ from typing import Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
+from moma_env.config import all_finite
 from moma_env.control import WaypointFollower, WaypointFollowerConfig
 from moma_env.estimator import Status
 from moma_env.geometry import wrap_angle
@@ -65,9 +66,10 @@ def parse_box(agent: str, action: Any, space: spaces.Box) -> list[float]:
         raise refuse("be a sequence of real numbers", repr(action))
     if a.shape != space.shape:
         raise refuse(f"have shape {space.shape}", f"shape {a.shape}: {action!r}")
-    values = a.astype(np.float64).tolist()
-    if not all(math.isfinite(v) for v in values):
-        raise refuse("be finite", repr(values))
+    a = a.astype(np.float64)
+    if not all_finite(a):
+        raise refuse("be finite", repr(a.tolist()))
+    values = a.tolist()
     # Plain floats: a handful of values, where numpy calls cost more than the arithmetic.
     return [-1.0 if v < -1.0 else (1.0 if v > 1.0 else v) for v in values]
 

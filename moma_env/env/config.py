@@ -10,10 +10,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
-from numbers import Integral
 from typing import Any
 
-import numpy as np
 
 from moma_env.camera.factory import CAMERA_BACKENDS
 from moma_env.camera.floor import FloorConfig
@@ -34,8 +32,7 @@ __all__ = ["ACTION_MODES", "RewardConfig", "EnvConfig", "checked_max_cycles"]
 def checked_max_cycles(name: str, value: object) -> int:
     """``value`` as an episode length in steps: an integer >= 1 (Python or numpy, not a bool);
     ConfigError naming ``name`` otherwise."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, Integral) or value < 1:
-        raise ConfigError(name, f"must be an integer >= 1, got {value!r}")
+    check_count(name, value)
     return int(value)
 
 
