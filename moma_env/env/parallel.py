@@ -37,7 +37,7 @@ Seeds follow Gymnasium: ``reset(seed=None)`` or a non-negative integer.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Generator, Mapping, Sequence
 from numbers import Integral
 from typing import Any
 
@@ -56,9 +56,9 @@ from moma_env.env.rewards import TeamReward
 from moma_env.estimator import Status
 from moma_env.geometry import se3_to_se2
 from moma_env.scenarios import Scenario
-from moma_env.sim import Frame, Simulation
+from moma_env.sim import Frame, Simulation, measure_each
 
-__all__ = ["MomaParallelEnv", "OBSERVER", "FixedScenario"]
+__all__ = ["MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep"]
 
 ScenarioFactory = Callable[[np.random.Generator | None], Scenario]
 
@@ -81,6 +81,34 @@ def checked_seed(seed: object) -> int | None:
     if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, Integral) or seed < 0:
         raise ValueError(f"seed must be None or a non-negative integer (Gymnasium's convention), got {seed!r}")
     return int(seed)
+
+
+class PendingStep:
+    """An env step between its physics and its cameras (:meth:`MomaParallelEnv.begin_step`).
+
+    Attributes:
+        camera_requests: what the cameras are asked to measure in the moved scene
+            (:class:`~moma_env.sim.CameraRequest`), in the order of their detections.
+    """
+
+    __slots__ = ("camera_requests", "_stages", "_finished")
+
+    def __init__(self, camera_requests: tuple, stages: Generator):
+        self.camera_requests = camera_requests
+        self._stages = stages
+        self._finished = False
+
+    def finish(self, detections: Sequence[Any]) -> tuple[dict, dict, dict, dict, dict]:
+        """The step's ``(observations, rewards, terminations, truncations, infos)`` given the
+        detections of :attr:`camera_requests` (all of them, in order, in one sequence)."""
+        if self._finished:
+            raise RuntimeError("this step is finished already")
+        self._finished = True
+        try:
+            self._stages.send(detections)
+        except StopIteration as done:
+            return done.value
+        raise RuntimeError("the env's step did not finish")  # pragma: no cover - the stages yield once
 
 
 class MomaParallelEnv(ParallelEnv):
@@ -327,6 +355,19 @@ class MomaParallelEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ step
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+        pending = self.begin_step(actions)
+        return pending.finish(measure_each(pending.camera_requests))
+
+    def begin_step(self, actions: Mapping[str, Any]) -> PendingStep:
+        """:meth:`step` up to the cameras: the actions are checked and applied and the world
+        moves; the returned :class:`PendingStep` holds the camera requests of the new scene
+        and finishes the step on their detections. ``step(a)`` is
+        ``begin_step(a).finish(<the requests measured>)``; a vector env measures the
+        requests of all its copies in one batch between the two."""
+        stages = self._stages(actions)
+        return PendingStep(next(stages), stages)
+
+    def _stages(self, actions: Mapping[str, Any]) -> Generator[tuple, Sequence[Any], tuple[dict, dict, dict, dict, dict]]:
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         if not isinstance(actions, Mapping):
@@ -363,7 +404,8 @@ class MomaParallelEnv(ParallelEnv):
 
         # 2. Commands, 3. physics, cameras, localiser.
         velocities = mode.commands(parsed, sim, note)
-        frame = sim.advance(velocities, self._uav_command(observer_action))
+        detections = yield sim.move(velocities, self._uav_command(observer_action))
+        frame = sim.localise(detections)
         if mode.after_step(sim, note):
             frame = sim.refresh()
 

@@ -36,6 +36,7 @@ from moma_env.geometry import se3_to_se2
 from moma_env.scenarios import Scenario
 from moma_env.sim.frame import Frame, Pose2D, Switch
 from moma_env.sim.localiser import Localiser, LocaliserFactory
+from moma_env.sim.measure import CameraRequest, measure_each
 from moma_env.sim.rules import MotionRules
 from moma_env.world import World
 
@@ -155,6 +156,7 @@ class Simulation:
         self.device_positions: list[tuple[str, tuple[float, float]]] = []
         self._localiser: Localiser | None = None
         self._frame: Frame | None = None
+        self._awaiting = None
 
     # ------------------------------------------------------------------ layout
     @property
@@ -265,8 +267,9 @@ class Simulation:
         self._steps = 0
         self._switches: list[Switch] = []
         self._localiser = self._new_localiser()
+        self._awaiting: tuple[CameraRequest, ...] | None = None
         if self._measure_at_reset:
-            self._detections = self._measure()
+            self._detections = measure_each(self._camera_requests())
             self._localiser.update(self.world.time, self._detections)
         else:
             self._detections = []
@@ -408,10 +411,30 @@ class Simulation:
             velocities: UGV -> ``(vx, vy, yaw rate)`` body velocity command (m/s, rad/s).
             uav: the observer's ``(vx, vy, yaw rate, climb rate)`` command, or None.
         """
+        return self.localise(measure_each(self.move(velocities, uav)))
+
+    def move(self, velocities: Mapping[str, Any], uav: Any = None) -> tuple[CameraRequest, ...]:
+        """The first half of :meth:`advance`: the world moves one control step; returns what
+        the cameras are asked to measure in the new scene, for :meth:`localise`.
+
+        A caller stepping many simulations measures all their requests at once
+        (see :mod:`moma_env.sim.measure`) and hands each its detections.
+        """
         self._require_started()
+        if self._awaiting is not None:
+            raise RuntimeError("move() called twice; localise() the measured requests first")
         self.world.step(velocities, uav)
         self._steps += 1
-        self._detections = self._measure()
+        self._awaiting = self._camera_requests()
+        return self._awaiting
+
+    def localise(self, detections: Sequence[Any]) -> Frame:
+        """The second half of :meth:`advance`: the localiser updates on ``detections`` (those
+        of the requests :meth:`move` returned, in their order); the step's :class:`Frame`."""
+        if self._awaiting is None:
+            raise RuntimeError("localise() without move(): no camera requests are awaiting detections")
+        self._awaiting = None
+        self._detections = list(detections)
         self._localiser.update(self.world.time, self._detections)
         self._frame = self._snapshot()
         return self._frame
@@ -434,16 +457,17 @@ class Simulation:
         return frame
 
     # ------------------------------------------------------------------ internals
-    def _measure(self) -> list:
+    def _camera_requests(self) -> tuple[CameraRequest, ...]:
         views = self.board_views()
         if self._occlusions:
             # Device positions for the occlusion queries, once per frame.
             self.device_positions = [(d, self.device_pose(d)[:2]) for d in self._devices]
-        detections: list = []
         world = self.world
-        for name, camera in self._cameras.items():
-            detections += camera.measure(world.camera_transform(name), views, world.time, self._rng, self._occlusions.get(name))
-        return detections
+        t = world.time
+        return tuple(
+            CameraRequest(camera, world.camera_transform(name), views, t, self._rng, self._occlusions.get(name))
+            for name, camera in self._cameras.items()
+        )
 
     def _snapshot(self, earlier: Sequence[Switch] = ()) -> Frame:
         estimates = self._localiser.estimates()

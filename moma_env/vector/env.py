@@ -4,6 +4,9 @@
 own step (:class:`~moma_env.env.parallel.MomaParallelEnv` over its
 :class:`~moma_env.sim.Simulation`): one implementation of the camera, the
 estimator, the rules, the rewards and the observations, whatever ``num_envs`` is.
+A batch step begins every copy's step (actions, rules, physics), measures the
+camera requests of all copies together, then finishes every copy's step on its
+detections (localiser, rewards, observations).
 
 Arrays, per agent of ``possible_agents`` (every copy has the same agents):
 
@@ -41,6 +44,7 @@ from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
+from moma_env.sim import measure_each
 
 __all__ = ["FINAL_KEYS", "MomaVectorEnv", "make"]
 
@@ -168,8 +172,10 @@ class MomaVectorEnv:
         terminations = {a: np.zeros(n, dtype=bool) for a in agents}
         truncations = {a: np.zeros(n, dtype=bool) for a in agents}
         infos: list[dict] = []
+        pending = [env.begin_step({a: checked[a][i] for a in agents}) for i, env in enumerate(self.envs)]
+        detections = measure_copies([p.camera_requests for p in pending])
         for i, env in enumerate(self.envs):
-            obs, rew, term, trunc, info = env.step({a: checked[a][i] for a in agents})
+            obs, rew, term, trunc, info = pending[i].finish(detections[i])
             for a in agents:
                 rewards[a][i] = rew[a]
                 terminations[a][i] = term[a]
@@ -214,3 +220,8 @@ class MomaVectorEnv:
     def close(self) -> None:
         for env in self.envs:
             env.close()
+
+
+def measure_copies(requests: Sequence[Sequence[Any]]) -> list[list[Any]]:
+    """Copy ``i``'s detections (one list) from its camera requests ``requests[i]``."""
+    return [measure_each(r) for r in requests]
