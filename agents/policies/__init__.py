@@ -20,6 +20,7 @@ from agents.policies.base import ADVANCE, ALLOWED_INFO_KEYS, FORBIDDEN_INFO_KEYS
 from agents.policies.caterpillar_multi import CaterpillarMulti, CaterpillarTwo
 from agents.policies.caterpillar_servo import CaterpillarServo
 from agents.policies.caterpillar_sled import CaterpillarSled
+from agents.policies.greedy import GreedyParallelPolicy
 from agents.policies.planned import PlannedPolicy
 from agents.policies.random_policy import RandomPolicy
 from agents.policies.top_observer import TopObserverLeapfrog
@@ -34,6 +35,7 @@ __all__ = [
     "CaterpillarSled",
     "CaterpillarMulti",
     "CaterpillarServo",
+    "GreedyParallelPolicy",
     "PlannedPolicy",
     "TurnTakingPolicy",
     "Move",

@@ -32,7 +32,7 @@ __all__ = [
 ]
 
 #: ``infos`` keys a policy may read (nothing here is ground truth).
-ALLOWED_INFO_KEYS = frozenset({"events", "refused", "status", "static", "estimate"})
+ALLOWED_INFO_KEYS = frozenset({"events", "refused", "status", "static", "estimate", "action_mask"})
 #: ``infos`` keys that carry ground truth (or are derived from it): never read by a policy.
 FORBIDDEN_INFO_KEYS = frozenset({"truth", "localisation_error", "sled_truth", "sled_localisation_error", "reached_goal"})
 

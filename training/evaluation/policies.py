@@ -6,6 +6,8 @@ hands it. Only the harness reads the ground truth for its metrics.
 Specs understood by :func:`load_policy`:
 
 * ``"scripted"``: ``agents.policies.scripted_policy(configuration)``;
+* ``"greedy"``: ``agents.policies.GreedyParallelPolicy()`` (as many movers as the
+  rules allow; it needs the env's action masks, which its ``env_options`` ask for);
 * ``"random"``: ``agents.policies.RandomPolicy(seed)``;
 * a path: the output folder of ``moma-env train``
   (:class:`agents.learned.LearnedPolicy`; it names the env options it fits in
@@ -23,10 +25,10 @@ from typing import Any, Protocol, runtime_checkable
 __all__ = ["Policy", "PolicyLoadError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "load_policy", "policy_label"]
 
 #: Policy specs that name a built-in policy rather than a file.
-BUILTIN_POLICIES = ("scripted", "planned", "servo", "random")
+BUILTIN_POLICIES = ("scripted", "greedy", "planned", "servo", "random")
 
 #: The action mode each built-in policy acts in.
-POLICY_ACTION_MODES = {"scripted": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
+POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
 
 
 class PolicyLoadError(ValueError):
@@ -73,7 +75,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
     """The policy named by ``spec`` for configuration ``configuration``.
 
     Args:
-        spec: ``"scripted"`` (switching mode), ``"planned"`` (follows the MOMA
+        spec: ``"scripted"`` (switching mode), ``"greedy"`` (switching mode, several
+            movers at once), ``"planned"`` (follows the MOMA
             navigation planner's plan, velocity mode), ``"servo"`` (the
             caterpillar follower servoing to its stand-off, velocity mode),
             ``"random"`` or the path
@@ -90,7 +93,7 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
     """
     if not isinstance(spec, str) or not spec:
         raise PolicyLoadError(f"policy must be 'scripted', 'random' or a path, got {spec!r}")
-    if sample_actions and spec in ("scripted", "planned", "servo", "random"):
+    if sample_actions and spec in BUILTIN_POLICIES:
         raise PolicyLoadError(f"sampling actions applies to a trained policy (a path), not {spec!r}")
     if spec == "scripted":
         module = _agents_policies()
@@ -101,6 +104,12 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
             policy = factory(configuration)
         except (KeyError, ValueError) as err:
             raise PolicyLoadError(f"no scripted policy for configuration {configuration!r}: {err}") from None
+    elif spec == "greedy":
+        module = _agents_policies()
+        cls = getattr(module, "GreedyParallelPolicy", None)
+        if cls is None:
+            raise PolicyLoadError("agents.policies has no GreedyParallelPolicy()")
+        policy = cls()
     elif spec == "planned":
         module = _agents_policies()
         cls = getattr(module, "PlannedPolicy", None)
@@ -125,7 +134,7 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         path = Path(spec)
         if not path.exists():
             raise PolicyLoadError(
-                f"unknown policy {spec!r}: expected 'scripted', 'planned', 'servo', 'random' or the folder of a trained policy"
+                f"unknown policy {spec!r}: expected 'scripted', 'greedy', 'planned', 'servo', 'random' or the folder of a trained policy"
             )
         policy = _load_trained_policy(path, configuration, sample_actions)
     if not isinstance(policy, Policy):
