@@ -32,7 +32,7 @@ TEAM_CONFIGS = (TopObserverConfig, CaterpillarMultiConfig)
 
 
 def test_team_fields_are_stated():
-    assert TopObserverConfig.TEAM_FIELDS == {"n_ugvs": (2, top_observer.MAX_KEPT_UGVS)}
+    assert TopObserverConfig.TEAM_FIELDS == {"n_ugvs": (2, top_observer.MAX_KEPT_UGVS), "goal_spread": (1.0, top_observer.MAX_GOAL_SPREAD)}
     assert CaterpillarMultiConfig.TEAM_FIELDS == {"n_ugvs": (2, caterpillar_multi.MAX_KEPT_UGVS)}
     assert CaterpillarConfig.TEAM_FIELDS == {} and CaterpillarSledConfig.TEAM_FIELDS == {}
     assert scenario_spec("top_observer").team_fields is TopObserverConfig.TEAM_FIELDS
@@ -124,7 +124,7 @@ def test_a_team_random_layouts_cannot_keep_is_refused_at_construction(configurat
     [
         (TopObserverConfig, {"n_ugvs": 13}, "top_observer.n_ugvs", r"\[2, 12\]"),
         (TopObserverConfig, {"n_ugvs": 2.0}, "top_observer.n_ugvs", "must be an integer"),
-        (TopObserverConfig, {"formation": "row"}, "top_observer.formation", r"cannot keep.*\['n_ugvs'\]"),
+        (TopObserverConfig, {"formation": "row"}, "top_observer.formation", r"cannot keep.*\['goal_spread', 'n_ugvs'\]"),
         (CaterpillarConfig, {"n_ugvs": 2}, "caterpillar.n_ugvs", "cannot keep.*none"),
         (CaterpillarSledConfig, {"n_ugvs": 1}, "caterpillar_sled.n_ugvs", "cannot keep"),
     ],

@@ -124,7 +124,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.set_defaults(handler=_run_bench)
 
     ev = sub.add_parser("evaluate", help="run a policy for N episodes and report success, errors and switches")
-    ev.add_argument("--scenario", required=True, help="configuration name (top_observer, caterpillar, caterpillar_sled, caterpillar_multi)")
+    ev.add_argument("--scenario", required=True, help="configuration (top_observer, caterpillar, caterpillar_sled, caterpillar_multi) or task (top_observer_team4, top_observer_team6) name")
     ev.add_argument("--policy", default="scripted", help="'scripted' (one mover at a time), 'greedy' (as many movers as the rules allow), 'planned' (follows the MOMA navigation planner), 'servo' (caterpillar stand-off servo), 'random' or the path of a trained policy (default scripted)")
     ev.add_argument("--episodes", type=_int_at_least(1, "episode count"), default=10, help="number of episodes (default 10)")
     ev.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first episode; episode k uses seed+k (default 0)")
@@ -158,17 +158,20 @@ def build_parser() -> argparse.ArgumentParser:
 def _run_evaluate(args: argparse.Namespace) -> int:
     from moma_env.io import to_jsonable
     from moma_env.scenarios import CONFIGURATIONS
+    from moma_env.tasks import TASKS
     from training.evaluation import PolicyLoadError, evaluate, load_policy, policy_label
     from training.evaluation.policies import POLICY_ACTION_MODES
     from training.evaluation.progress import EpisodeProgress
     from training.evaluation.report import format_table, write_outputs
     from training.evaluation.video import GifRecorder
 
-    if args.scenario not in CONFIGURATIONS:
-        print(f"moma-env evaluate: unknown scenario {args.scenario!r}; known: {', '.join(sorted(CONFIGURATIONS))}", file=sys.stderr)
+    if args.scenario not in CONFIGURATIONS and args.scenario not in TASKS:
+        known = ", ".join(sorted(CONFIGURATIONS) + sorted(TASKS))
+        print(f"moma-env evaluate: unknown scenario {args.scenario!r}; known: {known}", file=sys.stderr)
         return 2
+    rig = TASKS[args.scenario].configuration if args.scenario in TASKS else args.scenario
     try:
-        policy = load_policy(args.policy, args.scenario, args.seed, sample_actions=args.sample_actions)
+        policy = load_policy(args.policy, rig, args.seed, sample_actions=args.sample_actions)
     except PolicyLoadError as err:
         print(f"moma-env evaluate: {err}", file=sys.stderr)
         return 2
@@ -182,7 +185,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     if args.video:
         from moma_env.scenarios import make_scenario
 
-        recorder = GifRecorder(fps=make_scenario(args.scenario).world.control_hz)
+        recorder = GifRecorder(fps=make_scenario(rig).world.control_hz)
     start = time.perf_counter()
     with EpisodeProgress(args.episodes, f"{args.scenario}/{label}") as bar:
         result = evaluate(

@@ -3,6 +3,8 @@
 ``parallel_env("top_observer", action_mode="velocity", n_ugvs=3)`` builds a
 :class:`MomaParallelEnv`; every keyword that is not an environment option is a
 field of the configuration's dataclass (``moma_env.scenarios``), validated by it.
+A task name (:data:`moma_env.tasks.TASKS`) stands for its configuration with the
+task's options, which keywords override.
 ``random_scenarios=True`` draws a new random layout of the same robots at every
 reset from the env's seeded generator (:class:`RandomScenarios`).
 """
@@ -21,9 +23,11 @@ from moma_env.env.centralised import CentralisedTeamEnv
 from moma_env.env.config import EnvConfig, RewardConfig
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.scenarios import SCENARIO_SPECS, Scenario, ScenarioConfig, ScenarioSpec
+from moma_env.tasks import TASKS, task_options
 
 __all__ = [
     "parallel_env",
+    "configuration_env",
     "aec_env",
     "centralised_env",
     "scenario_factory",
@@ -110,7 +114,15 @@ def scenario_factory(configuration: str, random_scenarios: bool = False, **overr
     return from_mapping(spec.config_type, overrides, name=configuration).scenario()
 
 
-def parallel_env(
+def parallel_env(configuration: str, **options: Any) -> MomaParallelEnv:
+    """The PettingZoo parallel env of a configuration or of a task (:mod:`moma_env.tasks`,
+    whose options ``options`` override); the options are :func:`configuration_env`'s."""
+    if isinstance(configuration, str) and configuration in TASKS:
+        configuration, options = task_options(configuration, **options)
+    return configuration_env(configuration, **options)
+
+
+def configuration_env(
     configuration: str,
     *,
     render_mode: str | None = None,

@@ -153,11 +153,12 @@ class ScenarioConfig(ABC):
 
     #: Configuration name (the scenario's name and the prefix of error fields).
     NAME: ClassVar[str] = "scenario"
-    #: Fields that fix the team (the env's agents) -> inclusive range ``(low, high)`` of
-    #: the values ``random`` can keep them at (``random(rng, n_ugvs=5)``); random layouts
-    #: of an env (``random_scenarios=True``) keep its configuration's values. Empty: the
-    #: team is always the same.
-    TEAM_FIELDS: ClassVar[Mapping[str, tuple[int, int]]] = MappingProxyType({})
+    #: Fields that fix the team (the env's agents) or its task -> inclusive range
+    #: ``(low, high)`` of the values ``random`` can keep them at (``random(rng,
+    #: n_ugvs=5)``); integer bounds make an integer field, float bounds a real one.
+    #: Random layouts of an env (``random_scenarios=True``) keep its configuration's
+    #: values. Empty: the team is always the same.
+    TEAM_FIELDS: ClassVar[Mapping[str, tuple[float, float]]] = MappingProxyType({})
 
     arena: tuple[float, float] | None = None
     arena_origin: tuple[float, float] | None = None
@@ -194,22 +195,26 @@ class ScenarioConfig(ABC):
         """
 
     @classmethod
-    def check_team(cls, team: Mapping[str, Any]) -> dict[str, int]:
-        """``team`` as ints if :meth:`random` can keep every value; else ConfigError naming
-        the field (``"top_observer.n_ugvs"``) and the range of :attr:`TEAM_FIELDS` it allows."""
-        checked = {}
+    def check_team(cls, team: Mapping[str, Any]) -> dict[str, int | float]:
+        """``team`` as ints (floats for a real field) if :meth:`random` can keep every value;
+        else ConfigError naming the field (``"top_observer.n_ugvs"``) and the range of
+        :attr:`TEAM_FIELDS` it allows."""
+        checked: dict[str, int | float] = {}
         for name, value in team.items():
             field_name = f"{cls.NAME}.{name}"
             if name not in cls.TEAM_FIELDS:
                 kept = sorted(cls.TEAM_FIELDS) or "none"
                 raise ConfigError(field_name, f"random layouts cannot keep this field; the fields they keep: {kept}")
             low, high = cls.TEAM_FIELDS[name]
-            check_count(field_name, value, minimum=low)
-            if value > high:
+            if isinstance(low, int):
+                check_count(field_name, value, minimum=low)
+            else:
+                check_finite(field_name, value)
+            if not low <= value <= high:
                 raise ConfigError(
                     field_name, f"must be in [{low}, {high}] for random layouts (random_scenarios=True), got {value!r}"
                 )
-            checked[name] = int(value)
+            checked[name] = int(value) if isinstance(low, int) else float(value)
         return checked
 
     # -- construction -------------------------------------------------------------------

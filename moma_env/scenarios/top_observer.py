@@ -6,7 +6,10 @@ The paper's main configuration (section IV, the 1 m square): UGVs ``ugv_0`` ..
 larger 4x4 dictionary beyond, at most ``markers.MAX_TEAM_BOARDS`` robots) and an
 observer (an Ar.Drone quadcopter or a hand-held camera) looks down on them from
 ``altitude``. All robots start static; each one's goal is its start shifted by
-``goal_offset``.
+``goal_offset``, and with ``goal_spread`` above 1 also moved away from the
+formation's centre: the team arrives spread out (``goal_spread`` times its starting
+offsets from the centre), and the observer must climb to keep everyone in view
+until its ceiling (``UAVConfig.max_altitude``) stops it.
 
 Formation (m, in the frame of ``start``: x along the robots' heading, y to
 their left), ``spacing`` between neighbours, centred on ``start``:
@@ -56,7 +59,7 @@ from moma_env.scenarios.sampling import (
 from moma_env.scenarios.spec import ScenarioSpec
 from moma_env.world import UAV_KINDS, UAVConfig, UGVConfig
 
-__all__ = ["TopObserverConfig", "FORMATIONS", "formation_offsets", "MAX_RANDOM_UGVS", "MAX_KEPT_UGVS", "SPEC"]
+__all__ = ["TopObserverConfig", "FORMATIONS", "formation_offsets", "MAX_RANDOM_UGVS", "MAX_KEPT_UGVS", "MAX_GOAL_SPREAD", "SPEC"]
 
 #: Formations the robots may start in.
 FORMATIONS = ("compact", "row")
@@ -66,6 +69,8 @@ MAX_RANDOM_UGVS = 4
 #: about one draw in four still sees every board from the observer (a compact team
 #: under a high observer with a short lens), so the generator's attempts suffice.
 MAX_KEPT_UGVS = 12
+#: Largest ``goal_spread``: the team arrives at most this many times as spread out as it starts.
+MAX_GOAL_SPREAD = 3.0
 #: Largest turn (rad) of a random goal relative to the start.
 _MAX_RANDOM_GOAL_TURN = math.pi / 2
 
@@ -98,10 +103,16 @@ class TopObserverConfig(ScenarioConfig):
             (default: 2 m along +x).
         observer: ``"quadcopter"`` (Ar.Drone) or ``"handheld"``.
         altitude: height of the observer's body above the floor at the start (m).
+        goal_spread: how spread out the team arrives, in [1, :data:`MAX_GOAL_SPREAD`]:
+            each goal is the start shifted by ``goal_offset`` plus
+            ``(goal_spread - 1)`` times the robot's offset from the formation's centre
+            (1: the formation is kept).
     """
 
     NAME: ClassVar[str] = "top_observer"
-    TEAM_FIELDS: ClassVar[Mapping[str, tuple[int, int]]] = MappingProxyType({"n_ugvs": (2, MAX_KEPT_UGVS)})
+    TEAM_FIELDS: ClassVar[Mapping[str, tuple[float, float]]] = MappingProxyType(
+        {"n_ugvs": (2, MAX_KEPT_UGVS), "goal_spread": (1.0, MAX_GOAL_SPREAD)}
+    )
 
     n_ugvs: int = 2
     spacing: float = 0.6
@@ -110,6 +121,7 @@ class TopObserverConfig(ScenarioConfig):
     goal_offset: Pose2D = (2.0, 0.0, 0.0)
     observer: str = "quadcopter"
     altitude: float = 1.6
+    goal_spread: float = 1.0
 
     def _check_fields(self) -> None:
         check_count(self._field("n_ugvs"), self.n_ugvs, minimum=2)
@@ -126,16 +138,21 @@ class TopObserverConfig(ScenarioConfig):
         check_choice(self._field("observer"), self.observer, UAV_KINDS)
         low, high = field_default(UAVConfig, "min_altitude"), field_default(UAVConfig, "max_altitude")
         check_range(self._field("altitude"), self.altitude, low, high)
+        check_range(self._field("goal_spread"), self.goal_spread, 1.0, MAX_GOAL_SPREAD)
 
     def _make_layout(self) -> Layout:
         radius = default_ugv_radius()
         ugvs, goals, disks = [], {}, []
         dictionary = team_dictionary(self.n_ugvs)
+        centre = self.start
         for i, (forward, left) in enumerate(formation_offsets(self.n_ugvs, self.spacing, self.formation).tolist()):
             name = ugv_name(i)
             start = in_body_frame(self.start, forward, left)
             start = (start[0], start[1], float(wrap_angle(start[2])))
             goal = shifted(start, self.goal_offset)
+            if self.goal_spread != 1.0:
+                away = self.goal_spread - 1.0
+                goal = (goal[0] + away * (start[0] - centre[0]), goal[1] + away * (start[1] - centre[1]), goal[2])
             goal = (goal[0], goal[1], float(wrap_angle(goal[2])))
             ugvs.append(UGVConfig(name=name, initial_pose=start, board=board_for_robot(i, dictionary=dictionary)))
             goals[name] = goal
@@ -159,7 +176,7 @@ class TopObserverConfig(ScenarioConfig):
         return {uav.camera_name: tuple(ugv_name(i) for i in range(self.n_ugvs))}
 
     @classmethod
-    def random(cls, rng: np.random.Generator, **team: int) -> TopObserverConfig:
+    def random(cls, rng: np.random.Generator, **team: float) -> TopObserverConfig:
         """Random robots (2-4, random formation), start heading, goal (1-3 m in a random
         direction, turned by up to 90 degrees), observer kind and altitude (1.2-2.5 m),
         camera, arena and obstacles; every draw from ``rng``.
@@ -167,11 +184,15 @@ class TopObserverConfig(ScenarioConfig):
         ``n_ugvs=k`` keeps the team at ``k`` robots, 2 to :data:`MAX_KEPT_UGVS`
         (ConfigError naming ``top_observer.n_ugvs`` otherwise): for ``k <= 4`` the
         first free draw with ``k`` robots, beyond that a draw with ``k`` fixed (see
-        :mod:`moma_env.scenarios.sampling`).
+        :mod:`moma_env.scenarios.sampling`). ``goal_spread=s`` keeps every draw's
+        ``goal_spread`` at ``s`` (default 1: the draws are those without it).
         """
-        kept = cls.check_team(team).get("n_ugvs")
+        checked = cls.check_team(team)
+        kept = checked.get("n_ugvs")
+        spread = checked.get("goal_spread", 1.0)
         if kept is not None and kept <= MAX_RANDOM_UGVS:
-            return first_with_team(cls, rng, cls.random, {"n_ugvs": kept})
+            free = cls.random if spread == 1.0 else (lambda rng: cls.random(rng, goal_spread=spread))
+            return first_with_team(cls, rng, free, {"n_ugvs": kept})
 
         def draw(rng: np.random.Generator) -> TopObserverConfig:
             n_ugvs = int(rng.integers(2, MAX_RANDOM_UGVS + 1)) if kept is None else kept
@@ -189,6 +210,7 @@ class TopObserverConfig(ScenarioConfig):
                 observer=observer,
                 altitude=altitude,
                 camera=random_camera(rng),
+                goal_spread=spread,
             )
             return replace(config, **random_surroundings(rng, config.occupied_disks))
 

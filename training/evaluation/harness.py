@@ -20,6 +20,7 @@ import numpy as np
 from moma_env.env.factory import parallel_env
 from moma_env.metrics import aggregate
 from moma_env.scenarios import CONFIGURATIONS
+from moma_env.tasks import TASKS
 from moma_env.config import ConfigError
 from training.evaluation.episode import EpisodeResult, FrameSink, robot_agents, run_episode
 from training.evaluation.policies import Policy, load_policy, policy_label
@@ -172,7 +173,8 @@ def evaluate(
     """Run ``episodes`` episodes of a policy on ``configuration`` and summarise them.
 
     Args:
-        configuration: a name of :data:`moma_env.scenarios.CONFIGURATIONS`.
+        configuration: a name of :data:`moma_env.scenarios.CONFIGURATIONS` or of
+            :data:`moma_env.tasks.TASKS` (built-in policies are those of its configuration).
         policy_spec: ``"scripted"``, ``"random"``, a path (see
             :func:`training.evaluation.policies.load_policy`) or a policy object.
         episodes: number of episodes (>= 1); episode k resets with ``seed + k``.
@@ -189,15 +191,16 @@ def evaluate(
         PolicyLoadError: the policy spec names no loadable policy.
         ValueError: ``episodes`` < 1 or ``seed`` < 0.
     """
-    if configuration not in CONFIGURATIONS:
-        raise ConfigError("scenario", f"unknown configuration {configuration!r}; known: {sorted(CONFIGURATIONS)}")
+    if configuration not in CONFIGURATIONS and configuration not in TASKS:
+        raise ConfigError("scenario", f"unknown configuration or task {configuration!r}; known: {sorted(CONFIGURATIONS) + sorted(TASKS)}")
+    rig = TASKS[configuration].configuration if configuration in TASKS else configuration
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     if isinstance(policy_spec, str):
         label = policy_label(policy_spec)
-        policy = load_policy(policy_spec, configuration, seed)
+        policy = load_policy(policy_spec, rig, seed)
     else:
         label = type(policy_spec).__name__
         policy = policy_spec

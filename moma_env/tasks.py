@@ -1,0 +1,99 @@
+"""Named coordination tasks: a configuration with the options that make a study.
+
+A configuration (``top_observer``, ...) is a kind of rig; a *task* fixes what a
+comparison of policies needs: the team, random layouts with held-out seeds, the
+action mode, the masks and the team objective (the reward's weights). Every
+constructor that takes a configuration name takes a task name too
+(``parallel_env("top_observer_team4")``, ``moma_env.vector.make(...)``, ``moma-env
+evaluate --scenario``); keywords given there override the task's.
+
+Tasks where coordination matters (with two robots one must always stay behind as
+the reference, so there is little to coordinate):
+
+* ``top_observer_team4`` and ``top_observer_team6``: 4 (6) UGVs under the UAV on
+  random layouts, arriving twice (1.5 times) as spread out as they start, so the
+  UAV climbs to keep the team in view and its ceiling bounds the spread; several
+  robots may move at once as long as each stays observed from a static reference.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from moma_env.config import ConfigError
+
+__all__ = ["Task", "TASKS", "task_options"]
+
+
+@dataclass(frozen=True)
+class Task:
+    """A named study setting of one configuration.
+
+    Attributes:
+        name: the task's name (what constructors take in place of a configuration).
+        configuration: the configuration it runs.
+        options: keywords of ``moma_env.env.factory.parallel_env``: env options and
+            configuration fields.
+        objective: one line on what the team is rewarded for.
+    """
+
+    name: str
+    configuration: str
+    options: Mapping[str, Any] = field(default_factory=dict)
+    objective: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
+
+
+#: The team objective of the coordination tasks: reach every goal soon (a time cost per
+#: step, a bonus per goal, progress per metre), keep the estimates accurate (a cost per
+#: metre of mean error per step), and ask only for what the rules grant (refusals cost).
+_TEAM_REWARDS = {"progress": 1.0, "localisation_error": -0.5, "refused": -0.05, "goal_bonus": 5.0, "time": -0.01}
+
+_TASK_LIST = (
+    Task(
+        "top_observer_team4",
+        "top_observer",
+        {
+            "n_ugvs": 4,
+            "goal_spread": 2.0,
+            "random_scenarios": True,
+            "action_mode": "switching",
+            "action_masks": True,
+            "rewards": _TEAM_REWARDS,
+        },
+        "4 UGVs to spread goals under one UAV: time, goals, mean localisation error, refusals",
+    ),
+    Task(
+        "top_observer_team6",
+        "top_observer",
+        {
+            "n_ugvs": 6,
+            "goal_spread": 1.5,
+            "random_scenarios": True,
+            "action_mode": "switching",
+            "action_masks": True,
+            "rewards": _TEAM_REWARDS,
+        },
+        "6 UGVs to spread goals under one UAV: time, goals, mean localisation error, refusals",
+    ),
+)
+
+#: Task name -> :class:`Task` (read-only).
+TASKS: Mapping[str, Task] = MappingProxyType({task.name: task for task in _TASK_LIST})
+
+
+def task_options(name: str, **overrides: Any) -> tuple[str, dict[str, Any]]:
+    """``(configuration, options)`` of task ``name`` with ``overrides`` applied on top.
+
+    Raises:
+        ConfigError: naming ``task`` if ``name`` is no task.
+    """
+    task = TASKS.get(name) if isinstance(name, str) else None
+    if task is None:
+        raise ConfigError("task", f"unknown task {name!r}; known: {sorted(TASKS)}")
+    return task.configuration, {**task.options, **overrides}

@@ -1,0 +1,80 @@
+"""Named tasks: a configuration with its study options, accepted wherever a configuration is."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from moma_env import vector
+from moma_env.config import ConfigError
+from moma_env.env.factory import parallel_env
+from moma_env.scenarios.top_observer import MAX_GOAL_SPREAD, TopObserverConfig
+from moma_env.tasks import TASKS, task_options
+
+
+@pytest.mark.parametrize("name", sorted(TASKS))
+def test_every_task_builds_with_its_team_and_options(name):
+    task = TASKS[name]
+    env = parallel_env(name)
+    observations, infos = env.reset(seed=1)
+    ugvs = [a for a in env.possible_agents if a != "observer"]
+    assert len(ugvs) == task.options["n_ugvs"]
+    assert env.config.action_mode == task.options["action_mode"]
+    assert all("action_mask" in infos[a] for a in ugvs) == task.options["action_masks"]
+    assert env.scenario.name == task.configuration
+
+
+def test_task_keywords_override_the_task_options():
+    env = parallel_env("top_observer_team4", action_mode="velocity", action_masks=False)
+    assert env.config.action_mode == "velocity"
+    configuration, options = task_options("top_observer_team4", n_ugvs=5)
+    assert configuration == "top_observer" and options["n_ugvs"] == 5 and options["goal_spread"] == 2.0
+
+
+def test_unknown_task_is_named():
+    with pytest.raises(ConfigError, match="task: unknown task 'nope'"):
+        task_options("nope")
+
+
+def test_a_task_vector_env_steps():
+    envs = vector.make("top_observer_team4", 3)
+    observations, _ = envs.reset(seed=0)
+    assert observations["ugv_3"].shape[0] == 3
+    masks = envs.action_masks()
+    assert masks["ugv_0"].shape == (3, 2)
+
+
+def test_goal_spread_spreads_the_team_about_the_formation_centre():
+    base = TopObserverConfig(n_ugvs=4, goal_offset=(1.0, 0.5, 0.0))
+    spread = TopObserverConfig(n_ugvs=4, goal_offset=(1.0, 0.5, 0.0), goal_spread=2.5)
+    starts = {u.name: u.initial_pose for u in base.scenario().world.ugvs}
+    kept, spread_goals = base.scenario().goals, spread.scenario().goals
+    centre = np.mean([g[:2] for g in kept.values()], axis=0)
+    centre_spread = np.mean([g[:2] for g in spread_goals.values()], axis=0)
+    np.testing.assert_allclose(centre, centre_spread, atol=1e-12)
+    for name, start in starts.items():
+        np.testing.assert_allclose(np.subtract(spread_goals[name][:2], centre), 2.5 * np.subtract(kept[name][:2], centre), atol=1e-12)
+        assert math.isclose(spread_goals[name][2], kept[name][2])
+
+
+def test_random_layouts_keep_the_goal_spread_and_default_draws_are_unchanged():
+    a = TopObserverConfig.random(np.random.default_rng(7), n_ugvs=3)
+    b = TopObserverConfig.random(np.random.default_rng(7), n_ugvs=3, goal_spread=1.0)
+    assert a == b
+    c = TopObserverConfig.random(np.random.default_rng(7), n_ugvs=3, goal_spread=2.0)
+    assert c.goal_spread == 2.0 and c.n_ugvs == 3
+
+
+@pytest.mark.parametrize("value", [0.5, MAX_GOAL_SPREAD + 0.1, float("nan"), "2"])
+def test_bad_goal_spread_is_named(value):
+    with pytest.raises(ConfigError, match="top_observer.goal_spread"):
+        TopObserverConfig.random(np.random.default_rng(0), goal_spread=value)
+    with pytest.raises(ConfigError, match="top_observer.goal_spread"):
+        TopObserverConfig(goal_spread=value)
+
+
+def test_team_count_stays_an_integer():
+    with pytest.raises(ConfigError, match="top_observer.n_ugvs"):
+        TopObserverConfig.random(np.random.default_rng(0), n_ugvs=2.5)
