@@ -25,7 +25,7 @@ from typing import Any
 
 from moma_env.config import ConfigError
 
-__all__ = ["Task", "TASKS", "task_options"]
+__all__ = ["Task", "TASKS", "TEAM_REWARDS", "task_options"]
 
 
 @dataclass(frozen=True)
@@ -49,10 +49,13 @@ class Task:
         object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
 
 
-#: The team objective of the coordination tasks: reach every goal soon (a time cost per
-#: step, a bonus per goal, progress per metre), keep the estimates accurate (a cost per
-#: metre of mean error per step), and ask only for what the rules grant (refusals cost).
-_TEAM_REWARDS = {"progress": 1.0, "localisation_error": -0.5, "refused": -0.05, "goal_bonus": 5.0, "time": -0.01}
+#: The team objective of the coordination tasks (``RewardConfig`` weights): reach every
+#: goal soon (a time cost per step, a bonus per goal, progress per metre), keep the
+#: estimates accurate on the way (a cost per metre of mean error per step), and ask only
+#: for what the rules grant (refusals cost). The other weights are ``RewardConfig``'s defaults.
+TEAM_REWARDS: Mapping[str, float] = MappingProxyType(
+    {"progress": 1.0, "localisation_error": -0.5, "refused": -0.05, "goal_bonus": 5.0, "time": -0.01}
+)
 
 _TASK_LIST = (
     Task(
@@ -64,9 +67,9 @@ _TASK_LIST = (
             "random_scenarios": True,
             "action_mode": "switching",
             "action_masks": True,
-            "rewards": _TEAM_REWARDS,
+            "rewards": dict(TEAM_REWARDS),
         },
-        "4 UGVs to spread goals under one UAV: time, goals, mean localisation error, refusals",
+        "4 UGVs to spread goals under one UAV: time, goals, localisation error on the way, refusals",
     ),
     Task(
         "top_observer_team6",
@@ -77,9 +80,9 @@ _TASK_LIST = (
             "random_scenarios": True,
             "action_mode": "switching",
             "action_masks": True,
-            "rewards": _TEAM_REWARDS,
+            "rewards": dict(TEAM_REWARDS),
         },
-        "6 UGVs to spread goals under one UAV: time, goals, mean localisation error, refusals",
+        "6 UGVs to spread goals under one UAV: time, goals, localisation error on the way, refusals",
     ),
 )
 

@@ -78,3 +78,4 @@ def test_bad_goal_spread_is_named(value):
 def test_team_count_stays_an_integer():
     with pytest.raises(ConfigError, match="top_observer.n_ugvs"):
         TopObserverConfig.random(np.random.default_rng(0), n_ugvs=2.5)
+

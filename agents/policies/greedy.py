@@ -11,8 +11,8 @@ every such chance:
   ``leg_done``, or when blocked, ``leg_blocked``); one whose estimate has not changed
   by ``stall_m`` / ``stall_rad`` for ``stall_s`` (it is lost and waiting, or pushing
   against something) is stopped;
-* when no dwell is running, of the static robots not yet at their goal, the one
-  farthest from its goal whose action mask allows ``ADVANCE`` starts a leg. One
+* when no dwell is running, of the static robots not yet at their goal (position
+  and heading within the goal's tolerances, as estimated), the one farthest from its goal whose action mask allows ``ADVANCE`` starts a leg. One
   new mover per step: the masks judge each change alone, and the next step's masks
   judge the next one with the new mover counted.
 
@@ -24,14 +24,13 @@ Robots towing sleds are not handled (their sleds need reeling turns).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 
-from agents.policies.base import ADVANCE, HOLD, FeatureIndex, read_info
+from agents.policies.base import ADVANCE, HOLD, GoalReader, StallWatch, check_stall_settings, read_info
 from moma_env.env.parallel import MomaParallelEnv
 
 __all__ = ["GreedyParallelPolicy"]
@@ -49,9 +48,7 @@ class GreedyParallelPolicy:
     env_options: Mapping[str, Any] = {"action_mode": "switching", "action_masks": True}
 
     def __init__(self, stall_s: float = 2.0, stall_m: float = 0.02, stall_rad: float = 0.08):
-        for name, value in (("stall_s", stall_s), ("stall_m", stall_m), ("stall_rad", stall_rad)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        check_stall_settings(stall_s=stall_s, stall_m=stall_m, stall_rad=stall_rad)
         self.stall_s = float(stall_s)
         self.stall_m = float(stall_m)
         self.stall_rad = float(stall_rad)
@@ -70,79 +67,34 @@ class GreedyParallelPolicy:
                 raise ValueError(f"GreedyParallelPolicy needs action_mode='switching'; {agent} has {space}")
             if space.n != 2:
                 raise ValueError(f"GreedyParallelPolicy does not reel sleds; {agent} tows one ({space})")
-        scenario = env.scenario
-        xmin, ymin, xmax, ymax = scenario.world.arena.bounds
-        self._two_r = math.hypot(xmax - xmin, ymax - ymin)  # the goal.distance scale (m)
-        self._half_diagonal = 0.5 * self._two_r  # the own.x, own.y scale (m)
-        self._goal_tolerance_m = scenario.goal_tolerance_m
-        self._has_goal = frozenset(scenario.goals)
-        self._features = {a: FeatureIndex(env.layout.features[a]) for a in self.ugvs}
-        self._stall_steps = max(1, int(round(self.stall_s * scenario.world.control_hz)))
-        self._anchor: dict[str, tuple[float, float, float] | None] = {}
-        self._anchor_age: dict[str, int] = {}
+        self.reader = GoalReader(env, self.ugvs)
+        stall_steps = max(1, int(round(self.stall_s * env.scenario.world.control_hz)))
+        self._watches = {a: StallWatch(stall_steps, self.stall_m, self.stall_rad) for a in self.ugvs}
         self.stalls = 0
         self._ready = True
-
-    def _feature(self, agent: str, observations: Mapping[str, np.ndarray], name: str) -> float:
-        return float(observations[agent][self._features[agent][name]])
-
-    def goal_distance(self, agent: str, observations: Mapping[str, np.ndarray]) -> float:
-        """Estimated distance (m) from ``agent`` to its goal; inf if unknown, 0 without a goal."""
-        if agent not in self._has_goal:
-            return 0.0
-        if self._feature(agent, observations, "own.valid") < 0.5:
-            return math.inf
-        return self._feature(agent, observations, "goal.distance") * self._two_r
-
-    def _pose(self, agent: str, observations: Mapping[str, np.ndarray]) -> tuple[float, float, float] | None:
-        if self._feature(agent, observations, "own.valid") < 0.5:
-            return None
-        f = self._feature
-        return (
-            f(agent, observations, "own.x") * self._half_diagonal,
-            f(agent, observations, "own.y") * self._half_diagonal,
-            math.atan2(f(agent, observations, "own.sin_yaw"), f(agent, observations, "own.cos_yaw")),
-        )
-
-    def _stalled(self, agent: str, observations: Mapping[str, np.ndarray]) -> bool:
-        """Whether mover ``agent``'s estimate has not changed for ``stall_s``."""
-        pose = self._pose(agent, observations)
-        anchor = self._anchor.get(agent)
-        if pose is not None and (
-            anchor is None
-            or math.hypot(pose[0] - anchor[0], pose[1] - anchor[1]) > self.stall_m
-            or abs(math.remainder(pose[2] - anchor[2], math.tau)) > self.stall_rad
-        ):
-            self._anchor[agent] = pose
-            self._anchor_age[agent] = 0
-            return False
-        self._anchor_age[agent] = self._anchor_age.get(agent, 0) + 1
-        return self._anchor_age[agent] > self._stall_steps
 
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, int]:
         """Movers keep advancing; the farthest static robot the masks allow starts a leg."""
         if not self._ready:
             raise RuntimeError("call reset(env) before act()")
+        reader = self.reader
         actions = {agent: HOLD for agent in observations}
         idle: list[tuple[float, int, str]] = []
         for agent in actions:
+            watch = self._watches[agent]
             if read_info(infos, agent, "static") is False:
-                if self._stalled(agent, observations):
+                if watch.stalled(reader.pose(agent, observations)):
                     self.stalls += 1
-                    self._anchor.pop(agent, None)
-                    self._anchor_age.pop(agent, None)
+                    watch.clear()
                 else:
                     actions[agent] = ADVANCE
                 continue
-            self._anchor.pop(agent, None)
-            self._anchor_age.pop(agent, None)
-            distance = self.goal_distance(agent, observations)
-            if distance > self._goal_tolerance_m:
-                idle.append((-distance, self.ugvs.index(agent), agent))
+            watch.clear()
+            if not reader.at_goal(agent, observations):
+                idle.append((-reader.goal_distance(agent, observations), self.ugvs.index(agent), agent))
         if not idle:
             return actions
-        first = idle[0][2]
-        if self._feature(first, observations, "dwell_remaining") > 0.0:
+        if reader.feature(idle[0][2], observations, "dwell_remaining") > 0.0:
             return actions
         for _, _, agent in sorted(idle):
             mask = read_info(infos, agent, "action_mask")

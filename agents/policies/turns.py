@@ -19,7 +19,6 @@ the env ends as blocked (``leg_blocked:<device>``, after 1 s without progress).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -27,7 +26,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from agents.policies.base import HOLD, FeatureIndex
+from agents.policies.base import HOLD, GoalReader, StallWatch, check_stall_settings
 from moma_env.env.parallel import MomaParallelEnv
 
 __all__ = ["Move", "TurnTakingPolicy"]
@@ -54,9 +53,7 @@ class TurnTakingPolicy:
     """
 
     def __init__(self, give_up_s: float = 2.0, stall_s: float = 2.0, stall_m: float = 0.02, stall_rad: float = 0.08):
-        for name, value in (("give_up_s", give_up_s), ("stall_s", stall_s), ("stall_m", stall_m), ("stall_rad", stall_rad)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        check_stall_settings(give_up_s=give_up_s, stall_s=stall_s, stall_m=stall_m, stall_rad=stall_rad)
         self.give_up_s = float(give_up_s)
         self.stall_s = float(stall_s)
         self.stall_m = float(stall_m)
@@ -72,23 +69,16 @@ class TurnTakingPolicy:
                 raise ValueError(f"{type(self).__name__} needs action_mode='switching'; {agent} has {env.action_space(agent)}")
             if agent not in self.ugvs:
                 raise ValueError(f"{type(self).__name__} cannot fly a learning observer agent ({agent!r}); use observer_agent=False")
-        scenario = env.scenario
-        xmin, ymin, xmax, ymax = scenario.world.arena.bounds
-        self.two_r = math.hypot(xmax - xmin, ymax - ymin)  # 2 * half-diagonal: the goal.distance scale (m)
-        self.goal_tolerance_m = scenario.goal_tolerance_m
-        self.goals = dict(scenario.goals)
+        self.reader = GoalReader(env, self.ugvs)
+        self.goals = self.reader.goals
         self.tows: dict[str, str] = dict(env.layout.tows)
-        control_hz = scenario.world.control_hz
-        self._features = {a: FeatureIndex(env.layout.features[a]) for a in self.ugvs}
+        control_hz = env.scenario.world.control_hz
         self._give_up_steps = max(1, int(round(self.give_up_s * control_hz)))
-        self._stall_steps = max(1, int(round(self.stall_s * control_hz)))
-        self._half_diagonal = 0.5 * self.two_r  # own.x, own.y scale (m)
+        self._watch = StallWatch(max(1, int(round(self.stall_s * control_hz))), self.stall_m, self.stall_rad)
         self.stalls = 0
         self._turn: Move | None = None
         self._moving = False
         self._refused_no_ref = 0
-        self._anchor: tuple[float, float, float] | None = None  # mover's (x m, y m, yaw rad) when it last moved
-        self._anchor_age = 0
         self._set_aside: set[Move] = set()
         self.last_move: Move | None = None
         self.legs_done = 0
@@ -97,19 +87,15 @@ class TurnTakingPolicy:
     # ------------------------------------------------------------------ observation helpers
     def feature(self, agent: str, observations: Mapping[str, np.ndarray], name: str) -> float:
         """One named feature of ``agent``'s observation."""
-        return float(observations[agent][self._features[agent][name]])
+        return self.reader.feature(agent, observations, name)
 
     def goal_distance(self, agent: str, observations: Mapping[str, np.ndarray]) -> float:
         """Estimated distance (m) from ``agent`` to its goal; inf if unknown, 0 without a goal."""
-        if agent not in self.goals:
-            return 0.0
-        if self.feature(agent, observations, "own.valid") < 0.5:
-            return math.inf
-        return self.feature(agent, observations, "goal.distance") * self.two_r
+        return self.reader.goal_distance(agent, observations)
 
     def at_goal(self, agent: str, observations: Mapping[str, np.ndarray]) -> bool:
-        """Whether ``agent``'s estimate is within the goal tolerance of its goal."""
-        return self.goal_distance(agent, observations) <= self.goal_tolerance_m
+        """Whether ``agent``'s estimate is within its goal's position and heading tolerances."""
+        return self.reader.at_goal(agent, observations)
 
     # ------------------------------------------------------------------ what subclasses decide
     def _next_moves(self, observations: Mapping[str, np.ndarray]) -> Sequence[Move]:
@@ -139,28 +125,9 @@ class TurnTakingPolicy:
     def _stalled(self, turn: Move, observations: Mapping[str, np.ndarray]) -> bool:
         """Whether the mover has not moved for ``stall_s`` (robots only: the env ends a
         stuck reel itself when the rope stops shortening)."""
-        agent = turn.agent
-        if turn.device != agent:
+        if turn.device != turn.agent:
             return False
-        if self.feature(agent, observations, "own.valid") < 0.5:
-            pose = None
-        else:
-            pose = (
-                self.feature(agent, observations, "own.x") * self._half_diagonal,
-                self.feature(agent, observations, "own.y") * self._half_diagonal,
-                math.atan2(self.feature(agent, observations, "own.sin_yaw"), self.feature(agent, observations, "own.cos_yaw")),
-            )
-        anchor = self._anchor
-        if pose is not None and (
-            anchor is None
-            or math.hypot(pose[0] - anchor[0], pose[1] - anchor[1]) > self.stall_m
-            or abs(math.remainder(pose[2] - anchor[2], math.tau)) > self.stall_rad
-        ):
-            self._anchor = pose
-            self._anchor_age = 0
-            return False
-        self._anchor_age += 1
-        return self._anchor_age > self._stall_steps
+        return self._watch.stalled(self.reader.pose(turn.agent, observations))
 
     def _follow_turn(self, infos: Mapping[str, Mapping[str, Any]]) -> None:
         turn = self._turn
@@ -192,8 +159,7 @@ class TurnTakingPolicy:
         self._turn = None
         self._moving = False
         self._refused_no_ref = 0
-        self._anchor = None
-        self._anchor_age = 0
+        self._watch.clear()
 
     def _start_turn(self, observations: Mapping[str, np.ndarray]) -> None:
         candidates = [m for m in self._next_moves(observations) if m.agent in observations]

@@ -165,9 +165,16 @@ class TopObserverConfig(ScenarioConfig):
             goals=goals,
             disks=tuple(disks),
             movers=self.n_ugvs,
-            path_m=math.hypot(self.goal_offset[0], self.goal_offset[1]),
+            path_m=self._longest_path(ugvs, goals),
             uav=uav,
         )
+
+    def _longest_path(self, ugvs: list[UGVConfig], goals: Mapping[str, Pose2D]) -> float:
+        """Distance (m) the robot farthest from its goal travels: the goal offset's
+        length when the formation is kept."""
+        if self.goal_spread == 1.0:
+            return math.hypot(self.goal_offset[0], self.goal_offset[1])
+        return max(math.hypot(goals[u.name][0] - u.initial_pose[0], goals[u.name][1] - u.initial_pose[1]) for u in ugvs)
 
     def required_views(self) -> Mapping[str, tuple[str, ...]]:
         """The observer's camera sees every robot's board."""
