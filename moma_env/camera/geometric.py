@@ -633,6 +633,7 @@ class _Frames:
         rms_list = rms.tolist()
         cov_sums = cov.reshape(n_seen, 36).sum(axis=1).tolist()  # finite only if the covariance is (see finite_or_none)
         status_list = status.tolist() if any_warm else None
+        kept = T.copy() if any_warm else T  # the poses the cameras remember (views of one copy)
         visible, board_markers = self.visible, self.board_markers
         copy_out = len(cameras) > 1  # a batch's detections must not pin the whole batch's arrays
         k = 0
@@ -664,7 +665,7 @@ class _Frames:
                         )
                     )
                     if status_list is not None:
-                        remembered[board_id] = T[k].copy()
+                        remembered[board_id] = kept[k]
                 k += 1
             cam._remember(time, remembered)
             results[f] = detections
