@@ -34,6 +34,19 @@ The reprojection error of a detection is the root mean square, over its corners,
 of the pixel distance between the measured corners and the corners reprojected
 with the estimated pose (with distortion).
 
+Batches: the frames of many cameras with equal parameters (the copies of a vector
+env) are measured together by :func:`moma_env.camera.batch.measure_batch`: one
+projection kernel call (:func:`~moma_env.camera.kernels.project_markers`, every
+board of every frame with its own camera pose) and one solve kernel call
+(:func:`~moma_env.camera.kernels.solve_boards`, every seen board, each with its
+camera's world up), bit for bit the frames measured one by one. ``measure`` is
+the one-frame case of the same code (:class:`_Frames`).
+
+Warm start (``CameraConfig.pnp_warm_start``, off by default): the camera
+remembers each detected board's ``T_c_m`` and the next frame's solve of that
+board starts from it, falling back to the full solve when in doubt (see
+:func:`~moma_env.camera.kernels.solve_boards`).
+
 Every detection carries the first-order covariance of its pose, and the pose is
 chosen between the two of the planar ambiguity by ``CameraConfig.pose_disambiguation``
 (see :func:`moma_env.camera.kernels.solve_boards` and ``docs/pnp.md``); the
@@ -74,6 +87,9 @@ _LAST_ROW.setflags(write=False)
 #: ``given`` argument of solve_boards without an OpenCV method (read only with one).
 _NOTHING_GIVEN = np.zeros(0, dtype=bool)
 _NOTHING_GIVEN.setflags(write=False)
+#: Placeholder world up of a frame that sees nothing (never read).
+_NO_UP = np.full(3, np.nan)
+_NO_UP.setflags(write=False)
 #: In-plane angle (rad) of a face-on board in the auxiliary PnP frame (see GeometricCamera._solve).
 _AUX_FRAME_ANGLE = math.pi / 6
 #: Number of board-set geometries a camera keeps (a scene rarely has more than a few).
@@ -446,7 +462,7 @@ class _Frames:
 
     __slots__ = (
         "cameras", "poses", "boards", "times", "rngs", "geos", "first_board", "any_visible", "board_visible",
-        "board_markers", "visible", "rows", "px", "obj", "noise", "up_c",
+        "board_markers", "visible", "rows", "px", "obj", "noise", "up_c", "owner", "visible_counts",
     )
 
     def __init__(
@@ -461,6 +477,7 @@ class _Frames:
         self.cameras, self.poses, self.boards, self.times, self.rngs = cameras, poses, boards, times, rngs
         n_frames = len(cameras)
         self.any_visible = False
+        self.owner: np.ndarray | None = None
         if n_frames == 1:
             self.geos = geos = [cameras[0]._geometry(boards[0])]
             self.first_board = [0, len(boards[0])]
@@ -481,7 +498,7 @@ class _Frames:
             corners, board_markers = geo.corners_m, geo.board_markers
         else:
             # The same arithmetic on stacked frames (numpy's matmul gives the same bits per board).
-            owner = np.repeat(np.arange(n_frames), sizes)
+            self.owner = owner = np.repeat(np.arange(n_frames), sizes)
             stack = np.array(poses)
             relative = np.array([b.T_w_m[:3] for frame in boards for b in frame])
             relative[:, :, 3] -= stack[owner, :3, 3]
@@ -508,6 +525,7 @@ class _Frames:
                 m0, m1 = int(board_markers[b0]), int(board_markers[b1])
                 apply_occlusion(visible[m0:m1], poses[f], centres[m0:m1], query)
                 board_visible[b0:b1] = np.add.reduceat(visible[m0:m1], board_markers[b0:b1] - m0, dtype=np.int64)
+        self.visible_counts = board_visible
         self.board_visible = counts = board_visible.tolist()
         self.board_markers = board_markers
         self.visible = visible
@@ -594,79 +612,104 @@ class _Frames:
         first_board, board_visible, rows = self.first_board, self.board_visible, self.rows
         cameras, times, all_boards = self.cameras, self.times, self.boards
         whole = len(frames) == len(cameras)
-        # Seen boards, frame after frame: frame, board index in the frame, global board index.
-        seen = [
-            (f, b - first_board[f], b) for f in frames for b in range(first_board[f], first_board[f + 1]) if board_visible[b]
-        ]
-        if not seen:
+        # Seen boards, frame after frame: global board index, frame, board index in the frame
+        # (parallel lists of ints: few container objects for the garbage collector to track).
+        if self.owner is None:  # one frame
+            seen_g = [g for g in range(first_board[1]) if board_visible[g]]
+            seen_f = [0] * len(seen_g)
+            seen_b = seen_g
+            bounds = [0]
+            for g in seen_g:
+                bounds.append(bounds[-1] + 4 * board_visible[g])
+            starts = np.array(bounds, dtype=np.int64)
+        else:
+            mask = self.visible_counts > 0
+            if not whole:
+                in_wave = np.zeros(len(cameras), dtype=bool)
+                in_wave[frames] = True
+                mask &= in_wave[self.owner]
+            index_g = np.flatnonzero(mask)
+            index_f = self.owner[index_g]
+            seen_g, seen_f = index_g.tolist(), index_f.tolist()
+            seen_b = (index_g - np.array(first_board)[index_f]).tolist()
+            starts = np.zeros(len(seen_g) + 1, dtype=np.int64)
+            np.cumsum(4 * self.visible_counts[index_g], out=starts[1:])
+            bounds = starts.tolist()
+        if not seen_g:
             for f in frames:
                 cameras[f]._remember(times[f], {})
             return
-        n_seen = len(seen)
-        bounds = [0] * (n_seen + 1)
-        total = 0
-        for k, (_, _, g) in enumerate(seen):
-            total += 4 * board_visible[g]
-            bounds[k + 1] = total
+        n_seen = len(seen_g)
         if whole:
             obj, px = self.obj, self.px
         else:
             index = np.concatenate([np.arange(rows[f], rows[f + 1]) for f in frames])
             obj, px = self.obj[index], self.px[index]
-        up_m = board_up_rows([all_boards[f][b] for f, b, _ in seen])
+        up_m = board_up_rows([all_boards[f][b] for f, b in zip(seen_f, seen_b)])
         up_c = np.empty((n_seen, 3))
         if len(frames) == 1:
             up_c[:] = self.up_c[frames[0]]
         else:
-            up_c[:] = [self.up_c[f] for f, _, _ in seen]
+            up_c[:] = np.array([self.up_c[f] if self.up_c[f] is not None else _NO_UP for f in range(len(cameras))])[index_f]
         T = np.zeros((n_seen, 4, 4))
         status = np.zeros(n_seen, dtype=np.int8)
         any_warm = cameras[frames[0]]._warm_start or any(cameras[f]._warm_start for f in frames)
         if any_warm:
             memories = {f: cameras[f]._warm_memory(times[f]) for f in frames}
-            for k, (f, b, _) in enumerate(seen):
-                start = memories[f].get(all_boards[f][b].board_id)
+            for k in range(n_seen):
+                f = seen_f[k]
+                start = memories[f].get(all_boards[f][seen_b[k]].board_id)
                 if start is not None:
                     T[k] = start
                     status[k] = 1
-        rms, cov, status = cameras[frames[0]]._solve_boards(obj, px, np.array(bounds, dtype=np.int64), up_m, up_c, status, T)
+        rms, cov, status = cameras[frames[0]]._solve_boards(obj, px, starts, up_m, up_c, status, T)
         rms_list = rms.tolist()
         cov_sums = cov.reshape(n_seen, 36).sum(axis=1).tolist()  # finite only if the covariance is (see finite_or_none)
         status_list = status.tolist() if any_warm else None
         kept = T.copy() if any_warm else T  # the poses the cameras remember (views of one copy)
         visible, board_markers = self.visible, self.board_markers
-        copy_out = len(cameras) > 1  # a batch's detections must not pin the whole batch's arrays
+        copy_out = len(cameras) > 1
         k = 0
         for f in frames:
             cam, time, boards, geo = cameras[f], times[f], all_boards[f], self.geos[f]
             detections = []
             remembered: dict[int, np.ndarray] = {}
-            while k < n_seen and seen[k][0] == f:
-                _, b, g = seen[k]
-                rms_b = rms_list[k]
-                if status_list is not None and status_list[k]:
-                    cam.warm_counts[status_list[k] - 1] += 1
+            k0 = k
+            while k < n_seen and seen_f[k] == f:
+                k += 1
+            if k == k0:
+                cam._remember(time, remembered)
+                results[f] = detections
+                continue
+            T_f, cov_f, px_f, row0 = T, cov, px, 0
+            if copy_out:
+                # The frame's own arrays: a detection kept must not keep the whole batch's alive.
+                row0 = bounds[k0]
+                T_f, cov_f, px_f = T[k0:k].copy(), cov[k0:k].copy(), px[row0 : bounds[k]].copy()
+                k_f = -k0
+            else:
+                k_f = 0
+            for j in range(k0, k):
+                b, g = seen_b[j], seen_g[j]
+                rms_b = rms_list[j]
+                if status_list is not None and status_list[j]:
+                    cam.warm_counts[status_list[j] - 1] += 1
                 if math.isfinite(rms_b):
-                    first, end = bounds[k], bounds[k + 1]
                     layout = geo.layouts[b]
                     if board_visible[g] == len(layout.marker_ids):
                         ids = layout.marker_ids
                     else:
                         m0 = int(board_markers[g])
                         ids = tuple(compress(layout.marker_ids, visible[m0 : m0 + geo.counts[b]].tolist()))
-                    T_k, corners_k, cov_k = T[k], px[first:end], cov[k]
-                    if copy_out:
-                        T_k, corners_k, cov_k = T_k.copy(), corners_k.copy(), cov_k.copy()
                     board_id = boards[b].board_id
                     detections.append(
                         Detection(
-                            cam.camera_id, board_id, T_k, corners_k, ids, time, rms_b,
-                            cov_k if math.isfinite(cov_sums[k]) else None,
+                            cam.camera_id, board_id, T_f[j + k_f], px_f[bounds[j] - row0 : bounds[j + 1] - row0], ids,
+                            time, rms_b, cov_f[j + k_f] if math.isfinite(cov_sums[j]) else None,
                         )
                     )
                     if status_list is not None:
-                        remembered[board_id] = kept[k]
-                k += 1
+                        remembered[board_id] = kept[j]
             cam._remember(time, remembered)
             results[f] = detections
 

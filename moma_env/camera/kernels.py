@@ -9,6 +9,9 @@ each. They implement the visibility checks listed in
 compare them with those and with per-marker definitions).
 
 Camera parameters travel as one float64 vector, built by :func:`camera_parameters`.
+:func:`project_markers` and :func:`solve_boards` take boards of many frames at once
+(each board with its own camera pose and world up), so that a batch of frames of
+cameras with equal parameters costs one call each (see :mod:`moma_env.camera.batch`).
 """
 
 from __future__ import annotations
