@@ -353,7 +353,7 @@ def test_a_failed_planar_lm_solve_drops_only_its_board(monkeypatch):
         # solve_boards reports a failed board with a NaN error.
         calls.append(len(starts) - 1)
         solve(obj, px, starts, parameters, *rest)
-        rest[-2][1] = np.nan  # rms
+        rest[-3][1] = np.nan  # rms (then cov, status)
 
     monkeypatch.setattr(geometric, "solve_boards", fail_the_middle_board)
     dets = cam.measure(T_w_c, boards, 0.0, np.random.default_rng(3))

@@ -15,6 +15,7 @@ in the scene; it never tells the backend which boards are visible.
 
 from __future__ import annotations
 
+import math
 import operator
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -78,19 +79,34 @@ class BoardView:
     up_m: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        try:
-            object.__setattr__(self, "board_id", operator.index(self.board_id))
-        except TypeError:
-            raise TypeError(f"board_id must be an integer, got {self.board_id!r}") from None
+        # Written for speed (the simulator makes a view per board per frame): plain-float
+        # checks instead of numpy calls, the same rejections as as_pose and all_finite.
+        board_id = self.board_id
+        if type(board_id) is not int:
+            try:
+                object.__setattr__(self, "board_id", operator.index(board_id))
+            except TypeError:
+                raise TypeError(f"board_id must be an integer, got {board_id!r}") from None
         if not isinstance(self.layout, BoardLayout):
             raise TypeError(f"layout must be a BoardLayout, got {type(self.layout).__name__}")
-        object.__setattr__(self, "T_w_m", as_pose(self.T_w_m, "T_w_m"))
-        if self.up_m is not None:
-            up = np.asarray(self.up_m, dtype=float)
-            if up.shape != (3,) or not all_finite(up):
+        T = self.T_w_m
+        if type(T) is not np.ndarray or T.dtype.char != "d" or T.shape != (4, 4):
+            T = as_pose(T, "T_w_m")
+            object.__setattr__(self, "T_w_m", T)
+        elif not math.isfinite(sum(T.ravel().tolist())):
+            as_pose(T, "T_w_m")  # raises unless finite (an overflowing sum of finite values passes)
+        up = self.up_m
+        if up is not None:
+            if type(up) is not np.ndarray or up.dtype.char != "d":
+                up = np.asarray(up, dtype=float)
+            if up.shape != (3,):
                 raise ValueError(f"up_m must be a finite 3-vector, got {self.up_m!r}")
-            if abs(float(up @ up) - 1.0) > 1e-6:
-                raise ValueError(f"up_m must be a unit vector, got norm {float(np.sqrt(up @ up))!r}")
+            x, y, z = up.tolist()
+            if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+                raise ValueError(f"up_m must be a finite 3-vector, got {self.up_m!r}")
+            norm_sq = x * x + y * y + z * z
+            if abs(norm_sq - 1.0) > 1e-6:
+                raise ValueError(f"up_m must be a unit vector, got norm {math.sqrt(norm_sq)!r}")
             up = up.copy()
             up.setflags(write=False)
             object.__setattr__(self, "up_m", up)

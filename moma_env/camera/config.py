@@ -110,6 +110,24 @@ class CameraConfig:
         pnp_sigma_floor_px: smallest estimated corner noise std (px, >= 0): a
             board whose corners happen to fit almost exactly is not reported as
             certain.
+        pnp_warm_start: warm-started PnP (``pnp_method="PLANAR_LM"`` of the
+            geometric backend; the OpenCV methods and the rendered backend
+            always solve from scratch). The camera remembers the pose ``T_c_m``
+            of every board it detected in its previous frame; in the next frame
+            (a later ``time``) that board's solve starts from it: a few
+            Levenberg-Marquardt iterations on the same cost the full solve
+            minimises, accepted only if the mirror pose of the planar ambiguity
+            is clearly worse (see
+            :func:`moma_env.camera.planar_pnp.refine_warm_start`) and the RMS
+            reprojection error is at most ``pnp_warm_max_rms_px``; otherwise
+            (and for boards not detected in the previous frame) the full solve.
+            ``GeometricCamera.reset()`` forgets the poses (a new episode).
+        pnp_warm_max_rms_px: largest RMS reprojection error (px, finite, >=
+            ``noise_px`` and > 0) of an accepted warm start; None (default):
+            ``3 * max(noise_px, pnp_sigma_floor_px)`` (:attr:`warm_max_rms_px`),
+            about twice the RMS error of a correct pose (``~1.3 noise_px`` for
+            a 16-corner board), so it rejects poses that fell into a wrong
+            minimum after a jump and practically never a correct one.
     """
 
     width: int = 720
@@ -131,6 +149,8 @@ class CameraConfig:
     attitude_noise_deg: float = 0.0
     pnp_sigma_source: str = "auto"
     pnp_sigma_floor_px: float = 0.1
+    pnp_warm_start: bool = False
+    pnp_warm_max_rms_px: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "width", _check_positive_int("camera.width", self.width))
@@ -170,6 +190,25 @@ class CameraConfig:
         check_non_negative("camera.attitude_noise_deg", self.attitude_noise_deg)
         check_choice("camera.pnp_sigma_source", self.pnp_sigma_source, PNP_SIGMA_SOURCES)
         check_non_negative("camera.pnp_sigma_floor_px", self.pnp_sigma_floor_px)
+        if not isinstance(self.pnp_warm_start, bool):
+            raise ConfigError("camera.pnp_warm_start", f"must be True or False, got {self.pnp_warm_start!r}")
+        if self.pnp_warm_max_rms_px is not None:
+            check_positive("camera.pnp_warm_max_rms_px", self.pnp_warm_max_rms_px)
+            if self.pnp_warm_max_rms_px < self.noise_px:
+                raise ConfigError(
+                    "camera.pnp_warm_max_rms_px",
+                    f"must be at least noise_px={self.noise_px} (a correct pose's RMS error is about "
+                    f"1.3 noise_px: nearly every warm start would be rejected), got {self.pnp_warm_max_rms_px!r}",
+                )
+            object.__setattr__(self, "pnp_warm_max_rms_px", float(self.pnp_warm_max_rms_px))
+
+    @property
+    def warm_max_rms_px(self) -> float:
+        """The RMS reprojection error (px) up to which a warm-started pose is accepted
+        (``pnp_warm_max_rms_px``, or its default ``3 * max(noise_px, pnp_sigma_floor_px)``)."""
+        if self.pnp_warm_max_rms_px is not None:
+            return self.pnp_warm_max_rms_px
+        return 3.0 * max(self.noise_px, self.pnp_sigma_floor_px)
 
     def _validated_dist(self) -> tuple[float, float, float, float, float]:
         try:

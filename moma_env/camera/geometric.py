@@ -34,6 +34,19 @@ The reprojection error of a detection is the root mean square, over its corners,
 of the pixel distance between the measured corners and the corners reprojected
 with the estimated pose (with distortion).
 
+Batches: the frames of many cameras with equal parameters (the copies of a vector
+env) are measured together by :func:`moma_env.camera.batch.measure_batch`: one
+projection kernel call (:func:`~moma_env.camera.kernels.project_markers`, every
+board of every frame with its own camera pose) and one solve kernel call
+(:func:`~moma_env.camera.kernels.solve_boards`, every seen board, each with its
+camera's world up), bit for bit the frames measured one by one. ``measure`` is
+the one-frame case of the same code (:class:`_Frames`).
+
+Warm start (``CameraConfig.pnp_warm_start``, off by default): the camera
+remembers each detected board's ``T_c_m`` and the next frame's solve of that
+board starts from it, falling back to the full solve when in doubt (see
+:func:`~moma_env.camera.kernels.solve_boards`).
+
 Every detection carries the first-order covariance of its pose, and the pose is
 chosen between the two of the planar ambiguity by ``CameraConfig.pose_disambiguation``
 (see :func:`moma_env.camera.kernels.solve_boards` and ``docs/pnp.md``); the
@@ -53,13 +66,13 @@ import numpy as np
 from moma_env.camera.backend import BoardView, OcclusionQuery, as_pose
 from moma_env.camera.config import CameraConfig
 from moma_env.camera.pinhole import PinholeCamera
-from moma_env.camera.kernels import camera_parameters, project_boards, solve_boards, solve_settings, undistort_points
+from moma_env.camera.kernels import camera_parameters, project_markers, solve_boards, solve_settings, undistort_points
 from moma_env.camera.visibility import apply_occlusion
 from moma_env.estimator.detection import Detection
 from moma_env.geometry import rotvec_to_matrix
 from moma_env.markers import BoardLayout
 
-__all__ = ["GeometricCamera"]
+__all__ = ["GeometricCamera", "check_frame"]
 
 _FIRST_SOLVER = {
     "IPPE": cv2.SOLVEPNP_IPPE,
@@ -71,6 +84,12 @@ _IDENTITY_K = np.eye(3)
 _IDENTITY_K.setflags(write=False)
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 _LAST_ROW.setflags(write=False)
+#: ``given`` argument of solve_boards without an OpenCV method (read only with one).
+_NOTHING_GIVEN = np.zeros(0, dtype=bool)
+_NOTHING_GIVEN.setflags(write=False)
+#: Placeholder world up of a frame that sees nothing (never read).
+_NO_UP = np.full(3, np.nan)
+_NO_UP.setflags(write=False)
 #: In-plane angle (rad) of a face-on board in the auxiliary PnP frame (see GeometricCamera._solve).
 _AUX_FRAME_ANGLE = math.pi / 6
 #: Number of board-set geometries a camera keeps (a scene rarely has more than a few).
@@ -80,34 +99,36 @@ _GEOMETRY_CACHE_SIZE = 16
 class _BoardSetGeometry:
     """Marker geometry of one sequence of board layouts, arranged for the kernels.
 
-    Every board is padded to ``n_markers`` markers (the most of any layout);
-    padded markers are never visible. Arrays are read-only.
+    The markers of all boards are stacked, board after board (no padding).
+    Arrays are read-only.
 
     Attributes:
         layouts: the layouts, in board order (holding them keeps their ids, the
             cache key, from being reused).
-        n_markers: markers per board after padding, ``m``.
-        corners_m: (B, m, 4, 3) marker corners in M (m), ArUco order.
-        real: (B, m) True for markers that exist.
+        counts: markers per board (list of ints).
+        marker_counts: (B,) int64, the same as an array.
+        board_markers: (B + 1,) int64: board ``b`` owns markers
+            ``board_markers[b]:board_markers[b + 1]``.
+        corners_m: (M, 4, 3) marker corners in their board frames M (m), ArUco order.
     """
 
-    __slots__ = ("layouts", "n_markers", "corners_m", "real")
+    __slots__ = ("layouts", "counts", "marker_counts", "board_markers", "corners_m")
 
     def __init__(self, layouts: tuple[BoardLayout, ...]) -> None:
-        counts = [lay.marker_corners.shape[0] for lay in layouts]
-        m = max(counts)
-        corners = np.empty((len(layouts), m, 4, 3))
-        for b, lay in enumerate(layouts):
-            if np.any(lay.marker_corners[..., 2] != 0.0):
+        parts = []
+        for lay in layouts:
+            corners = lay.marker_corners
+            if np.any(corners[..., 2] != 0.0):
                 raise ValueError("board layouts must be planar (z_M = 0)")
-            corners[b, : counts[b]] = lay.marker_corners
-            corners[b, counts[b] :] = lay.marker_corners[0]  # padding: a copy of the first marker
+            parts.append(corners)
         self.layouts = layouts
-        self.n_markers = m
-        self.corners_m = corners
-        self.real = np.array([[k < c for k in range(m)] for c in counts], dtype=bool).reshape(len(layouts), m)
-        for a in (self.corners_m, self.real):
-            a.setflags(write=False)
+        self.counts = [part.shape[0] for part in parts]
+        self.marker_counts = np.array(self.counts, dtype=np.int64)
+        self.board_markers = np.zeros(len(layouts) + 1, dtype=np.int64)
+        np.cumsum(self.marker_counts, out=self.board_markers[1:])
+        self.corners_m = np.ascontiguousarray(np.concatenate(parts), dtype=np.float64)
+        for array in (self.marker_counts, self.board_markers, self.corners_m):
+            array.setflags(write=False)
 
 
 class GeometricCamera:
@@ -118,10 +139,20 @@ class GeometricCamera:
         config: intrinsics, noise and visibility limits.
 
     The camera keeps a small cache of marker geometry per sequence of board
-    layout objects it is shown; it never caches poses or results, so every call
-    depends only on its arguments. Copies (:mod:`copy`, :mod:`pickle`) start with
-    an empty cache: its keys are ids of the original's layout objects, which mean
+    layout objects it is shown. Without ``config.pnp_warm_start`` it never
+    caches poses or results, so every call depends only on its arguments. With
+    it, the camera remembers the pose ``T_c_m`` of each board (by board id) it
+    detected in its last frame, and the next frame (a later ``time``) starts
+    that board's PnP from it (see :func:`moma_env.camera.kernels.solve_boards`);
+    :meth:`reset` forgets them (a new episode), as does a frame at a time not
+    after the last. Copies (:mod:`copy`, :mod:`pickle`) keep these poses (a copy
+    continues the same sequence bit for bit) but start with an empty geometry
+    cache: its keys are ids of the original's layout objects, which mean
     nothing to a copy (and could name other objects in another process).
+
+    Several frames of cameras with equal parameters (e.g. the copies of a
+    vector env) are measured together by :func:`moma_env.camera.batch.measure_batch`;
+    :meth:`measure` is its one-frame case.
     """
 
     def __init__(self, camera_id: str, config: CameraConfig) -> None:
@@ -139,7 +170,23 @@ class GeometricCamera:
         self._prior_rad = math.radians(math.hypot(cfg.upright_prior_deg, cfg.attitude_noise_deg))
         self._attitude_noise_rad = math.radians(cfg.attitude_noise_deg)
         self._sigma_px = math.nan if cfg.pnp_sigma_source == "residuals" else cfg.noise_px
-        self._settings = solve_settings(self._upright, self._sigma_px, cfg.pnp_sigma_floor_px, self._prior_rad)
+        self._settings = solve_settings(
+            self._upright, self._sigma_px, cfg.pnp_sigma_floor_px, self._prior_rad, cfg.warm_max_rms_px
+        )
+        self._settings.setflags(write=False)
+        self._warm_start = cfg.pnp_warm_start and self._first_solver is None
+        #: Frames measured together must agree on these (the kernels' inputs shared by all boards).
+        self._batch_key = (self._parameters.tobytes(), self._settings.tobytes(), self._first_solver, self._refine_lm)
+        self._warm_poses: dict[int, np.ndarray] = {}
+        self._warm_time = -math.inf
+        #: Boards solved from a warm start: ``[accepted, rejected (solved in full)]`` since construction.
+        self.warm_counts = [0, 0]
+
+    def reset(self) -> None:
+        """Forget the remembered board poses (call at the start of an episode): the next
+        frame solves every board from scratch."""
+        self._warm_poses = {}
+        self._warm_time = -math.inf
 
     def up_in_camera(self, T_w_c: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """World up in C (unit 3-vector) as the camera knows it from ``T_w_c`` (4x4, validated).
@@ -167,68 +214,35 @@ class GeometricCamera:
             boards: the boards in the scene; detections come out in this order.
             time: acquisition time (s), copied into the detections.
             rng: source of the pixel noise; one draw of all visible corners per
-                call, in board order, skipped when ``noise_px == 0``.
+                call, in board order, skipped when ``noise_px == 0`` (then three
+                draws of the attitude error if ``attitude_noise_deg > 0``);
+                nothing is drawn when no marker is visible.
             occluded: optional line-of-sight query, called for each geometrically
                 visible marker with the camera centre and marker centre in W.
 
         Returns:
             One :class:`Detection` per board with at least one visible marker.
         """
-        T_w_c = as_pose(T_w_c, "T_w_c")
-        time = float(time)
-        if not math.isfinite(time):
-            raise ValueError(f"time must be finite, got {time!r}")
-        if not isinstance(rng, np.random.Generator):
-            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        T_w_c, time = check_frame(T_w_c, time, rng)
         if not boards:
+            self._remember(time, {})
             return []
-        geo = self._geometry(boards)
-        n_boards, m = len(boards), geo.n_markers
+        frames = _Frames([self], [T_w_c], [boards], [time], [rng], [occluded])
+        frames.draw(0)
+        return frames.solve()[0]
 
-        # Board poses in C, top three rows of T_c_m = inv(T_w_c) @ T_w_m: (B, 3, 4).
-        relative = np.array([b.T_w_m[:3] for b in boards])
-        relative[:, :, 3] -= T_w_c[:3, 3]
-        poses = np.matmul(T_w_c[:3, :3].T, relative)
-        uv = np.empty((n_boards, m, 4, 2))
-        visible = np.empty((n_boards, m), dtype=bool)
-        centres = np.empty((n_boards, m, 3))
-        if not project_boards(poses, geo.corners_m, geo.real, poses[:, :, 2], self._parameters, uv, visible, centres):
-            return []
-        if occluded is not None:
-            apply_occlusion(visible.reshape(-1), T_w_c, centres.reshape(-1, 3), occluded)
-        visible_rows = visible.tolist()
-        counts = [sum(row) for row in visible_rows]
-        if not any(counts):
-            return []
+    def _remember(self, time: float, poses: dict[int, np.ndarray]) -> None:
+        """After a frame at ``time`` (s): the board poses to warm-start the next frame from."""
+        if self._warm_start:
+            self._warm_poses = poses
+            self._warm_time = time
 
-        # Measured corners of the visible markers, board after board: (n, 2) pixels.
-        px = uv[visible].reshape(-1, 2)
-        obj = geo.corners_m[visible].reshape(-1, 3)
-        if self.config.noise_px > 0.0:
-            noise = rng.standard_normal(px.shape)
-            noise *= self.config.noise_px
-            px += noise
-        up_c = self.up_in_camera(T_w_c, rng)
-        seen = [b for b, k in enumerate(counts) if k]
-        bounds = [0]
-        for b in seen:
-            bounds.append(bounds[-1] + 4 * counts[b])
-        up_m = board_up_rows([boards[b] for b in seen])
-        T, rms, cov = self.solve_boards(obj, px, np.array(bounds, dtype=np.int64), up_m, up_c)
-
-        detections = []
-        for i, b in enumerate(seen):
-            rms_b = float(rms[i])
-            if not math.isfinite(rms_b):
-                continue
-            layout = geo.layouts[b]
-            first, end = bounds[i], bounds[i + 1]
-            all_seen = counts[b] == len(layout.marker_ids)
-            ids = layout.marker_ids if all_seen else tuple(compress(layout.marker_ids, visible_rows[b]))
-            detections.append(
-                Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, rms_b, finite_or_none(cov[i]))
-            )
-        return detections
+    def _warm_memory(self, time: float) -> dict[int, np.ndarray]:
+        """The remembered poses ``T_c_m`` by board id, usable in a frame at ``time`` (s):
+        those of the previous frame if ``time`` is later than it, else none."""
+        if self._warm_start and time > self._warm_time:
+            return self._warm_poses
+        return {}
 
     def solve_boards(
         self,
@@ -264,9 +278,6 @@ class GeometricCamera:
             :class:`~moma_env.estimator.detection.Detection`).
         """
         n_boards = len(starts) - 1
-        T = np.zeros((n_boards, 4, 4))
-        rms = np.empty(n_boards)
-        cov = np.empty((n_boards, 6, 6))  # written for every solved board
         if up_m is None:
             up_m = np.full((n_boards, 3), np.nan)
             up_c = np.full(3, np.nan)
@@ -275,12 +286,38 @@ class GeometricCamera:
         settings = self._settings
         if sigma_px is not None:
             settings = solve_settings(self._upright, float(sigma_px), self.config.pnp_sigma_floor_px, self._prior_rad)
-        given = np.zeros(n_boards, dtype=bool)
-        use_given = self._first_solver is not None
-        if use_given:
-            given[:] = self._solve_with_opencv(obj, px, starts, T)
-        solve_boards(obj, px, starts, self._parameters, up_m, up_c, settings, use_given, given, T, rms, cov)
+        up_rows = np.empty((n_boards, 3))
+        up_rows[:] = up_c
+        T = np.zeros((n_boards, 4, 4))
+        rms, cov, _ = self._solve_boards(obj, px, starts, up_m, up_rows, np.zeros(n_boards, dtype=np.int8), T, settings)
         return T, rms, cov
+
+    def _solve_boards(
+        self,
+        obj: np.ndarray,
+        px: np.ndarray,
+        starts: np.ndarray,
+        up_m: np.ndarray,
+        up_c: np.ndarray,
+        status: np.ndarray,
+        T: np.ndarray,
+        settings: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`solve_boards` of boards from any frames of cameras with this camera's
+        parameters: ``up_c`` (K, 3) world up in C per board, ``status`` (K,) int8, in:
+        1 where ``T[k]`` (K, 4, 4, in and out) holds a warm start, out: how each board
+        was solved. Returns ``(rms, cov, status)`` (see
+        :func:`moma_env.camera.kernels.solve_boards`)."""
+        n_boards = len(starts) - 1
+        rms = np.empty(n_boards)
+        cov = np.empty((n_boards, 6, 6))  # written for every solved board
+        use_given = self._first_solver is not None
+        given = np.array(self._solve_with_opencv(obj, px, starts, T), dtype=bool) if use_given else _NOTHING_GIVEN
+        solve_boards(
+            obj, px, starts, self._parameters, up_m, up_c, self._settings if settings is None else settings,
+            use_given, given, T, rms, cov, status,
+        )
+        return rms, cov, status
 
     def _solve_with_opencv(self, obj: np.ndarray, px: np.ndarray, starts: np.ndarray, T: np.ndarray) -> list[bool]:
         """OpenCV's solvePnP (methods IPPE, ITERATIVE, SQPNP) of every board: poses into ``T``;
@@ -368,7 +405,8 @@ class GeometricCamera:
             return False, None, None
 
     def __getstate__(self) -> dict[str, object]:
-        """The camera's attributes, for :mod:`copy` and :mod:`pickle`, with an empty geometry cache."""
+        """The camera's attributes, for :mod:`copy` and :mod:`pickle`, with an empty geometry
+        cache (the remembered warm-start poses are kept: they are keyed by board id)."""
         state = self.__dict__.copy()
         state["_geometries"] = {}
         return state
@@ -387,6 +425,293 @@ class GeometricCamera:
             geo = _BoardSetGeometry(tuple(b.layout for b in boards))
             self._geometries[key] = geo
         return geo
+
+
+def check_frame(T_w_c: object, time: object, rng: object) -> tuple[np.ndarray, float]:
+    """The arguments of one frame, validated: ``T_w_c`` as a finite float 4x4 array and
+    ``time`` as a finite float (s); ValueError / TypeError naming the bad argument."""
+    T_w_c = as_pose(T_w_c, "T_w_c")
+    time = float(time)
+    if not math.isfinite(time):
+        raise ValueError(f"time must be finite, got {time!r}")
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    return T_w_c, time
+
+
+class _Frames:
+    """Frames of geometric cameras with equal kernel parameters (``_batch_key``), measured together.
+
+    Three stages, so that a batch of many cameras keeps every frame's random
+    draws in the order of sequential ``measure`` calls: the constructor projects
+    the boards of all frames (one kernel call) and applies the occlusion queries;
+    :meth:`draw` draws one frame's noise from its generator (the caller calls it
+    for every frame, in order, interleaved with other backends' frames);
+    :meth:`solve` solves every seen board of all frames (one kernel call per
+    wave, see below) and makes the detections.
+
+    A camera may appear in several frames. With warm starts, a frame must start
+    from the poses of the same camera's previous frame, so the frames are
+    solved in waves: wave ``w`` holds every camera's ``w``-th frame.
+
+    Args:
+        cameras, poses, boards, times, rngs, occluded: per frame, the camera, its
+            validated pose ``T_w_c`` (4x4), the boards (possibly none), the validated
+            time (s), the generator and the occlusion query (or None).
+    """
+
+    __slots__ = (
+        "cameras", "poses", "boards", "times", "rngs", "geos", "first_board", "any_visible", "board_visible",
+        "board_markers", "visible", "rows", "px", "obj", "noise", "up_c", "owner", "visible_counts",
+    )
+
+    def __init__(
+        self,
+        cameras: Sequence[GeometricCamera],
+        poses: Sequence[np.ndarray],
+        boards: Sequence[Sequence[BoardView]],
+        times: Sequence[float],
+        rngs: Sequence[np.random.Generator],
+        occluded: Sequence[OcclusionQuery | None],
+    ) -> None:
+        self.cameras, self.poses, self.boards, self.times, self.rngs = cameras, poses, boards, times, rngs
+        n_frames = len(cameras)
+        self.any_visible = False
+        self.owner: np.ndarray | None = None
+        if n_frames == 1:
+            self.geos = geos = [cameras[0]._geometry(boards[0])]
+            self.first_board = [0, len(boards[0])]
+        else:
+            self.geos = geos = [cam._geometry(b) if b else None for cam, b in zip(cameras, boards)]
+            sizes = [len(b) for b in boards]
+            self.first_board = [0]
+            for size in sizes:
+                self.first_board.append(self.first_board[-1] + size)
+            if not self.first_board[-1]:
+                return
+        if n_frames == 1:
+            T_w_c, geo = poses[0], geos[0]
+            # Board poses in C, top three rows of T_c_m = inv(T_w_c) @ T_w_m: (B, 3, 4).
+            relative = np.array([b.T_w_m[:3] for b in boards[0]])
+            relative[:, :, 3] -= T_w_c[:3, 3]
+            board_poses = np.matmul(T_w_c[:3, :3].T, relative)
+            corners, board_markers = geo.corners_m, geo.board_markers
+        else:
+            # The same arithmetic on stacked frames (numpy's matmul gives the same bits per board).
+            self.owner = owner = np.repeat(np.arange(n_frames), sizes)
+            stack = np.array(poses)
+            relative = np.array([b.T_w_m[:3] for frame in boards for b in frame])
+            relative[:, :, 3] -= stack[owner, :3, 3]
+            board_poses = np.matmul(stack[:, :3, :3].transpose(0, 2, 1)[owner], relative)
+            present = [g for g in geos if g is not None]
+            corners = np.concatenate([g.corners_m for g in present])
+            board_markers = np.zeros(len(owner) + 1, dtype=np.int64)
+            np.cumsum(np.concatenate([g.marker_counts for g in present]), out=board_markers[1:])
+        n_markers, n_boards = corners.shape[0], board_poses.shape[0]
+        uv = np.empty((n_markers, 4, 2))
+        visible = np.empty(n_markers, dtype=bool)
+        centres = np.empty((n_markers, 3))
+        board_visible = np.empty(n_boards, dtype=np.int64)
+        parameters = cameras[0]._parameters
+        if not project_markers(board_poses, board_markers, corners, parameters, uv, visible, centres, board_visible):
+            return
+        self.any_visible = True
+        first_board = self.first_board
+        if occluded.count(None) < n_frames:
+            for f, query in enumerate(occluded):
+                if query is None:
+                    continue
+                b0, b1 = first_board[f], first_board[f + 1]
+                m0, m1 = int(board_markers[b0]), int(board_markers[b1])
+                apply_occlusion(visible[m0:m1], poses[f], centres[m0:m1], query)
+                board_visible[b0:b1] = np.add.reduceat(visible[m0:m1], board_markers[b0:b1] - m0, dtype=np.int64)
+        self.visible_counts = board_visible
+        self.board_visible = counts = board_visible.tolist()
+        self.board_markers = board_markers
+        self.visible = visible
+        # Corner rows of each frame in the stacked measurements, frame after frame.
+        if n_frames == 1:
+            self.rows = [0, 4 * sum(counts)]
+        else:
+            rows = [0]
+            for f in range(n_frames):
+                rows.append(rows[-1] + 4 * sum(counts[first_board[f] : first_board[f + 1]]))
+            self.rows = rows
+        # Measured corners of the visible markers, board after board: (n, 2) pixels.
+        self.px = uv[visible].reshape(-1, 2)
+        self.obj = corners[visible].reshape(-1, 3)
+        self.noise: np.ndarray | None = None
+        self.up_c: list[np.ndarray | None] = [None] * n_frames
+
+    def draw(self, f: int) -> None:
+        """Frame ``f``'s random draws from its generator: the corner noise (if
+        ``noise_px > 0``), then the attitude error (if ``attitude_noise_deg > 0``);
+        none if it sees no marker."""
+        if not self.any_visible:
+            return
+        first, end = self.rows[f], self.rows[f + 1]
+        if first == end:
+            return
+        camera, rng = self.cameras[f], self.rngs[f]
+        if camera.config.noise_px > 0.0:
+            if end - first == len(self.px):
+                self.noise = rng.standard_normal(self.px.shape)
+            else:
+                if self.noise is None:
+                    self.noise = np.empty_like(self.px)
+                rng.standard_normal(out=self.noise[first:end])
+        self.up_c[f] = camera.up_in_camera(self.poses[f], rng)
+
+    def solve(self) -> list[list[Detection]]:
+        """The detections of every frame (after :meth:`draw` of every frame)."""
+        n_frames = len(self.cameras)
+        if not self.any_visible:
+            for camera, time in zip(self.cameras, self.times):
+                camera._remember(time, {})
+            return [[] for _ in range(n_frames)]
+        self._add_noise()
+        results: list[list[Detection]] = [[] for _ in range(n_frames)]
+        if n_frames == 1:
+            self._solve_wave([0], results)
+            return results
+        # Waves: the k-th frame of each camera is in wave k.
+        seen_count: dict[int, int] = {}
+        waves = []
+        for camera in self.cameras:
+            k = seen_count.get(id(camera), 0)
+            seen_count[id(camera)] = k + 1
+            waves.append(k)
+        if len(seen_count) == n_frames:
+            self._solve_wave(list(range(n_frames)), results)
+        else:
+            for wave in range(max(waves) + 1):
+                self._solve_wave([f for f in range(n_frames) if waves[f] == wave], results)
+        return results
+
+    def _add_noise(self) -> None:
+        """Scale each frame's standard normal draws by its camera's ``noise_px`` and add them."""
+        noise = self.noise
+        if noise is None:
+            return
+        cameras = self.cameras
+        scale = cameras[0].config.noise_px
+        if len(cameras) == 1 or all(camera.config.noise_px == scale for camera in cameras):
+            noise *= scale
+            self.px += noise
+            return
+        for f, camera in enumerate(cameras):
+            first, end = self.rows[f], self.rows[f + 1]
+            scale = camera.config.noise_px
+            if scale > 0.0 and first < end:
+                part = noise[first:end]
+                part *= scale
+                self.px[first:end] += part
+
+    def _solve_wave(self, frames: list[int], results: list[list[Detection]]) -> None:
+        """Solve the seen boards of ``frames`` (at most one frame per camera), into ``results``."""
+        first_board, board_visible, rows = self.first_board, self.board_visible, self.rows
+        cameras, times, all_boards = self.cameras, self.times, self.boards
+        whole = len(frames) == len(cameras)
+        # Seen boards, frame after frame: global board index, frame, board index in the frame
+        # (parallel lists of ints: few container objects for the garbage collector to track).
+        if self.owner is None:  # one frame
+            seen_g = [g for g in range(first_board[1]) if board_visible[g]]
+            seen_f = [0] * len(seen_g)
+            seen_b = seen_g
+            bounds = [0]
+            for g in seen_g:
+                bounds.append(bounds[-1] + 4 * board_visible[g])
+            starts = np.array(bounds, dtype=np.int64)
+        else:
+            mask = self.visible_counts > 0
+            if not whole:
+                in_wave = np.zeros(len(cameras), dtype=bool)
+                in_wave[frames] = True
+                mask &= in_wave[self.owner]
+            index_g = np.flatnonzero(mask)
+            index_f = self.owner[index_g]
+            seen_g, seen_f = index_g.tolist(), index_f.tolist()
+            seen_b = (index_g - np.array(first_board)[index_f]).tolist()
+            starts = np.zeros(len(seen_g) + 1, dtype=np.int64)
+            np.cumsum(4 * self.visible_counts[index_g], out=starts[1:])
+            bounds = starts.tolist()
+        if not seen_g:
+            for f in frames:
+                cameras[f]._remember(times[f], {})
+            return
+        n_seen = len(seen_g)
+        if whole:
+            obj, px = self.obj, self.px
+        else:
+            index = np.concatenate([np.arange(rows[f], rows[f + 1]) for f in frames])
+            obj, px = self.obj[index], self.px[index]
+        up_m = board_up_rows([all_boards[f][b] for f, b in zip(seen_f, seen_b)])
+        up_c = np.empty((n_seen, 3))
+        if len(frames) == 1:
+            up_c[:] = self.up_c[frames[0]]
+        else:
+            up_c[:] = np.array([self.up_c[f] if self.up_c[f] is not None else _NO_UP for f in range(len(cameras))])[index_f]
+        T = np.zeros((n_seen, 4, 4))
+        status = np.zeros(n_seen, dtype=np.int8)
+        any_warm = cameras[frames[0]]._warm_start or any(cameras[f]._warm_start for f in frames)
+        if any_warm:
+            memories = {f: cameras[f]._warm_memory(times[f]) for f in frames}
+            for k in range(n_seen):
+                f = seen_f[k]
+                start = memories[f].get(all_boards[f][seen_b[k]].board_id)
+                if start is not None:
+                    T[k] = start
+                    status[k] = 1
+        rms, cov, status = cameras[frames[0]]._solve_boards(obj, px, starts, up_m, up_c, status, T)
+        rms_list = rms.tolist()
+        cov_sums = cov.reshape(n_seen, 36).sum(axis=1).tolist()  # finite only if the covariance is (see finite_or_none)
+        status_list = status.tolist() if any_warm else None
+        kept = T.copy() if any_warm else T  # the poses the cameras remember (views of one copy)
+        visible, board_markers = self.visible, self.board_markers
+        copy_out = len(cameras) > 1
+        k = 0
+        for f in frames:
+            cam, time, boards, geo = cameras[f], times[f], all_boards[f], self.geos[f]
+            detections = []
+            remembered: dict[int, np.ndarray] = {}
+            k0 = k
+            while k < n_seen and seen_f[k] == f:
+                k += 1
+            if k == k0:
+                cam._remember(time, remembered)
+                results[f] = detections
+                continue
+            T_f, cov_f, px_f, row0 = T, cov, px, 0
+            if copy_out:
+                # The frame's own arrays: a detection kept must not keep the whole batch's alive.
+                row0 = bounds[k0]
+                T_f, cov_f, px_f = T[k0:k].copy(), cov[k0:k].copy(), px[row0 : bounds[k]].copy()
+                k_f = -k0
+            else:
+                k_f = 0
+            for j in range(k0, k):
+                b, g = seen_b[j], seen_g[j]
+                rms_b = rms_list[j]
+                if status_list is not None and status_list[j]:
+                    cam.warm_counts[status_list[j] - 1] += 1
+                if math.isfinite(rms_b):
+                    layout = geo.layouts[b]
+                    if board_visible[g] == len(layout.marker_ids):
+                        ids = layout.marker_ids
+                    else:
+                        m0 = int(board_markers[g])
+                        ids = tuple(compress(layout.marker_ids, visible[m0 : m0 + geo.counts[b]].tolist()))
+                    board_id = boards[b].board_id
+                    detections.append(
+                        Detection(
+                            cam.camera_id, board_id, T_f[j + k_f], px_f[bounds[j] - row0 : bounds[j + 1] - row0], ids,
+                            time, rms_b, cov_f[j + k_f] if math.isfinite(cov_sums[j]) else None,
+                        )
+                    )
+                    if status_list is not None:
+                        remembered[board_id] = kept[j]
+            cam._remember(time, remembered)
+            results[f] = detections
 
 
 def board_up_rows(boards: Sequence[BoardView]) -> np.ndarray:

@@ -9,6 +9,9 @@ each. They implement the visibility checks listed in
 compare them with those and with per-marker definitions).
 
 Camera parameters travel as one float64 vector, built by :func:`camera_parameters`.
+:func:`project_markers` and :func:`solve_boards` take boards of many frames at once
+(each board with its own camera pose and world up), so that a batch of frames of
+cameras with equal parameters costs one call each (see :mod:`moma_env.camera.batch`).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import numpy as np
 from moma_env.camera.planar_pnp import (
     pose_information,
     refine_pose,
+    refine_warm_start,
     refine_two_starts,
     solve_planar_pnp_candidates,
     spd_inverse,
@@ -28,9 +32,13 @@ from moma_env.camera.planar_pnp import (
 from moma_env.camera.pinhole import PinholeCamera
 
 __all__ = [
+    "SOLVED_FULL",
+    "SOLVED_WARM",
+    "WARM_REJECTED",
     "camera_parameters",
     "pixel_weights",
     "project_boards",
+    "project_markers",
     "reprojection_sq",
     "solve_boards",
     "solve_settings",
@@ -42,7 +50,9 @@ _FX, _FY, _CX, _CY, _K1, _K2, _P1, _P2, _K3 = range(9)
 _LO, _HI_U, _HI_V, _MIN_SIDE_SQ, _MIN_RANGE, _MAX_RANGE_SQ, _COS_MAX, _FOLD_R2 = range(9, 17)
 _N_PARAMETERS = 17
 # Indices into the settings vector of solve_boards (see solve_settings).
-_UPRIGHT, _SIGMA, _SIGMA_FLOOR, _PRIOR = range(4)
+_UPRIGHT, _SIGMA, _SIGMA_FLOOR, _PRIOR, _WARM_MAX_RMS = range(5)
+#: Values of solve_boards' ``status`` output.
+SOLVED_FULL, SOLVED_WARM, WARM_REJECTED = 0, 1, 2
 #: Undistortion stops when an iteration moves a point by less than this (normalised units) ...
 _UNDISTORT_TOLERANCE = 1e-15
 #: ... or after this many iterations (each contracts the error by ~|k1| r^2, a few percent).
@@ -84,6 +94,76 @@ def _distort_to_pixel(x: float, y: float, p: np.ndarray) -> tuple[float, float, 
 
 
 @numba.njit(cache=True)
+def _project_marker(
+    T: np.ndarray,
+    corners: np.ndarray,
+    nx: float,
+    ny: float,
+    nz: float,
+    p: np.ndarray,
+    uv: np.ndarray,
+    centre: np.ndarray,
+) -> bool:
+    """Project one marker and decide whether it is visible (checks 1-6).
+
+    Args:
+        T: (3, 4) top rows of its board's ``T_c_m`` (m).
+        corners: (4, 3) its corners in the board frame M (m), ArUco order.
+        nx, ny, nz: unit normal of the printed face (z_M) in C.
+        p: camera parameters (:func:`camera_parameters`).
+        uv: (4, 2) output pixels (meaningless for corners with depth below
+            ``min_range_m / 2``; the marker then fails check 1).
+        centre: (3,) output marker centre in C (m).
+
+    Returns:
+        True if the marker passes checks 1-6.
+    """
+    min_depth = 0.5 * p[_MIN_RANGE]
+    ok = True
+    sx = 0.0
+    sy = 0.0
+    sz = 0.0
+    for k in range(4):
+        X = corners[k, 0]
+        Y = corners[k, 1]
+        Z = corners[k, 2]
+        x = T[0, 0] * X + T[0, 1] * Y + T[0, 2] * Z + T[0, 3]
+        y = T[1, 0] * X + T[1, 1] * Y + T[1, 2] * Z + T[1, 3]
+        z = T[2, 0] * X + T[2, 1] * Y + T[2, 2] * Z + T[2, 3]
+        sx += x
+        sy += y
+        sz += z
+        if not z > p[_MIN_RANGE]:  # check 1
+            ok = False
+        zc = z if z > min_depth else min_depth
+        u, v, r2 = _distort_to_pixel(x / zc, y / zc, p)
+        uv[k, 0] = u
+        uv[k, 1] = v
+        if not r2 < p[_FOLD_R2]:  # check 2
+            ok = False
+        if not (u >= p[_LO] and v >= p[_LO] and u <= p[_HI_U] and v <= p[_HI_V]):  # check 3
+            ok = False
+    for k in range(4):  # check 4
+        du = uv[(k + 1) % 4, 0] - uv[k, 0]
+        dv = uv[(k + 1) % 4, 1] - uv[k, 1]
+        if not du * du + dv * dv >= p[_MIN_SIDE_SQ]:
+            ok = False
+    cx = 0.25 * sx
+    cy = 0.25 * sy
+    cz = 0.25 * sz
+    centre[0] = cx
+    centre[1] = cy
+    centre[2] = cz
+    range_sq = cx * cx + cy * cy + cz * cz
+    if not range_sq <= p[_MAX_RANGE_SQ]:  # check 6
+        ok = False
+    # check 5: cos(incidence) = z_M . (-centre) / |centre| >= cos_max.
+    if not nx * cx + ny * cy + nz * cz <= -p[_COS_MAX] * np.sqrt(range_sq):
+        ok = False
+    return ok
+
+
+@numba.njit(cache=True)
 def project_boards(
     poses: np.ndarray,
     corners_m: np.ndarray,
@@ -112,58 +192,65 @@ def project_boards(
         The number of visible markers.
     """
     n_boards, n_markers = real.shape
-    min_depth = 0.5 * p[_MIN_RANGE]
     count = 0
     for b in range(n_boards):
-        T = poses[b]
-        nx = normals[b, 0]
-        ny = normals[b, 1]
-        nz = normals[b, 2]
         for j in range(n_markers):
-            ok = real[b, j]
-            sx = 0.0
-            sy = 0.0
-            sz = 0.0
-            for k in range(4):
-                X = corners_m[b, j, k, 0]
-                Y = corners_m[b, j, k, 1]
-                Z = corners_m[b, j, k, 2]
-                x = T[0, 0] * X + T[0, 1] * Y + T[0, 2] * Z + T[0, 3]
-                y = T[1, 0] * X + T[1, 1] * Y + T[1, 2] * Z + T[1, 3]
-                z = T[2, 0] * X + T[2, 1] * Y + T[2, 2] * Z + T[2, 3]
-                sx += x
-                sy += y
-                sz += z
-                if not z > p[_MIN_RANGE]:  # check 1
-                    ok = False
-                zc = z if z > min_depth else min_depth
-                u, v, r2 = _distort_to_pixel(x / zc, y / zc, p)
-                uv[b, j, k, 0] = u
-                uv[b, j, k, 1] = v
-                if not r2 < p[_FOLD_R2]:  # check 2
-                    ok = False
-                if not (u >= p[_LO] and v >= p[_LO] and u <= p[_HI_U] and v <= p[_HI_V]):  # check 3
-                    ok = False
-            for k in range(4):  # check 4
-                du = uv[b, j, (k + 1) % 4, 0] - uv[b, j, k, 0]
-                dv = uv[b, j, (k + 1) % 4, 1] - uv[b, j, k, 1]
-                if not du * du + dv * dv >= p[_MIN_SIDE_SQ]:
-                    ok = False
-            cx = 0.25 * sx
-            cy = 0.25 * sy
-            cz = 0.25 * sz
-            centres[b, j, 0] = cx
-            centres[b, j, 1] = cy
-            centres[b, j, 2] = cz
-            range_sq = cx * cx + cy * cy + cz * cz
-            if not range_sq <= p[_MAX_RANGE_SQ]:  # check 6
-                ok = False
-            # check 5: cos(incidence) = z_M . (-centre) / |centre| >= cos_max.
-            if not nx * cx + ny * cy + nz * cz <= -p[_COS_MAX] * np.sqrt(range_sq):
-                ok = False
+            ok = _project_marker(
+                poses[b], corners_m[b, j], normals[b, 0], normals[b, 1], normals[b, 2], p, uv[b, j], centres[b, j]
+            )
+            ok = ok and real[b, j]
             visible[b, j] = ok
             if ok:
                 count += 1
+    return count
+
+
+@numba.njit(cache=True)
+def project_markers(
+    poses: np.ndarray,
+    board_markers: np.ndarray,
+    corners_m: np.ndarray,
+    p: np.ndarray,
+    uv: np.ndarray,
+    visible: np.ndarray,
+    centres: np.ndarray,
+    board_visible: np.ndarray,
+) -> int:
+    """:func:`project_boards` on boards of any number of markers, without padding.
+
+    The markers of all boards are stacked: board ``b`` owns the markers
+    ``board_markers[b]:board_markers[b + 1]``. Every board is planar (markers in
+    ``z_M = 0``), so its face normal in C is ``poses[b, :, 2]``. The boards may
+    come from several camera poses (a batch of measurements): each carries its
+    own ``T_c_m``.
+
+    Args:
+        poses: (B, 3, 4) top rows of ``T_c_m`` of each board (m).
+        board_markers: (B + 1,) int64, non-decreasing, ``board_markers[B] == M``.
+        corners_m: (M, 4, 3) marker corners in their board frames M (m), ArUco order.
+        p: camera parameters (:func:`camera_parameters`).
+        uv: (M, 4, 2) output pixels (see :func:`_project_marker`).
+        visible: (M,) output mask.
+        centres: (M, 3) output marker centres in C (m).
+        board_visible: (B,) int64 output: visible markers per board.
+
+    Returns:
+        The number of visible markers.
+    """
+    count = 0
+    for b in range(poses.shape[0]):
+        T = poses[b]
+        nx = T[0, 2]
+        ny = T[1, 2]
+        nz = T[2, 2]
+        seen = 0
+        for j in range(board_markers[b], board_markers[b + 1]):
+            ok = _project_marker(T, corners_m[j], nx, ny, nz, p, uv[j], centres[j])
+            visible[j] = ok
+            if ok:
+                seen += 1
+        board_visible[b] = seen
+        count += seen
     return count
 
 
@@ -224,7 +311,9 @@ def reprojection_sq(T: np.ndarray, obj: np.ndarray, px: np.ndarray, p: np.ndarra
     return total
 
 
-def solve_settings(upright: bool, sigma_px: float, sigma_floor_px: float, prior_rad: float) -> np.ndarray:
+def solve_settings(
+    upright: bool, sigma_px: float, sigma_floor_px: float, prior_rad: float, warm_max_rms_px: float = math.inf
+) -> np.ndarray:
     """The settings vector of :func:`solve_boards`.
 
     Args:
@@ -236,8 +325,10 @@ def solve_settings(upright: bool, sigma_px: float, sigma_floor_px: float, prior_
         sigma_floor_px: smallest estimated std (px); unused with a given ``sigma_px``.
         prior_rad: std of the angle between a board's up direction as its mount
             declares it and as the camera's attitude predicts it (rad), > 0.
+        warm_max_rms_px: largest RMS reprojection error (px) of an accepted warm
+            start (see :func:`solve_boards`); unused without warm starts.
     """
-    return np.array([1.0 if upright else 0.0, sigma_px, sigma_floor_px, prior_rad])
+    return np.array([1.0 if upright else 0.0, sigma_px, sigma_floor_px, prior_rad, warm_max_rms_px])
 
 
 @numba.njit(cache=True)
@@ -302,6 +393,51 @@ def _board_sigma(settings: np.ndarray, cost: float, n: int) -> float:
 
 
 @numba.njit(cache=True)
+def _set_prior(prior: np.ndarray, lam: float, up_m: np.ndarray, up_c: np.ndarray) -> None:
+    """``prior = [lam, up_m, up_c]`` (see :func:`~moma_env.camera.planar_pnp.prior_vector`)."""
+    prior[0] = lam
+    for i in range(3):
+        prior[1 + i] = up_m[i]
+        prior[4 + i] = up_c[i]
+
+
+@numba.njit(cache=True)
+def _warm_solve(
+    T: np.ndarray,
+    o: np.ndarray,
+    x: np.ndarray,
+    w: np.ndarray,
+    obj: np.ndarray,
+    px: np.ndarray,
+    p: np.ndarray,
+    up_m: np.ndarray,
+    up_c: np.ndarray,
+    settings: np.ndarray,
+    prior: np.ndarray,
+) -> bool:
+    """The warm-started solve of one board (see :func:`solve_boards`): True if accepted.
+
+    ``T`` (4x4) holds the start and, when accepted, the pose; ``prior`` comes
+    out as the cost's prior (``prior[0] == 0``: none), for the covariance.
+    """
+    n = obj.shape[0]
+    prior[0] = 0.0
+    with_prior = settings[_UPRIGHT] != 0.0 and np.isfinite(up_m[0])
+    sigma = settings[_SIGMA]
+    if with_prior and np.isnan(sigma):
+        # sigma from the residuals at the pixel cost's minimum, as the full solve takes it.
+        cost = refine_pose(T, o, x, w, prior)
+        if not np.isfinite(cost):
+            return False
+        sigma = _board_sigma(settings, cost, n)
+    if with_prior and sigma > 0.0:
+        _set_prior(prior, sigma / settings[_PRIOR], up_m, up_c)
+    if not np.isfinite(refine_warm_start(T, o, x, w, prior)):
+        return False
+    return np.sqrt(reprojection_sq(T, obj, px, p) / n) <= settings[_WARM_MAX_RMS]
+
+
+@numba.njit(cache=True)
 def solve_boards(
     obj: np.ndarray,
     px: np.ndarray,
@@ -315,6 +451,7 @@ def solve_boards(
     T: np.ndarray,
     rms: np.ndarray,
     cov: np.ndarray,
+    status: np.ndarray,
 ) -> None:
     """PnP (:mod:`moma_env.camera.planar_pnp`), upright prior, covariance and RMS reprojection error of each board.
 
@@ -331,14 +468,25 @@ def solve_boards(
       exceeds the first's posterior cost) are refined again with the upright
       prior added to the cost,
       ``sigma^2 sin^2(angle) / prior^2`` where ``angle`` is between ``R @ up_m[b]``
-      (world up as the pose and the board's mount predict it in C) and ``up_c``
-      (world up in C from the camera's attitude): the maximum a posteriori pose
-      under a Gaussian prior of std ``prior`` (rad) on that angle, and of the two
-      the one with the lower posterior cost is kept. The prior decides where
-      the corners cannot (nearly face-on boards, where the two poses' costs
-      differ by less than the noise); where it cannot tell them apart (equal
-      angles, e.g. a vertical board seen level) the lower cost decides. With
-      ``sigma == 0`` (noise-free corners) or no ``up_m`` the lower cost decides.
+      (world up as the pose and the board's mount predict it in C) and ``up_c[b]``
+      (world up in C from the attitude of the camera that saw the board): the
+      maximum a posteriori pose under a Gaussian prior of std ``prior`` (rad) on
+      that angle, and of the two the one with the lower posterior cost is kept.
+      The prior decides where the corners cannot (nearly face-on boards, where
+      the two poses' costs differ by less than the noise); where it cannot tell
+      them apart (equal angles, e.g. a vertical board seen level) the lower cost
+      decides. With ``sigma == 0`` (noise-free corners) or no ``up_m`` the lower
+      cost decides.
+    * **Warm start** (``status[b] != 0`` on input, without ``use_given``): ``T[b]`` holds the
+      board's pose from the camera's previous frame. Levenberg-Marquardt from it
+      on the cost the full solve ends on (the pixel cost, plus the upright prior
+      when it applies), then the mirror test of
+      :func:`~moma_env.camera.planar_pnp.refine_warm_start`: the result is kept
+      (``status[b] = SOLVED_WARM``) only if the mirror image of the pose is
+      abandoned on the pixel cost by the full solve's own rule (so the full
+      solve would have had a single candidate too) and its RMS reprojection
+      error is at most ``settings[warm_max_rms]`` px; otherwise the board is
+      solved in full (``status[b] = WARM_REJECTED``).
     * **Covariance** of the kept pose, ``sigma^2 inv(J^T J)`` (6x6, camera
       frame C, translation first, rotation perturbed on the left: see
       :func:`~moma_env.camera.planar_pnp.pose_information`), ``J`` the Jacobian
@@ -348,6 +496,9 @@ def solve_boards(
       estimated from the pose's cost (see :func:`solve_settings`). ``sigma = 0``
       gives an exactly zero covariance; a singular ``J^T J`` gives NaN.
 
+    The boards may come from several frames and cameras of equal parameters
+    ``p`` (a batch): each board carries its own ``up_c`` row.
+
     Args:
         obj: (n, 3) visible corners in their board frames M (m), board after board.
         px: (n, 2) their measured pixels.
@@ -355,14 +506,18 @@ def solve_boards(
         p: camera parameters (:func:`camera_parameters`).
         up_m: (K, 3) world up in each board's frame M as its mount declares it
             (unit vectors); a NaN row: not known (lower cost).
-        up_c: (3,) world up in the camera frame C (unit vector).
+        up_c: (K, 3) world up in the camera frame C of the camera that saw each
+            board (unit vectors).
         settings: see :func:`solve_settings`.
         use_given: start from the poses in ``T`` instead of the homographies.
         given: (K,) bool, read only with ``use_given``: True where ``T[b]`` holds
             a pose; the other boards failed (NaN error).
-        T: (K, 4, 4) output poses ``T_c_m`` (and input where ``given``).
+        T: (K, 4, 4) output poses ``T_c_m`` (and input where ``given`` or warm).
         rms: (K,) output RMS reprojection errors (px); NaN where the solve failed.
         cov: (K, 6, 6) output covariances.
+        status: (K,) int8. Input (read without ``use_given``): non-zero where
+            ``T[b]`` holds a warm start (``T_c_m`` of the previous frame). Output:
+            ``SOLVED_FULL``, ``SOLVED_WARM`` or ``WARM_REJECTED``.
     """
     n = px.shape[0]
     xy = np.empty((n, 2))
@@ -375,6 +530,7 @@ def solve_boards(
     costs = np.empty(2)
     info = np.empty((6, 6))
     prior = np.zeros(7)
+    start = np.empty((4, 4))
     for b in range(starts.shape[0] - 1):
         first = starts[b]
         end = starts[b + 1]
@@ -382,38 +538,47 @@ def solve_boards(
         x = xy[first:end]
         w = W[first:end]
         prior[0] = 0.0
-        if use_given:
-            if not given[b]:
-                rms[b] = np.nan
-                continue
-            k = 0
-            if upright:
-                k = refine_two_starts(T[b, :3, :3], T[b, :3, 3], o, x, w, prior, True, candidates, costs)
-            if k == 0:
-                candidates[0] = T[b]
-                k = 1
-        else:
-            k = solve_planar_pnp_candidates(o, x, w, prior, False, candidates, costs)
-        if k == 0:
-            rms[b] = np.nan
-            continue
-        choice = 0
-        if upright and np.isfinite(up_m[b, 0]):
-            sigma = _board_sigma(settings, costs[0], end - first)
-            if sigma > 0.0:
-                prior[0] = sigma / settings[_PRIOR]
-                prior[1:4] = up_m[b]
-                prior[4:7] = up_c
-                if k == 2 and _skip_second(candidates, costs, prior):
-                    k = 1
-                for j in range(k):
-                    costs[j] = refine_pose(candidates[j], o, x, w, prior)
-                if k == 2 and costs[1] < costs[0]:
-                    choice = 1
-                if not np.isfinite(costs[choice]):
+        warm = not use_given and status[b] != 0
+        status[b] = SOLVED_FULL
+        if warm:
+            start[:, :] = T[b]
+            if _warm_solve(start, o, x, w, obj[first:end], px[first:end], p, up_m[b], up_c[b], settings, prior):
+                status[b] = SOLVED_WARM
+                T[b] = start
+            else:
+                status[b] = WARM_REJECTED
+                prior[0] = 0.0
+        if status[b] != SOLVED_WARM:
+            if use_given:
+                if not given[b]:
                     rms[b] = np.nan
                     continue
-        T[b] = candidates[choice]
+                k = 0
+                if upright:
+                    k = refine_two_starts(T[b, :3, :3], T[b, :3, 3], o, x, w, prior, True, candidates, costs)
+                if k == 0:
+                    candidates[0] = T[b]
+                    k = 1
+            else:
+                k = solve_planar_pnp_candidates(o, x, w, prior, False, candidates, costs)
+            if k == 0:
+                rms[b] = np.nan
+                continue
+            choice = 0
+            if upright and np.isfinite(up_m[b, 0]):
+                sigma = _board_sigma(settings, costs[0], end - first)
+                if sigma > 0.0:
+                    _set_prior(prior, sigma / settings[_PRIOR], up_m[b], up_c[b])
+                    if k == 2 and _skip_second(candidates, costs, prior):
+                        k = 1
+                    for j in range(k):
+                        costs[j] = refine_pose(candidates[j], o, x, w, prior)
+                    if k == 2 and costs[1] < costs[0]:
+                        choice = 1
+                    if not np.isfinite(costs[choice]):
+                        rms[b] = np.nan
+                        continue
+            T[b] = candidates[choice]
         cost = pose_information(T[b], o, x, w, prior, info)
         if prior[0] > 0.0:
             sigma = prior[0] * settings[_PRIOR]

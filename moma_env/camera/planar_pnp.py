@@ -53,6 +53,7 @@ __all__ = [
     "prior_vector",
     "refine_pose",
     "refine_two_starts",
+    "refine_warm_start",
     "solve_planar_pnp",
     "solve_planar_pnp_candidates",
     "solve_planar_pnp_kernel",
@@ -577,6 +578,44 @@ def refine_pose(T: np.ndarray, obj: np.ndarray, img: np.ndarray, W: np.ndarray, 
         _write_pose(R, t, T)
         return cost
     return np.inf
+
+
+@numba.njit(cache=True)
+def refine_warm_start(T: np.ndarray, obj: np.ndarray, img: np.ndarray, W: np.ndarray, prior: np.ndarray) -> float:
+    """Levenberg-Marquardt from a warm start ``T`` (``T_c_m``, 4x4, e.g. the previous
+    frame's pose; updated in place when accepted), then the mirror test.
+
+    The pose is refined on the weighted residuals plus ``prior`` (see
+    :func:`_cost_and_normal_equations`): the cost the full solve ends on. The
+    mirror test guards the planar ambiguity: the refined pose's mirror image
+    (:func:`_mirrored_start`) is refined on the pixel cost alone and must be
+    abandoned by the rule of :func:`refine_two_starts` (still above
+    ``_GIVE_UP_FACTOR`` times the warm cost after ``_GIVE_UP_AFTER``
+    iterations), or end behind the camera. The warm cost, including the prior,
+    is at least the pixel cost of the pixel minimum the full solve compares its
+    mirror start with, so the test's threshold is the higher one: it keeps
+    fewer mirrors out than the full solve does. A warm pose is thus accepted
+    only where the full solve too has a single candidate in that basin, and a
+    board whose two poses compete is solved from scratch: the warm start does
+    not lock onto one of them.
+
+    Returns:
+        The final cost (sum of squared weighted residuals plus the prior's), or
+        ``inf`` when the warm start is not accepted: the refinement failed, ended
+        behind the camera (``t_z <= 0``), or the mirror pose is a candidate too
+        (an ambiguous board: solve it from scratch). ``T`` is then unchanged.
+    """
+    R, t = _read_pose(T)
+    cost = _refine(R, t, obj, img, W, prior, np.inf)
+    if not (np.isfinite(cost) and t[2] > 0.0):
+        return np.inf
+    R_m = _mirrored_start(R, t)
+    t_m = t.copy()
+    cost_m = _refine(R_m, t_m, obj, img, W, np.zeros(7), _GIVE_UP_FACTOR * cost)
+    if np.isfinite(cost_m) and t_m[2] > 0.0:
+        return np.inf
+    _write_pose(R, t, T)
+    return cost
 
 
 @numba.njit(cache=True)
