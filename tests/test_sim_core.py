@@ -179,3 +179,26 @@ def test_the_switching_executive_owns_its_legs():
     assert math.dist(leg[:2], goal[:2]) < math.dist(start[:2], goal[:2])
     env.reset(seed=0)
     assert executive.legs == {}
+
+
+def test_reset_forgets_the_warm_started_pnp_poses():
+    """With warm-started PnP the camera remembers poses across frames; a reset must
+    forget them, so an episode after reset(seed) is the fresh env's episode bit for bit."""
+    import numpy as np
+
+    from moma_env.env.factory import parallel_env
+
+    def episode(env, seed):
+        env.reset(seed=seed)
+        out = []
+        for _ in range(30):
+            obs, *_ = env.step({a: 1 for a in env.agents})
+            out.append(np.concatenate([obs[a] for a in sorted(obs)]))
+        return np.array(out)
+
+    options = {"camera": {"pnp_warm_start": True}, "max_cycles": 500}
+    used = parallel_env("top_observer", **options)
+    episode(used, 1)
+    camera = next(iter(used.simulation.cameras.values()))
+    assert camera.warm_counts[0] > 0  # the warm start did run
+    np.testing.assert_array_equal(episode(used, 2), episode(parallel_env("top_observer", **options), 2))

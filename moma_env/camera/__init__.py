@@ -18,6 +18,7 @@ physics), so it can be used on its own.
 """
 
 from moma_env.camera.backend import BoardView, CameraBackend, OcclusionQuery, up_in_board
+from moma_env.camera.batch import MeasureRequest, measure_batch
 from moma_env.camera.config import PNP_METHODS, PNP_SIGMA_SOURCES, POSE_DISAMBIGUATIONS, CameraConfig
 from moma_env.camera.factory import CAMERA_BACKENDS, make_camera
 from moma_env.camera.floor import FloorConfig, FloorTexture
@@ -30,6 +31,8 @@ from moma_env.camera.rendered import RenderedCamera
 from moma_env.camera.visibility import apply_occlusion, marker_visibility, visible_markers
 
 __all__ = [
+    "MeasureRequest",
+    "measure_batch",
     "BoardView",
     "CAMERA_BACKENDS",
     "CORNER_REFINEMENTS",

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from moma_env.camera.backend import BoardView, CameraBackend, OcclusionQuery
-from moma_env.camera.geometric import GeometricCamera, _Frames, check_frame
+from moma_env.camera.geometric import GeometricCamera, FrameGroup, check_frame
 from moma_env.estimator.detection import Detection
 
 __all__ = ["MeasureRequest", "measure_batch"]
@@ -86,13 +86,13 @@ def measure_batch(requests: Sequence[MeasureRequest]) -> list[list[Detection]]:
                 checked.append(check_frame(request.T_w_c, request.time, request.rng))
             except (TypeError, ValueError) as error:
                 raise type(error)(f"requests[{i}]: {error}") from None
-            frames.setdefault(camera._batch_key, []).append(i)
+            frames.setdefault(camera.batch_key, []).append(i)
         else:
             checked.append(None)
     groups = []
-    group_of: dict[int, tuple[_Frames, int]] = {}
+    group_of: dict[int, tuple[FrameGroup, int]] = {}
     for members in frames.values():
-        group = _Frames(
+        group = FrameGroup(
             [requests[i].camera for i in members],  # type: ignore[misc]
             [checked[i][0] for i in members],  # type: ignore[index]
             [requests[i].boards for i in members],

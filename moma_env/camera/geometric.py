@@ -40,7 +40,7 @@ projection kernel call (:func:`~moma_env.camera.kernels.project_markers`, every
 board of every frame with its own camera pose) and one solve kernel call
 (:func:`~moma_env.camera.kernels.solve_boards`, every seen board, each with its
 camera's world up), bit for bit the frames measured one by one. ``measure`` is
-the one-frame case of the same code (:class:`_Frames`).
+the one-frame case of the same code (:class:`FrameGroup`).
 
 Warm start (``CameraConfig.pnp_warm_start``, off by default): the camera
 remembers each detected board's ``T_c_m`` and the next frame's solve of that
@@ -72,7 +72,7 @@ from moma_env.estimator.detection import Detection
 from moma_env.geometry import rotvec_to_matrix
 from moma_env.markers import BoardLayout
 
-__all__ = ["GeometricCamera", "check_frame"]
+__all__ = ["FrameGroup", "GeometricCamera", "check_frame"]
 
 _FIRST_SOLVER = {
     "IPPE": cv2.SOLVEPNP_IPPE,
@@ -176,7 +176,7 @@ class GeometricCamera:
         self._settings.setflags(write=False)
         self._warm_start = cfg.pnp_warm_start and self._first_solver is None
         #: Frames measured together must agree on these (the kernels' inputs shared by all boards).
-        self._batch_key = (self._parameters.tobytes(), self._settings.tobytes(), self._first_solver, self._refine_lm)
+        self.batch_key = (self._parameters.tobytes(), self._settings.tobytes(), self._first_solver, self._refine_lm)
         self._warm_poses: dict[int, np.ndarray] = {}
         self._warm_time = -math.inf
         #: Boards solved from a warm start: ``[accepted, rejected (solved in full)]`` since construction.
@@ -227,7 +227,7 @@ class GeometricCamera:
         if not boards:
             self._remember(time, {})
             return []
-        frames = _Frames([self], [T_w_c], [boards], [time], [rng], [occluded])
+        frames = FrameGroup([self], [T_w_c], [boards], [time], [rng], [occluded])
         frames.draw(0)
         return frames.solve()[0]
 
@@ -439,8 +439,8 @@ def check_frame(T_w_c: object, time: object, rng: object) -> tuple[np.ndarray, f
     return T_w_c, time
 
 
-class _Frames:
-    """Frames of geometric cameras with equal kernel parameters (``_batch_key``), measured together.
+class FrameGroup:
+    """Frames of geometric cameras with equal kernel parameters (``batch_key``), measured together.
 
     Three stages, so that a batch of many cameras keeps every frame's random
     draws in the order of sequential ``measure`` calls: the constructor projects

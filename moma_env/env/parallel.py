@@ -56,7 +56,7 @@ from moma_env.env.rewards import TeamReward
 from moma_env.estimator import Status
 from moma_env.geometry import se3_to_se2
 from moma_env.scenarios import Scenario
-from moma_env.sim import Frame, Simulation, measure_each
+from moma_env.sim import Frame, Simulation, measured
 
 __all__ = ["MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep"]
 
@@ -88,7 +88,7 @@ class PendingStep:
 
     Attributes:
         camera_requests: what the cameras are asked to measure in the moved scene
-            (:class:`~moma_env.sim.CameraRequest`), in the order of their detections.
+            (:class:`~moma_env.camera.MeasureRequest`), in the order of their detections.
     """
 
     __slots__ = ("camera_requests", "_stages", "_finished")
@@ -356,7 +356,7 @@ class MomaParallelEnv(ParallelEnv):
     # ------------------------------------------------------------------ step
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         pending = self.begin_step(actions)
-        return pending.finish(measure_each(pending.camera_requests))
+        return pending.finish(measured(pending.camera_requests))
 
     def begin_step(self, actions: Mapping[str, Any]) -> PendingStep:
         """:meth:`step` up to the cameras: the actions are checked and applied and the world

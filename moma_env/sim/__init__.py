@@ -15,11 +15,9 @@ nothing from them.
 from moma_env.sim.frame import Frame, Pose2D, Switch
 from moma_env.sim.localiser import Localiser, LocaliserFactory
 from moma_env.sim.rules import REFUSED_DWELL, REFUSED_NO_REFERENCE, REFUSED_WINDOW, MotionRules
-from moma_env.sim.measure import CameraRequest, measure_each
-from moma_env.sim.simulation import Commands, Simulation
+from moma_env.sim.simulation import Commands, Simulation, measured
 
 __all__ = [
-    "CameraRequest",
     "Commands",
     "Frame",
     "Localiser",
@@ -31,5 +29,5 @@ __all__ = [
     "REFUSED_WINDOW",
     "Simulation",
     "Switch",
-    "measure_each",
+    "measured",
 ]

@@ -30,13 +30,12 @@ from typing import Any
 
 import numpy as np
 
-from moma_env.camera import BoardView, CameraBackend, up_in_board
+from moma_env.camera import BoardView, CameraBackend, MeasureRequest, measure_batch, up_in_board
 from moma_env.estimator import MomaEstimator, Phase
 from moma_env.geometry import se3_to_se2
 from moma_env.scenarios import Scenario
 from moma_env.sim.frame import Frame, Pose2D, Switch
 from moma_env.sim.localiser import Localiser, LocaliserFactory
-from moma_env.sim.measure import CameraRequest, measure_each
 from moma_env.sim.rules import MotionRules
 from moma_env.world import World
 
@@ -259,6 +258,10 @@ class Simulation:
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy Generator, got {type(rng).__name__}")
         self.world.reset()
+        for camera in self._cameras.values():
+            forget = getattr(camera, "reset", None)  # a backend with memory across frames (warm-started PnP)
+            if forget is not None:
+                forget()
         if self.rules is not None:
             self.rules.reset()
         self._rng = rng
@@ -267,9 +270,9 @@ class Simulation:
         self._steps = 0
         self._switches: list[Switch] = []
         self._localiser = self._new_localiser()
-        self._awaiting: tuple[CameraRequest, ...] | None = None
+        self._awaiting: tuple[MeasureRequest, ...] | None = None
         if self._measure_at_reset:
-            self._detections = measure_each(self._camera_requests())
+            self._detections = measured(self._camera_requests())
             self._localiser.update(self.world.time, self._detections)
         else:
             self._detections = []
@@ -411,14 +414,14 @@ class Simulation:
             velocities: UGV -> ``(vx, vy, yaw rate)`` body velocity command (m/s, rad/s).
             uav: the observer's ``(vx, vy, yaw rate, climb rate)`` command, or None.
         """
-        return self.localise(measure_each(self.move(velocities, uav)))
+        return self.localise(measured(self.move(velocities, uav)))
 
-    def move(self, velocities: Mapping[str, Any], uav: Any = None) -> tuple[CameraRequest, ...]:
+    def move(self, velocities: Mapping[str, Any], uav: Any = None) -> tuple[MeasureRequest, ...]:
         """The first half of :meth:`advance`: the world moves one control step; returns what
         the cameras are asked to measure in the new scene, for :meth:`localise`.
 
         A caller stepping many simulations measures all their requests at once
-        (see :mod:`moma_env.sim.measure`) and hands each its detections.
+        (:func:`moma_env.camera.measure_batch`) and hands each its detections.
         """
         self._require_started()
         if self._awaiting is not None:
@@ -457,7 +460,7 @@ class Simulation:
         return frame
 
     # ------------------------------------------------------------------ internals
-    def _camera_requests(self) -> tuple[CameraRequest, ...]:
+    def _camera_requests(self) -> tuple[MeasureRequest, ...]:
         views = self.board_views()
         if self._occlusions:
             # Device positions for the occlusion queries, once per frame.
@@ -465,7 +468,7 @@ class Simulation:
         world = self.world
         t = world.time
         return tuple(
-            CameraRequest(camera, world.camera_transform(name), views, t, self._rng, self._occlusions.get(name))
+            MeasureRequest(camera, world.camera_transform(name), views, t, self._rng, self._occlusions.get(name))
             for name, camera in self._cameras.items()
         )
 
@@ -502,3 +505,8 @@ class Simulation:
             last_switch_time=self._last_switch_time,
             dwell_remaining=self.rules.dwell_remaining(t) if self.rules is not None else 0.0,
         )
+
+
+def measured(requests: Sequence[MeasureRequest]) -> list[Any]:
+    """The detections of ``requests`` (:func:`~moma_env.camera.measure_batch`), in one list."""
+    return [d for frame in measure_batch(requests) for d in frame]

@@ -44,7 +44,7 @@ from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
-from moma_env.sim import CameraRequest, measure_each
+from moma_env.camera import MeasureRequest, measure_batch
 
 __all__ = ["FINAL_KEYS", "MomaVectorEnv", "make"]
 
@@ -88,7 +88,7 @@ class MomaVectorEnv:
         #: The batch measurement of a step: every copy's camera requests -> that copy's
         #: detections (:func:`measure_copies`); an instance attribute, so a benchmark can
         #: time it by wrapping it.
-        self.measure: Callable[[Sequence[Sequence[CameraRequest]]], list[list[Any]]] = measure_copies
+        self.measure: Callable[[Sequence[Sequence[MeasureRequest]]], list[list[Any]]] = measure_copies
 
     # ------------------------------------------------------------------ spaces
     def single_observation_space(self, agent: str) -> spaces.Space:
@@ -226,6 +226,8 @@ class MomaVectorEnv:
             env.close()
 
 
-def measure_copies(requests: Sequence[Sequence[CameraRequest]]) -> list[list[Any]]:
-    """Copy ``i``'s detections (one list) from its camera requests ``requests[i]``."""
-    return [measure_each(r) for r in requests]
+def measure_copies(requests: Sequence[Sequence[MeasureRequest]]) -> list[list[Any]]:
+    """Copy ``i``'s detections (one list) from its camera requests ``requests[i]``: the
+    requests of all copies measured in one :func:`~moma_env.camera.measure_batch` call."""
+    frames = iter(measure_batch([r for copy in requests for r in copy]))
+    return [[d for _ in copy for d in next(frames)] for copy in requests]
