@@ -23,6 +23,7 @@ from moma_env.estimator.gate import OutlierGate
 from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
 from moma_env.estimator.uncertainty import (
     LinearError,
+    RunningErrorMean,
     compose_jacobians,
     inverse_jacobian,
     upright_projection_jacobian,
@@ -65,6 +66,7 @@ class _Robot:
         "plane_z",
         "covariance",
         "ref_key",
+        "window_error",
     )
 
     def __init__(
@@ -96,6 +98,7 @@ class _Robot:
         self.camera_world: dict[str, tuple[np.ndarray, LinearError]] = {}  # camera_id -> T_w_c and its error
         self.covariance: np.ndarray | None = None  # 6x6 of the reported pose (uncertainty module's convention)
         self.ref_key: int | None = None  # key of the frozen pose's error in the joint covariance, REFERENCE only
+        self.window_error = RunningErrorMean()  # mean error of the window's inliers
 
 
 class MomaEstimator:
@@ -330,6 +333,7 @@ class MomaEstimator:
             if r.phase is _MOBILE:
                 r.phase = _SETTLING
                 r.window.clear()
+                r.window_error.clear()
                 r.static_since = t
                 self._events.append(SwitchEvent(t, name, "static", 0))
             return
@@ -350,6 +354,7 @@ class MomaEstimator:
                 r.gate.reset(seed=r.pose, time=t)
         r.phase = _MOBILE
         r.window.clear()
+        r.window_error.clear()
         r.n_frozen = 0
         self._forget_unused_keys()
         if pose_valid_now:
@@ -455,7 +460,7 @@ class MomaEstimator:
                 window = r.window
                 window.append(T, error)
                 r.pose = window.mean()
-                r.covariance = LinearError.mean(window.payloads(window.inliers())).covariance(joint)
+                r.covariance = r.window_error.mean(window.payloads(window.inliers())).covariance(joint)
                 if window.full:
                     self._freeze_window(r, t)
 
@@ -564,7 +569,7 @@ class MomaEstimator:
         window = r.window
         index = window.inliers()
         r.pose = window.mean()
-        self._freeze(r, t, LinearError.mean(window.payloads(index)), len(index))
+        self._freeze(r, t, r.window_error.mean(window.payloads(index)), len(index))
 
     def _freeze(self, r: _Robot, t: float, error: LinearError, n_samples: int, *, log: bool = True) -> None:
         """Make a robot a reference at its current pose, whose error is ``error``.
@@ -589,6 +594,7 @@ class MomaEstimator:
         r.covariance = own
         r.n_frozen = n_samples
         r.window.clear()
+        r.window_error.clear()
         r.board_world = {}
         r.board_world_J = {}
         for board_id, T_b_m in r.board_mounts.items():

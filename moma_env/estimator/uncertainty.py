@@ -181,3 +181,56 @@ class LinearError:
     def references(self) -> Iterable[str]:
         """The references this error depends on."""
         return self.J.keys()
+
+
+class RunningErrorMean:
+    """:meth:`LinearError.mean` of a list of errors that mostly grows at its end.
+
+    A switch window asks for the mean error of its inliers at every update;
+    while the inliers only gain samples at the end, the sums of their
+    Jacobians and noise covariances are carried over and only the new errors
+    are added, in the same order as :meth:`LinearError.mean` adds them, so the
+    result is the same to the bit. Any other change starts the sums afresh.
+    Errors are recognised by identity and treated as read-only, as everywhere.
+    """
+
+    __slots__ = ("_errors", "_J", "_Q", "_mean")
+
+    def __init__(self) -> None:
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget the sums."""
+        self._errors: list[LinearError] = []
+        self._J: dict[str, np.ndarray] = {}
+        self._Q = np.zeros((6, 6))
+        self._mean: LinearError | None = None
+
+    def mean(self, errors: Sequence[LinearError]) -> LinearError:
+        """``LinearError.mean(errors)`` (the same object for the same list, unchanged)."""
+        summed = self._errors
+        m = len(summed)
+        n = len(errors)
+        if m > n or any(a is not b for a, b in zip(summed, errors)):
+            self.clear()
+            summed = self._errors
+            m = 0
+        elif m == n and self._mean is not None:
+            return self._mean
+        J = self._J
+        Q = self._Q
+        for k in range(m, n):
+            e = errors[k]
+            for s, Js in e.J.items():
+                if s in J:
+                    J[s] += Js
+                else:
+                    J[s] = Js.copy()
+            Q += e.Q
+            summed.append(e)
+        if n == 1:
+            mean = errors[0]
+        else:
+            mean = LinearError({s: Js / n for s, Js in J.items()}, Q / (n * n))
+        self._mean = mean
+        return mean
