@@ -40,6 +40,96 @@ _REFERENCE = Phase.REFERENCE
 #: Largest deviation of a detection's rotation block from orthonormality (and of its last row).
 _ROTATION_TOLERANCE = 1e-6
 _EYE3 = np.eye(3)
+#: The fast checks below pass a rotation block only this far inside the tolerance;
+#: closer to it (and for anything unusual) the exact numpy checks decide.
+_CLEAR_ROTATION_TOLERANCE = _ROTATION_TOLERANCE * (1.0 - 1e-6)
+#: Index pairs (i * 6 + j, j * 6 + i), i < j, of a flattened 6x6 matrix.
+_UPPER_LOWER = tuple((i * 6 + j, j * 6 + i) for i in range(6) for j in range(i + 1, 6))
+
+
+def _what(d: Detection) -> str:
+    return f"detection of board {d.board_id} by camera {d.camera_id!r}"
+
+
+def _clearly_rigid(T: object) -> bool:
+    """Whether ``T`` is a float64 4x4 array that :func:`_check_pose` passes, decided in plain floats.
+
+    True only when every entry is finite, the rotation block is orthonormal
+    within :data:`_CLEAR_ROTATION_TOLERANCE` (far more than the rounding of
+    ``R^T R``), its determinant is above 0.5 (it is 1 within 3e-6 once
+    orthonormal) and the last row is ``(0, 0, 0, 1)`` within the tolerance
+    (the same arithmetic as numpy). False sends ``T`` to the exact checks.
+    """
+    if type(T) is not np.ndarray or T.shape != (4, 4) or T.dtype.char != "d":
+        return False
+    a, b, c, _, e, f, g, _, i, j, k, _, m, n, o, p = values = T.ravel().tolist()
+    if not math.isfinite(sum(values)):
+        return False
+    tol = _CLEAR_ROTATION_TOLERANCE
+    return (
+        abs(a * a + e * e + i * i - 1.0) <= tol
+        and abs(b * b + f * f + j * j - 1.0) <= tol
+        and abs(c * c + g * g + k * k - 1.0) <= tol
+        and abs(a * b + e * f + i * j) <= tol
+        and abs(a * c + e * g + i * k) <= tol
+        and abs(b * c + f * g + j * k) <= tol
+        and a * (f * k - g * j) - b * (e * k - g * i) + c * (e * j - f * i) > 0.5
+        and abs(m) <= _ROTATION_TOLERANCE
+        and abs(n) <= _ROTATION_TOLERANCE
+        and abs(o) <= _ROTATION_TOLERANCE
+        and abs(p - 1.0) <= _ROTATION_TOLERANCE
+    )
+
+
+def _check_pose(d: Detection) -> None:
+    """ValueError unless ``d.T_c_m`` is a finite 4x4 rigid transform (the exact checks)."""
+    T_c_m = d.T_c_m
+    if not isinstance(T_c_m, np.ndarray) or T_c_m.shape != (4, 4) or not all_finite(T_c_m):
+        raise ValueError(f"{_what(d)}: T_c_m must be a finite 4x4 array")
+    R = T_c_m[:3, :3]
+    if (
+        np.abs(R.T @ R - _EYE3).max() > _ROTATION_TOLERANCE
+        or np.linalg.det(R) <= 0.0
+        or np.abs(T_c_m[3] - (0.0, 0.0, 0.0, 1.0)).max() > _ROTATION_TOLERANCE
+    ):
+        raise ValueError(
+            f"{_what(d)}: T_c_m must be a rigid transform (rotation block orthonormal within "
+            f"{_ROTATION_TOLERANCE:g}, determinant +1, last row (0, 0, 0, 1)); "
+            f"got determinant {np.linalg.det(R):.6g}"
+        )
+
+
+def _clearly_valid_covariance(cov: object) -> bool:
+    """Whether ``cov`` is a float64 6x6 array that :func:`_check_covariance` passes, in plain floats.
+
+    For finite entries this is the same arithmetic as the exact check; anything
+    else (another type, shape or dtype, a non-finite entry) goes to it.
+    """
+    if type(cov) is not np.ndarray or cov.shape != (6, 6) or cov.dtype.char != "d":
+        return False
+    values = cov.ravel().tolist()
+    if not math.isfinite(sum(values)):
+        return False
+    if values[0] < 0.0 or values[7] < 0.0 or values[14] < 0.0 or values[21] < 0.0 or values[28] < 0.0 or values[35] < 0.0:
+        return False
+    limit = 1e-9 * max(1.0, max(map(abs, values)))
+    for u, v in _UPPER_LOWER:
+        if abs(values[u] - values[v]) > limit:
+            return False
+    return True
+
+
+def _check_covariance(d: Detection) -> None:
+    """ValueError unless ``d.covariance`` is a finite symmetric 6x6 array with a non-negative diagonal."""
+    cov = d.covariance
+    if (
+        not isinstance(cov, np.ndarray)
+        or cov.shape != (6, 6)
+        or not all_finite(cov)
+        or np.abs(cov - cov.T).max() > 1e-9 * max(1.0, float(np.abs(cov).max()))
+        or (np.diag(cov) < 0.0).any()
+    ):
+        raise ValueError(f"{_what(d)}: covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
 
 
 class _Robot:
@@ -483,7 +573,9 @@ class MomaEstimator:
     # ---------------------------------------------------------------- helpers
     def _checked_detections(self, detections: Iterable[Detection]) -> dict[str, list[Detection]]:
         """The detections grouped by camera, after every check of :meth:`update`."""
-        if detections is None or isinstance(detections, (str, bytes, Detection)) or not isinstance(detections, Iterable):
+        if type(detections) is not list and (
+            detections is None or isinstance(detections, (str, bytes, Detection)) or not isinstance(detections, Iterable)
+        ):
             raise TypeError(f"detections must be an iterable of Detection, got {type(detections).__name__}")
         camera_owner = self._camera_owner
         board_owner = self._board_owner
@@ -494,38 +586,23 @@ class MomaEstimator:
             camera_id = d.camera_id
             if camera_id not in camera_owner:
                 raise UnknownCameraError(camera_id, camera_owner)
-            if d.board_id not in board_owner:
-                raise UnknownBoardError(d.board_id, board_owner)
-            what = f"detection of board {d.board_id} by camera {camera_id!r}"
-            T_c_m = d.T_c_m
-            if not isinstance(T_c_m, np.ndarray) or T_c_m.shape != (4, 4) or not all_finite(T_c_m):
-                raise ValueError(f"{what}: T_c_m must be a finite 4x4 array")
-            R = T_c_m[:3, :3]
-            if (
-                np.abs(R.T @ R - _EYE3).max() > _ROTATION_TOLERANCE
-                or np.linalg.det(R) <= 0.0
-                or np.abs(T_c_m[3] - (0.0, 0.0, 0.0, 1.0)).max() > _ROTATION_TOLERANCE
-            ):
-                raise ValueError(
-                    f"{what}: T_c_m must be a rigid transform (rotation block orthonormal within "
-                    f"{_ROTATION_TOLERANCE:g}, determinant +1, last row (0, 0, 0, 1)); "
-                    f"got determinant {np.linalg.det(R):.6g}"
-                )
+            board_id = d.board_id
+            if board_id not in board_owner:
+                raise UnknownBoardError(board_id, board_owner)
+            if not _clearly_rigid(d.T_c_m):
+                _check_pose(d)
             cov = d.covariance
-            if cov is not None and (
-                not isinstance(cov, np.ndarray)
-                or cov.shape != (6, 6)
-                or not all_finite(cov)
-                or np.abs(cov - cov.T).max() > 1e-9 * max(1.0, float(np.abs(cov).max()))
-                or (np.diag(cov) < 0.0).any()
-            ):
-                raise ValueError(f"{what}: covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
+            if cov is not None and not _clearly_valid_covariance(cov):
+                _check_covariance(d)
             group = by_camera.get(camera_id)
             if group is None:
                 by_camera[camera_id] = [d]
             else:
-                if any(other.board_id == d.board_id for other in group):
-                    raise ValueError(f"{what}: the board is detected twice in one frame by the same camera")
+                for other in group:
+                    if other.board_id == board_id:
+                        raise ValueError(
+                            f"{_what(d)}: the board is detected twice in one frame by the same camera"
+                        )
                 group.append(d)
         return by_camera
 
