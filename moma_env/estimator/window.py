@@ -111,7 +111,7 @@ class SwitchWindow:
         n = len(self._poses)
         if n >= self.capacity:
             raise ValueError(f"switch window already holds {self.capacity} samples")
-        T = np.array(T, dtype=float)
+        T = T.copy() if type(T) is np.ndarray and T.dtype.char == "d" and T.shape == (4, 4) else np.array(T, dtype=float)
         rows = T.tolist()
         r0, r1, r2 = rows[0], rows[1], rows[2]
         self._rotations[n] = (r0[0], r0[1], r0[2], r1[0], r1[1], r1[2], r2[0], r2[1], r2[2])
@@ -154,8 +154,14 @@ class SwitchWindow:
         d_t = [sqrt((x - mx) * (x - mx) + (y - my) * (y - my) + (z - mz) * (z - mz)) for x, y, z in translations]
         flat = self._rotations[:n]
         traces = flat @ flat.T  # trace(R_i^T R_j)
-        medoid = int(np.argmax(traces.sum(axis=1)))
-        d_r = np.arccos(np.clip((traces[medoid] - 1.0) / 2.0, -1.0, 1.0)).tolist()
+        medoid = int(np.add.reduce(traces, axis=1).argmax())  # traces.sum(axis=1), without its wrapper
+        # np.arccos(np.clip((row - 1.0) / 2.0, -1.0, 1.0)) in place (finite entries: the same bits).
+        c = traces[medoid]
+        c -= 1.0
+        c /= 2.0
+        np.maximum(c, -1.0, out=c)
+        np.minimum(c, 1.0, out=c)
+        d_r = np.arccos(c, out=c).tolist()
         k = self.outlier_k
         limit_t = max(k * _median(d_t), self.floor_m)
         limit_r = max(k * _median(d_r), self.floor_rad)
