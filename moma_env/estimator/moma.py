@@ -489,8 +489,17 @@ class MomaEstimator:
                     T_w_m = ref.board_world[d.board_id]
                     T_m_c = invert(d.T_c_m)
                     J_ref, J_meas = compose_jacobians(T_w_m, T_m_c)
-                    error = LinearError({ref.ref_key: J_ref @ ref.board_world_J[d.board_id]})
-                    errors.append(error.plus_noise(J_meas @ inverse_jacobian(d.T_c_m), d.covariance))
+                    J = {ref.ref_key: J_ref @ ref.board_world_J[d.board_id]}
+                    # LinearError(J).plus_noise(J_meas @ inverse_jacobian(T_c_m), covariance), without
+                    # the zero Q: Q + 0.0 is the 0 + Q it gave (-0.0 entries turn +0.0 alike).
+                    cov = d.covariance
+                    if cov is None:
+                        Q = np.zeros((6, 6))
+                    else:
+                        A = J_meas @ inverse_jacobian(d.T_c_m)
+                        Q = A @ cov @ A.T
+                        Q += 0.0
+                    errors.append(LinearError._of(J, Q))
                     located.append(T_w_m @ T_m_c)
             if located:
                 camera_poses[camera_id] = (located[0] if len(located) == 1 else mean_pose(located), LinearError.mean(errors))

@@ -244,7 +244,13 @@ class RunningErrorMean:
         summed = self._errors
         m = len(summed)
         n = len(errors)
-        if m > n or any(a is not b for a, b in zip(summed, errors)):
+        fresh = m > n
+        if not fresh:
+            for a, b in zip(summed, errors):
+                if a is not b:
+                    fresh = True
+                    break
+        if fresh:
             self.clear()
             summed = self._errors
             m = 0

@@ -16,7 +16,11 @@ _LAST_ROW = (0.0, 0.0, 0.0, 1.0)
 
 def _median(values: list[float]) -> float:
     """``np.median`` of finite floats, the same bits: the middle value, or the mean of the middle two."""
-    s = sorted(values)
+    return _sorted_median(sorted(values))
+
+
+def _sorted_median(s: list[float]) -> float:
+    """:func:`_median` of a sorted list."""
     h = len(s) // 2
     return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2.0
 
@@ -61,6 +65,7 @@ class SwitchWindow:
         "_inliers",
         "_rotations",
         "_translations",
+        "_sorted_xyz",
         "_finite",
         "_mean",
         "_sum_index",
@@ -80,6 +85,7 @@ class SwitchWindow:
         self._inliers: list[int] | None = None
         self._rotations = np.empty((capacity, 9))  # row i: the rotation block of sample i, row by row
         self._translations: list[tuple[float, float, float]] = []  # (m)
+        self._sorted_xyz: tuple[list[float], list[float], list[float]] = ([], [], [])  # each coordinate, sorted
         self._finite = True  # every sample finite (else the exact numpy statistics decide)
         self._mean: np.ndarray | None = None  # mean of the current inliers
         self._sum_index: list[int] = []  # the samples summed in _R_sum, _t_sum, in order
@@ -99,6 +105,8 @@ class SwitchWindow:
         self._poses.clear()
         self._payloads.clear()
         self._translations.clear()
+        for axis in self._sorted_xyz:
+            axis.clear()
         self._inliers = None
         self._finite = True
         self._mean = None
@@ -120,6 +128,13 @@ class SwitchWindow:
             self._finite = False
         self._poses.append(T)
         self._translations.append(t)
+        xs, ys, zs = self._sorted_xyz
+        xs.append(t[0])
+        xs.sort()  # one pass over an already sorted list
+        ys.append(t[1])
+        ys.sort()
+        zs.append(t[2])
+        zs.sort()
         self._payloads.append(payload)
         self._inliers = None
         self._mean = None
@@ -148,8 +163,8 @@ class SwitchWindow:
         # arithmetic, sqrt, medians); the Gram matrix of the rotations stays one
         # numpy product on the same (n, 9) array as ever.
         translations = self._translations
-        xs, ys, zs = zip(*translations)
-        mx, my, mz = _median(xs), _median(ys), _median(zs)
+        xs, ys, zs = self._sorted_xyz
+        mx, my, mz = _sorted_median(xs), _sorted_median(ys), _sorted_median(zs)
         sqrt = math.sqrt
         d_t = [sqrt((x - mx) * (x - mx) + (y - my) * (y - my) + (z - mz) * (z - mz)) for x, y, z in translations]
         flat = self._rotations[:n]
