@@ -20,6 +20,7 @@ from moma_env.estimator import moma as moma_module
 from moma_env.estimator.uncertainty import (
     LinearError,
     RunningErrorMean,
+    compose_jacobian_first,
     compose_jacobians,
     inverse_jacobian,
     skew,
@@ -266,6 +267,7 @@ def test_jacobians_match_the_block_built_reference_bit_for_bit(seed):
     for A, B in zip(poses, poses[1:] + poses[:1]):
         for got, want in zip(compose_jacobians(A, B), reference_compose(A, B)):
             assert same_bits(got, want)
+        assert same_bits(compose_jacobian_first(A, B), reference_compose(A, B)[0])
         assert same_bits(inverse_jacobian(A), reference_inverse(A))
         assert same_bits(upright_projection_jacobian(A, B), reference_upright(A, B))
 

@@ -24,6 +24,7 @@ from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
 from moma_env.estimator.uncertainty import (
     LinearError,
     RunningErrorMean,
+    compose_jacobian_first,
     compose_jacobians,
     inverse_jacobian,
     upright_projection_jacobian,
@@ -521,7 +522,7 @@ class MomaEstimator:
                     if r.plane_z is None:
                         T_m_b = r.board_inverses[d.board_id]
                         sample = T_w_m @ T_m_b
-                        A = compose_jacobians(T_w_m, T_m_b)[0]
+                        A = compose_jacobian_first(T_w_m, T_m_b)
                     else:
                         mount = r.board_mounts[d.board_id]
                         sample = upright_body_from_mount(T_w_m, mount, r.plane_z)
@@ -534,7 +535,7 @@ class MomaEstimator:
                 if r.plane_z is None:
                     T_c_b = r.camera_inverses[camera_id]
                     sample = T_w_c @ T_c_b
-                    A = compose_jacobians(T_w_c, T_c_b)[0]
+                    A = compose_jacobian_first(T_w_c, T_c_b)
                 else:
                     mount = r.camera_mounts[camera_id]
                     sample = upright_body_from_mount(T_w_c, mount, r.plane_z)
@@ -685,9 +686,9 @@ class MomaEstimator:
         r.board_world_J = {}
         for board_id, T_b_m in r.board_mounts.items():
             r.board_world[board_id] = pose @ T_b_m
-            r.board_world_J[board_id] = compose_jacobians(pose, T_b_m)[0]
+            r.board_world_J[board_id] = compose_jacobian_first(pose, T_b_m)
         r.camera_world = {
-            camera_id: (pose @ T_b_c, LinearError({key: compose_jacobians(pose, T_b_c)[0]}))
+            camera_id: (pose @ T_b_c, LinearError({key: compose_jacobian_first(pose, T_b_c)}))
             for camera_id, T_b_c in r.camera_mounts.items()
         }
         self._reference_cameras.update(r.camera_world)

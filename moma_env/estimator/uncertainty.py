@@ -36,6 +36,7 @@ __all__ = [
     "pose_error",
     "skew",
     "compose_jacobians",
+    "compose_jacobian_first",
     "inverse_jacobian",
     "upright_projection_jacobian",
     "LinearError",
@@ -71,9 +72,17 @@ def compose_jacobians(T_x_y: np.ndarray, T_y_z: np.ndarray) -> tuple[np.ndarray,
         J_A = [[I, -[R_x_y t_y_z]x], [0, I]]      J_B = [[R_x_y, 0], [0, R_x_y]]
     """
     R = T_x_y[:3, :3]
-    x, y, z = (R @ T_y_z[:3, 3]).tolist()
+    J_B = np.zeros((6, 6))
+    J_B[:3, :3] = R
+    J_B[3:, 3:] = R
+    return compose_jacobian_first(T_x_y, T_y_z), J_B
+
+
+def compose_jacobian_first(T_x_y: np.ndarray, T_y_z: np.ndarray) -> np.ndarray:
+    """``J_A`` of :func:`compose_jacobians` alone (6x6), when the second factor is exact (a mount)."""
+    x, y, z = (T_x_y[:3, :3] @ T_y_z[:3, 3]).tolist()
     # -[v]x entry by entry (its diagonal is -0.0, as negating skew(v) gives).
-    J_A = np.array(
+    return np.array(
         (
             (1.0, 0.0, 0.0, -0.0, z, -y),
             (0.0, 1.0, 0.0, -z, -0.0, x),
@@ -83,10 +92,6 @@ def compose_jacobians(T_x_y: np.ndarray, T_y_z: np.ndarray) -> tuple[np.ndarray,
             (0.0, 0.0, 0.0, 0.0, 0.0, 1.0),
         )
     )
-    J_B = np.zeros((6, 6))
-    J_B[:3, :3] = R
-    J_B[3:, 3:] = R
-    return J_A, J_B
 
 
 def inverse_jacobian(T_x_y: np.ndarray) -> np.ndarray:
