@@ -29,7 +29,10 @@ def _l1(a: Position, b: Position) -> float:
 
 def _angle(a: Rotation, b: Rotation) -> float:
     """Angle (rad) of the rotation between two rotation matrices given as 9 floats."""
-    trace = sum(x * y for x, y in zip(a, b))  # trace(A^T B)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
+    # trace(A^T B), added left to right from 0 (as sum() did before Python 3.12).
+    trace = 0 + a0 * b0 + a1 * b1 + a2 * b2 + a3 * b3 + a4 * b4 + a5 * b5 + a6 * b6 + a7 * b7 + a8 * b8
     return math.acos(min(1.0, max(-1.0, 0.5 * (trace - 1.0))))
 
 
@@ -75,9 +78,8 @@ class OutlierGate:
 
     @staticmethod
     def _split(T: np.ndarray) -> tuple[Position, Rotation]:
-        rows = T[:3].tolist()
-        p = (rows[0][3], rows[1][3], rows[2][3])
-        return p, (*rows[0][:3], *rows[1][:3], *rows[2][:3])
+        (a, b, c, x), (d, e, f, y), (g, h, i, z) = T[:3].tolist()
+        return (x, y, z), (a, b, c, d, e, f, g, h, i)
 
     def accept(self, T: np.ndarray, time: float) -> bool:
         """Judge a measured 4x4 pose ``T_w_b`` (world frame, m) taken at ``time`` (s)."""

@@ -23,6 +23,8 @@ from moma_env.estimator.gate import OutlierGate
 from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
 from moma_env.estimator.uncertainty import (
     LinearError,
+    RunningErrorMean,
+    compose_jacobian_first,
     compose_jacobians,
     inverse_jacobian,
     upright_projection_jacobian,
@@ -39,6 +41,96 @@ _REFERENCE = Phase.REFERENCE
 #: Largest deviation of a detection's rotation block from orthonormality (and of its last row).
 _ROTATION_TOLERANCE = 1e-6
 _EYE3 = np.eye(3)
+#: The fast checks below pass a rotation block only this far inside the tolerance;
+#: closer to it (and for anything unusual) the exact numpy checks decide.
+_CLEAR_ROTATION_TOLERANCE = _ROTATION_TOLERANCE * (1.0 - 1e-6)
+#: Index pairs (i * 6 + j, j * 6 + i), i < j, of a flattened 6x6 matrix.
+_UPPER_LOWER = tuple((i * 6 + j, j * 6 + i) for i in range(6) for j in range(i + 1, 6))
+
+
+def _what(d: Detection) -> str:
+    return f"detection of board {d.board_id} by camera {d.camera_id!r}"
+
+
+def _clearly_rigid(T: object) -> bool:
+    """Whether ``T`` is a float64 4x4 array that :func:`_check_pose` passes, decided in plain floats.
+
+    True only when every entry is finite, the rotation block is orthonormal
+    within :data:`_CLEAR_ROTATION_TOLERANCE` (far more than the rounding of
+    ``R^T R``), its determinant is above 0.5 (it is 1 within 3e-6 once
+    orthonormal) and the last row is ``(0, 0, 0, 1)`` within the tolerance
+    (the same arithmetic as numpy). False sends ``T`` to the exact checks.
+    """
+    if type(T) is not np.ndarray or T.shape != (4, 4) or T.dtype.char != "d":
+        return False
+    a, b, c, _, e, f, g, _, i, j, k, _, m, n, o, p = values = T.ravel().tolist()
+    if not math.isfinite(sum(values)):
+        return False
+    tol = _CLEAR_ROTATION_TOLERANCE
+    return (
+        abs(a * a + e * e + i * i - 1.0) <= tol
+        and abs(b * b + f * f + j * j - 1.0) <= tol
+        and abs(c * c + g * g + k * k - 1.0) <= tol
+        and abs(a * b + e * f + i * j) <= tol
+        and abs(a * c + e * g + i * k) <= tol
+        and abs(b * c + f * g + j * k) <= tol
+        and a * (f * k - g * j) - b * (e * k - g * i) + c * (e * j - f * i) > 0.5
+        and abs(m) <= _ROTATION_TOLERANCE
+        and abs(n) <= _ROTATION_TOLERANCE
+        and abs(o) <= _ROTATION_TOLERANCE
+        and abs(p - 1.0) <= _ROTATION_TOLERANCE
+    )
+
+
+def _check_pose(d: Detection) -> None:
+    """ValueError unless ``d.T_c_m`` is a finite 4x4 rigid transform (the exact checks)."""
+    T_c_m = d.T_c_m
+    if not isinstance(T_c_m, np.ndarray) or T_c_m.shape != (4, 4) or not all_finite(T_c_m):
+        raise ValueError(f"{_what(d)}: T_c_m must be a finite 4x4 array")
+    R = T_c_m[:3, :3]
+    if (
+        np.abs(R.T @ R - _EYE3).max() > _ROTATION_TOLERANCE
+        or np.linalg.det(R) <= 0.0
+        or np.abs(T_c_m[3] - (0.0, 0.0, 0.0, 1.0)).max() > _ROTATION_TOLERANCE
+    ):
+        raise ValueError(
+            f"{_what(d)}: T_c_m must be a rigid transform (rotation block orthonormal within "
+            f"{_ROTATION_TOLERANCE:g}, determinant +1, last row (0, 0, 0, 1)); "
+            f"got determinant {np.linalg.det(R):.6g}"
+        )
+
+
+def _clearly_valid_covariance(cov: object) -> bool:
+    """Whether ``cov`` is a float64 6x6 array that :func:`_check_covariance` passes, in plain floats.
+
+    For finite entries this is the same arithmetic as the exact check; anything
+    else (another type, shape or dtype, a non-finite entry) goes to it.
+    """
+    if type(cov) is not np.ndarray or cov.shape != (6, 6) or cov.dtype.char != "d":
+        return False
+    values = cov.ravel().tolist()
+    if not math.isfinite(sum(values)):
+        return False
+    if values[0] < 0.0 or values[7] < 0.0 or values[14] < 0.0 or values[21] < 0.0 or values[28] < 0.0 or values[35] < 0.0:
+        return False
+    limit = 1e-9 * max(1.0, max(map(abs, values)))
+    for u, v in _UPPER_LOWER:
+        if abs(values[u] - values[v]) > limit:
+            return False
+    return True
+
+
+def _check_covariance(d: Detection) -> None:
+    """ValueError unless ``d.covariance`` is a finite symmetric 6x6 array with a non-negative diagonal."""
+    cov = d.covariance
+    if (
+        not isinstance(cov, np.ndarray)
+        or cov.shape != (6, 6)
+        or not all_finite(cov)
+        or np.abs(cov - cov.T).max() > 1e-9 * max(1.0, float(np.abs(cov).max()))
+        or (np.diag(cov) < 0.0).any()
+    ):
+        raise ValueError(f"{_what(d)}: covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
 
 
 class _Robot:
@@ -65,6 +157,7 @@ class _Robot:
         "plane_z",
         "covariance",
         "ref_key",
+        "window_error",
     )
 
     def __init__(
@@ -96,6 +189,7 @@ class _Robot:
         self.camera_world: dict[str, tuple[np.ndarray, LinearError]] = {}  # camera_id -> T_w_c and its error
         self.covariance: np.ndarray | None = None  # 6x6 of the reported pose (uncertainty module's convention)
         self.ref_key: int | None = None  # key of the frozen pose's error in the joint covariance, REFERENCE only
+        self.window_error = RunningErrorMean()  # mean error of the window's inliers
 
 
 class MomaEstimator:
@@ -330,6 +424,7 @@ class MomaEstimator:
             if r.phase is _MOBILE:
                 r.phase = _SETTLING
                 r.window.clear()
+                r.window_error.clear()
                 r.static_since = t
                 self._events.append(SwitchEvent(t, name, "static", 0))
             return
@@ -350,6 +445,7 @@ class MomaEstimator:
                 r.gate.reset(seed=r.pose, time=t)
         r.phase = _MOBILE
         r.window.clear()
+        r.window_error.clear()
         r.n_frozen = 0
         self._forget_unused_keys()
         if pose_valid_now:
@@ -394,8 +490,17 @@ class MomaEstimator:
                     T_w_m = ref.board_world[d.board_id]
                     T_m_c = invert(d.T_c_m)
                     J_ref, J_meas = compose_jacobians(T_w_m, T_m_c)
-                    error = LinearError({ref.ref_key: J_ref @ ref.board_world_J[d.board_id]})
-                    errors.append(error.plus_noise(J_meas @ inverse_jacobian(d.T_c_m), d.covariance))
+                    J = {ref.ref_key: J_ref @ ref.board_world_J[d.board_id]}
+                    # LinearError(J).plus_noise(J_meas @ inverse_jacobian(T_c_m), covariance), without
+                    # the zero Q: Q + 0.0 is the 0 + Q it gave (-0.0 entries turn +0.0 alike).
+                    cov = d.covariance
+                    if cov is None:
+                        Q = np.zeros((6, 6))
+                    else:
+                        A = J_meas @ inverse_jacobian(d.T_c_m)
+                        Q = A @ cov @ A.T
+                        Q += 0.0
+                    errors.append(LinearError._of(J, Q))
                     located.append(T_w_m @ T_m_c)
             if located:
                 camera_poses[camera_id] = (located[0] if len(located) == 1 else mean_pose(located), LinearError.mean(errors))
@@ -417,7 +522,7 @@ class MomaEstimator:
                     if r.plane_z is None:
                         T_m_b = r.board_inverses[d.board_id]
                         sample = T_w_m @ T_m_b
-                        A = compose_jacobians(T_w_m, T_m_b)[0]
+                        A = compose_jacobian_first(T_w_m, T_m_b)
                     else:
                         mount = r.board_mounts[d.board_id]
                         sample = upright_body_from_mount(T_w_m, mount, r.plane_z)
@@ -430,7 +535,7 @@ class MomaEstimator:
                 if r.plane_z is None:
                     T_c_b = r.camera_inverses[camera_id]
                     sample = T_w_c @ T_c_b
-                    A = compose_jacobians(T_w_c, T_c_b)[0]
+                    A = compose_jacobian_first(T_w_c, T_c_b)
                 else:
                     mount = r.camera_mounts[camera_id]
                     sample = upright_body_from_mount(T_w_c, mount, r.plane_z)
@@ -455,7 +560,7 @@ class MomaEstimator:
                 window = r.window
                 window.append(T, error)
                 r.pose = window.mean()
-                r.covariance = LinearError.mean(window.payloads(window.inliers())).covariance(joint)
+                r.covariance = r.window_error.mean(window.payloads(window.inliers())).covariance(joint)
                 if window.full:
                     self._freeze_window(r, t)
 
@@ -478,7 +583,9 @@ class MomaEstimator:
     # ---------------------------------------------------------------- helpers
     def _checked_detections(self, detections: Iterable[Detection]) -> dict[str, list[Detection]]:
         """The detections grouped by camera, after every check of :meth:`update`."""
-        if detections is None or isinstance(detections, (str, bytes, Detection)) or not isinstance(detections, Iterable):
+        if type(detections) is not list and (
+            detections is None or isinstance(detections, (str, bytes, Detection)) or not isinstance(detections, Iterable)
+        ):
             raise TypeError(f"detections must be an iterable of Detection, got {type(detections).__name__}")
         camera_owner = self._camera_owner
         board_owner = self._board_owner
@@ -489,38 +596,23 @@ class MomaEstimator:
             camera_id = d.camera_id
             if camera_id not in camera_owner:
                 raise UnknownCameraError(camera_id, camera_owner)
-            if d.board_id not in board_owner:
-                raise UnknownBoardError(d.board_id, board_owner)
-            what = f"detection of board {d.board_id} by camera {camera_id!r}"
-            T_c_m = d.T_c_m
-            if not isinstance(T_c_m, np.ndarray) or T_c_m.shape != (4, 4) or not all_finite(T_c_m):
-                raise ValueError(f"{what}: T_c_m must be a finite 4x4 array")
-            R = T_c_m[:3, :3]
-            if (
-                np.abs(R.T @ R - _EYE3).max() > _ROTATION_TOLERANCE
-                or np.linalg.det(R) <= 0.0
-                or np.abs(T_c_m[3] - (0.0, 0.0, 0.0, 1.0)).max() > _ROTATION_TOLERANCE
-            ):
-                raise ValueError(
-                    f"{what}: T_c_m must be a rigid transform (rotation block orthonormal within "
-                    f"{_ROTATION_TOLERANCE:g}, determinant +1, last row (0, 0, 0, 1)); "
-                    f"got determinant {np.linalg.det(R):.6g}"
-                )
+            board_id = d.board_id
+            if board_id not in board_owner:
+                raise UnknownBoardError(board_id, board_owner)
+            if not _clearly_rigid(d.T_c_m):
+                _check_pose(d)
             cov = d.covariance
-            if cov is not None and (
-                not isinstance(cov, np.ndarray)
-                or cov.shape != (6, 6)
-                or not all_finite(cov)
-                or np.abs(cov - cov.T).max() > 1e-9 * max(1.0, float(np.abs(cov).max()))
-                or (np.diag(cov) < 0.0).any()
-            ):
-                raise ValueError(f"{what}: covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
+            if cov is not None and not _clearly_valid_covariance(cov):
+                _check_covariance(d)
             group = by_camera.get(camera_id)
             if group is None:
                 by_camera[camera_id] = [d]
             else:
-                if any(other.board_id == d.board_id for other in group):
-                    raise ValueError(f"{what}: the board is detected twice in one frame by the same camera")
+                for other in group:
+                    if other.board_id == board_id:
+                        raise ValueError(
+                            f"{_what(d)}: the board is detected twice in one frame by the same camera"
+                        )
                 group.append(d)
         return by_camera
 
@@ -564,7 +656,7 @@ class MomaEstimator:
         window = r.window
         index = window.inliers()
         r.pose = window.mean()
-        self._freeze(r, t, LinearError.mean(window.payloads(index)), len(index))
+        self._freeze(r, t, r.window_error.mean(window.payloads(index)), len(index))
 
     def _freeze(self, r: _Robot, t: float, error: LinearError, n_samples: int, *, log: bool = True) -> None:
         """Make a robot a reference at its current pose, whose error is ``error``.
@@ -589,13 +681,14 @@ class MomaEstimator:
         r.covariance = own
         r.n_frozen = n_samples
         r.window.clear()
+        r.window_error.clear()
         r.board_world = {}
         r.board_world_J = {}
         for board_id, T_b_m in r.board_mounts.items():
             r.board_world[board_id] = pose @ T_b_m
-            r.board_world_J[board_id] = compose_jacobians(pose, T_b_m)[0]
+            r.board_world_J[board_id] = compose_jacobian_first(pose, T_b_m)
         r.camera_world = {
-            camera_id: (pose @ T_b_c, LinearError({key: compose_jacobians(pose, T_b_c)[0]}))
+            camera_id: (pose @ T_b_c, LinearError({key: compose_jacobian_first(pose, T_b_c)}))
             for camera_id, T_b_c in r.camera_mounts.items()
         }
         self._reference_cameras.update(r.camera_world)

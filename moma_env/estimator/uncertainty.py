@@ -36,6 +36,7 @@ __all__ = [
     "pose_error",
     "skew",
     "compose_jacobians",
+    "compose_jacobian_first",
     "inverse_jacobian",
     "upright_projection_jacobian",
     "LinearError",
@@ -71,12 +72,26 @@ def compose_jacobians(T_x_y: np.ndarray, T_y_z: np.ndarray) -> tuple[np.ndarray,
         J_A = [[I, -[R_x_y t_y_z]x], [0, I]]      J_B = [[R_x_y, 0], [0, R_x_y]]
     """
     R = T_x_y[:3, :3]
-    J_A = np.eye(6)
-    J_A[:3, 3:] = -skew(R @ T_y_z[:3, 3])
     J_B = np.zeros((6, 6))
     J_B[:3, :3] = R
     J_B[3:, 3:] = R
-    return J_A, J_B
+    return compose_jacobian_first(T_x_y, T_y_z), J_B
+
+
+def compose_jacobian_first(T_x_y: np.ndarray, T_y_z: np.ndarray) -> np.ndarray:
+    """``J_A`` of :func:`compose_jacobians` alone (6x6), when the second factor is exact (a mount)."""
+    x, y, z = (T_x_y[:3, :3] @ T_y_z[:3, 3]).tolist()
+    # -[v]x entry by entry (its diagonal is -0.0, as negating skew(v) gives).
+    return np.array(
+        (
+            (1.0, 0.0, 0.0, -0.0, z, -y),
+            (0.0, 1.0, 0.0, -z, -0.0, x),
+            (0.0, 0.0, 1.0, y, -x, -0.0),
+            (0.0, 0.0, 0.0, 1.0, 0.0, 0.0),
+            (0.0, 0.0, 0.0, 0.0, 1.0, 0.0),
+            (0.0, 0.0, 0.0, 0.0, 0.0, 1.0),
+        )
+    )
 
 
 def inverse_jacobian(T_x_y: np.ndarray) -> np.ndarray:
@@ -85,11 +100,11 @@ def inverse_jacobian(T_x_y: np.ndarray) -> np.ndarray:
         [[-R^T, [t_y_x]x R^T], [0, -R^T]]    with R = R_x_y, t_y_x = -R^T t_x_y
     """
     Rt = T_x_y[:3, :3].T
-    t_inv = -Rt @ T_x_y[:3, 3]
+    minus_Rt = -Rt
     J = np.zeros((6, 6))
-    J[:3, :3] = -Rt
-    J[:3, 3:] = skew(t_inv) @ Rt
-    J[3:, 3:] = -Rt
+    J[:3, :3] = minus_Rt
+    J[:3, 3:] = skew((minus_Rt @ T_x_y[:3, 3]).tolist()) @ Rt
+    J[3:, 3:] = minus_Rt
     return J
 
 
@@ -102,20 +117,25 @@ def upright_projection_jacobian(T_w_x: np.ndarray, T_b_x: np.ndarray) -> np.ndar
     (world frame); output: the error of the upright ``T_w_b`` (world frame).
     """
     R0 = T_w_x[:3, :3] @ T_b_x[:3, :3].T
-    cx, cy, cz = R0[0, 0], R0[1, 0], R0[2, 0]
+    (cx, _, _), (cy, _, _), (cz, _, _) = R0.tolist()
     h2 = cx * cx + cy * cy
-    yaw = np.arctan2(cy, cx)
+    yaw = np.arctan2(cy, cx)  # numpy's, not math's: they may differ in the last bit
     c, s = float(np.cos(yaw)), float(np.sin(yaw))
-    tx, ty = float(T_b_x[0, 3]), float(T_b_x[1, 3])
+    (_, _, _, tx), (_, _, _, ty) = T_b_x[:2].tolist()
     # d yaw / d dtheta for R = exp([dtheta]x) R0, yaw = atan2(R[1, 0], R[0, 0]).
-    dyaw = np.array((-cz * cx / h2, -cz * cy / h2, 1.0))
-    J = np.zeros((6, 6))
-    J[0, 0] = 1.0
-    J[1, 1] = 1.0
-    J[0, 3:] = (s * tx + c * ty) * dyaw
-    J[1, 3:] = -(c * tx - s * ty) * dyaw
-    J[5, 3:] = dyaw
-    return J
+    d0, d1, d2 = -cz * cx / h2, -cz * cy / h2, 1.0
+    a = s * tx + c * ty
+    b = -(c * tx - s * ty)
+    return np.array(
+        (
+            (1.0, 0.0, 0.0, a * d0, a * d1, a * d2),
+            (0.0, 1.0, 0.0, b * d0, b * d1, b * d2),
+            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 0.0, 0.0, d0, d1, d2),
+        )
+    )
 
 
 class LinearError:
@@ -138,15 +158,23 @@ class LinearError:
         """The error of a frozen reference robot's own pose."""
         return cls({name: np.eye(6)})
 
+    @classmethod
+    def _of(cls, J: dict[str, np.ndarray], Q: np.ndarray) -> LinearError:
+        """A new error owning the new dict ``J`` (not copied) and ``Q``."""
+        error = cls.__new__(cls)
+        error.J = J
+        error.Q = Q
+        return error
+
     def transformed(self, A: np.ndarray) -> LinearError:
         """The error ``A @ e``."""
-        return LinearError({s: A @ J for s, J in self.J.items()}, A @ self.Q @ A.T)
+        return LinearError._of({s: A @ J for s, J in self.J.items()}, A @ self.Q @ A.T)
 
     def plus_noise(self, A: np.ndarray, covariance: np.ndarray | None) -> LinearError:
         """A new error: this one plus ``A @ n`` for fresh noise ``n`` of ``covariance`` (None: no noise)."""
         if covariance is None:
-            return LinearError(self.J, self.Q)
-        return LinearError(self.J, self.Q + A @ covariance @ A.T)
+            return LinearError._of(dict(self.J), self.Q)
+        return LinearError._of(dict(self.J), self.Q + A @ covariance @ A.T)
 
     @staticmethod
     def mean(errors: Sequence[LinearError]) -> LinearError:
@@ -158,18 +186,28 @@ class LinearError:
         Q = np.zeros((6, 6))
         for e in errors:
             for s, Js in e.J.items():
-                J[s] = J[s] + Js if s in J else Js.copy()
+                if s in J:
+                    J[s] += Js
+                else:
+                    J[s] = Js.copy()
             Q += e.Q
-        return LinearError({s: Js / n for s, Js in J.items()}, Q / (n * n))
+        return LinearError._of({s: Js / n for s, Js in J.items()}, Q / (n * n))
 
     def covariance(self, P: Mapping[tuple[str, str], np.ndarray]) -> np.ndarray:
         """6x6 covariance, given the joint covariance ``P[(s, r)]`` of the references' errors."""
-        S = self.Q.copy()
-        items = list(self.J.items())
-        for s, Js in items:
-            for r, Jr in items:
-                S += Js @ P[(s, r)] @ Jr.T
-        return 0.5 * (S + S.T)
+        J = self.J
+        if len(J) == 1:  # the usual case: one reference (Q + X is Q.copy() += X)
+            ((s, Js),) = J.items()
+            S = self.Q + Js @ P[(s, s)] @ Js.T
+        else:
+            S = self.Q.copy()
+            items = list(J.items())
+            for s, Js in items:
+                for r, Jr in items:
+                    S += Js @ P[(s, r)] @ Jr.T
+        S_sym = S + S.T
+        S_sym *= 0.5
+        return S_sym
 
     def cross(self, P: Mapping[tuple[str, str], np.ndarray], other: str) -> np.ndarray:
         """6x6 covariance ``E[e e_other^T]`` with reference ``other``'s error (fresh noise is independent of it)."""
@@ -181,3 +219,62 @@ class LinearError:
     def references(self) -> Iterable[str]:
         """The references this error depends on."""
         return self.J.keys()
+
+
+class RunningErrorMean:
+    """:meth:`LinearError.mean` of a list of errors that mostly grows at its end.
+
+    A switch window asks for the mean error of its inliers at every update;
+    while the inliers only gain samples at the end, the sums of their
+    Jacobians and noise covariances are carried over and only the new errors
+    are added, in the same order as :meth:`LinearError.mean` adds them, so the
+    result is the same to the bit. Any other change starts the sums afresh.
+    Errors are recognised by identity and treated as read-only, as everywhere.
+    """
+
+    __slots__ = ("_errors", "_J", "_Q", "_mean")
+
+    def __init__(self) -> None:
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget the sums."""
+        self._errors: list[LinearError] = []
+        self._J: dict[str, np.ndarray] = {}
+        self._Q = np.zeros((6, 6))
+        self._mean: LinearError | None = None
+
+    def mean(self, errors: Sequence[LinearError]) -> LinearError:
+        """``LinearError.mean(errors)`` (the same object for the same list, unchanged)."""
+        summed = self._errors
+        m = len(summed)
+        n = len(errors)
+        fresh = m > n
+        if not fresh:
+            for a, b in zip(summed, errors):
+                if a is not b:
+                    fresh = True
+                    break
+        if fresh:
+            self.clear()
+            summed = self._errors
+            m = 0
+        elif m == n and self._mean is not None:
+            return self._mean
+        J = self._J
+        Q = self._Q
+        for k in range(m, n):
+            e = errors[k]
+            for s, Js in e.J.items():
+                if s in J:
+                    J[s] += Js
+                else:
+                    J[s] = Js.copy()
+            Q += e.Q
+            summed.append(e)
+        if n == 1:
+            mean = errors[0]
+        else:
+            mean = LinearError._of({s: Js / n for s, Js in J.items()}, Q / (n * n))
+        self._mean = mean
+        return mean

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -11,6 +12,17 @@ from moma_env.geometry import project_to_rotation
 __all__ = ["SwitchWindow"]
 
 _LAST_ROW = (0.0, 0.0, 0.0, 1.0)
+
+
+def _median(values: list[float]) -> float:
+    """``np.median`` of finite floats, the same bits: the middle value, or the mean of the middle two."""
+    return _sorted_median(sorted(values))
+
+
+def _sorted_median(s: list[float]) -> float:
+    """:func:`_median` of a sorted list."""
+    h = len(s) // 2
+    return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2.0
 
 
 class SwitchWindow:
@@ -29,6 +41,13 @@ class SwitchWindow:
     translations and the chordal mean of their rotations (the arithmetic mean
     of the matrices projected back onto SO(3)).
 
+    It runs at every update of a settling robot, so it keeps what the next call
+    can reuse: the samples' rotations in a preallocated ``(capacity, 9)`` array
+    and their translations as floats, the inliers and the mean until the next
+    change, and the running sums of the inliers' rotations and translations
+    while the inliers only grow at the end (the same additions in the same
+    order as summing them afresh, so the mean is the same to the bit).
+
     Args:
         capacity: most samples.
         outlier_k: the ``k`` above (> 0).
@@ -36,7 +55,23 @@ class SwitchWindow:
         floor_rad: rotation floor (rad).
     """
 
-    __slots__ = ("capacity", "outlier_k", "floor_m", "floor_rad", "_poses", "_payloads", "_inliers")
+    __slots__ = (
+        "capacity",
+        "outlier_k",
+        "floor_m",
+        "floor_rad",
+        "_poses",
+        "_payloads",
+        "_inliers",
+        "_rotations",
+        "_translations",
+        "_sorted_xyz",
+        "_finite",
+        "_mean",
+        "_sum_index",
+        "_R_sum",
+        "_t_sum",
+    )
 
     def __init__(self, capacity: int, outlier_k: float = 3.0, floor_m: float = 0.002, floor_rad: float = 0.002):
         if capacity < 1:
@@ -48,6 +83,14 @@ class SwitchWindow:
         self._poses: list[np.ndarray] = []
         self._payloads: list[Any] = []
         self._inliers: list[int] | None = None
+        self._rotations = np.empty((capacity, 9))  # row i: the rotation block of sample i, row by row
+        self._translations: list[tuple[float, float, float]] = []  # (m)
+        self._sorted_xyz: tuple[list[float], list[float], list[float]] = ([], [], [])  # each coordinate, sorted
+        self._finite = True  # every sample finite (else the exact numpy statistics decide)
+        self._mean: np.ndarray | None = None  # mean of the current inliers
+        self._sum_index: list[int] = []  # the samples summed in _R_sum, _t_sum, in order
+        self._R_sum = [0.0] * 9
+        self._t_sum = [0.0] * 3
 
     def __len__(self) -> int:
         return len(self._poses)
@@ -61,21 +104,47 @@ class SwitchWindow:
         """Forget every sample."""
         self._poses.clear()
         self._payloads.clear()
+        self._translations.clear()
+        for axis in self._sorted_xyz:
+            axis.clear()
         self._inliers = None
+        self._finite = True
+        self._mean = None
+        self._sum_index = []
+        self._R_sum = [0.0] * 9
+        self._t_sum = [0.0] * 3
 
     def append(self, T: np.ndarray, payload: Any = None) -> None:
         """Add a 4x4 pose (copied) and its payload; raises if the window is already full."""
-        if len(self._poses) >= self.capacity:
+        n = len(self._poses)
+        if n >= self.capacity:
             raise ValueError(f"switch window already holds {self.capacity} samples")
-        self._poses.append(np.array(T, dtype=float))
+        T = T.copy() if type(T) is np.ndarray and T.dtype.char == "d" and T.shape == (4, 4) else np.array(T, dtype=float)
+        rows = T.tolist()
+        r0, r1, r2 = rows[0], rows[1], rows[2]
+        self._rotations[n] = (r0[0], r0[1], r0[2], r1[0], r1[1], r1[2], r2[0], r2[1], r2[2])
+        t = (r0[3], r1[3], r2[3])
+        if not math.isfinite(sum(r0) + sum(r1) + sum(r2) + sum(rows[3])):
+            self._finite = False
+        self._poses.append(T)
+        self._translations.append(t)
+        xs, ys, zs = self._sorted_xyz
+        xs.append(t[0])
+        xs.sort()  # one pass over an already sorted list
+        ys.append(t[1])
+        ys.sort()
+        zs.append(t[2])
+        zs.sort()
         self._payloads.append(payload)
         self._inliers = None
+        self._mean = None
 
     def payloads(self, indices: list[int] | None = None) -> list[Any]:
         """The payloads of the samples at ``indices`` (all when None)."""
         if indices is None:
             return list(self._payloads)
-        return [self._payloads[i] for i in indices]
+        payloads = self._payloads
+        return [payloads[i] for i in indices]
 
     def inliers(self) -> list[int]:
         """Indices of the samples the mean uses (see the class docstring); raises when empty."""
@@ -87,6 +156,36 @@ class SwitchWindow:
         if n <= 2:
             self._inliers = list(range(n))
             return self._inliers
+        if not self._finite:
+            self._inliers = self._inliers_numpy()
+            return self._inliers
+        # Plain floats where numpy would only round the same way (element-wise
+        # arithmetic, sqrt, medians); the Gram matrix of the rotations stays one
+        # numpy product on the same (n, 9) array as ever.
+        translations = self._translations
+        xs, ys, zs = self._sorted_xyz
+        mx, my, mz = _sorted_median(xs), _sorted_median(ys), _sorted_median(zs)
+        sqrt = math.sqrt
+        d_t = [sqrt((x - mx) * (x - mx) + (y - my) * (y - my) + (z - mz) * (z - mz)) for x, y, z in translations]
+        flat = self._rotations[:n]
+        traces = flat @ flat.T  # trace(R_i^T R_j)
+        medoid = int(np.add.reduce(traces, axis=1).argmax())  # traces.sum(axis=1), without its wrapper
+        # np.arccos(np.clip((row - 1.0) / 2.0, -1.0, 1.0)) in place (finite entries: the same bits).
+        c = traces[medoid]
+        c -= 1.0
+        c /= 2.0
+        np.maximum(c, -1.0, out=c)
+        np.minimum(c, 1.0, out=c)
+        d_r = np.arccos(c, out=c).tolist()
+        k = self.outlier_k
+        limit_t = max(k * _median(d_t), self.floor_m)
+        limit_r = max(k * _median(d_r), self.floor_rad)
+        self._inliers = [i for i in range(n) if d_t[i] <= limit_t and d_r[i] <= limit_r]
+        return self._inliers
+
+    def _inliers_numpy(self) -> list[int]:
+        """:meth:`inliers` with numpy's statistics (NaN-aware), for windows holding a non-finite sample."""
+        n = len(self._poses)
         stack = np.array(self._poses)
         t = stack[:, :3, 3]
         d_t = np.sqrt(((t - np.median(t, axis=0)) ** 2).sum(axis=1))
@@ -97,22 +196,53 @@ class SwitchWindow:
         k = self.outlier_k
         limit_t = max(k * float(np.median(d_t)), self.floor_m)
         limit_r = max(k * float(np.median(d_r)), self.floor_rad)
-        self._inliers = [i for i in range(n) if d_t[i] <= limit_t and d_r[i] <= limit_r]
-        return self._inliers
+        return [i for i in range(n) if d_t[i] <= limit_t and d_r[i] <= limit_r]
 
     def mean(self) -> np.ndarray:
         """Average pose of the inliers so far (a new 4x4 array); raises when empty."""
+        if self._mean is not None:
+            return self._mean.copy()
         index = self.inliers()
         if len(index) == 1:
-            return self._poses[index[0]].copy()
-        R_sum = np.zeros((3, 3))
-        t_sum = np.zeros(3)
-        for i in index:
-            T = self._poses[i]
-            R_sum += T[:3, :3]
-            t_sum += T[:3, 3]
+            self._mean = self._poses[index[0]]
+            return self._mean.copy()
+        # Running sums: add only the new inliers when the summed ones are a prefix.
+        summed = self._sum_index
+        m = len(summed)
+        if m > len(index) or index[:m] != summed:
+            summed = []
+            m = 0
+            R_sum = [0.0] * 9
+            t_sum = [0.0] * 3
+        else:
+            R_sum = self._R_sum
+            t_sum = self._t_sum
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = R_sum
+        sx, sy, sz = t_sum
+        rotations = self._rotations
+        translations = self._translations
+        for i in index[m:]:
+            a, b, c, d, e, f, g, h, j = rotations[i].tolist()
+            r00 += a
+            r01 += b
+            r02 += c
+            r10 += d
+            r11 += e
+            r12 += f
+            r20 += g
+            r21 += h
+            r22 += j
+            x, y, z = translations[i]
+            sx += x
+            sy += y
+            sz += z
+        self._sum_index = list(index)
+        self._R_sum = [r00, r01, r02, r10, r11, r12, r20, r21, r22]
+        self._t_sum = [sx, sy, sz]
+        count = len(index)
         T = np.empty((4, 4))
-        T[:3, :3] = project_to_rotation(R_sum)
-        T[:3, 3] = t_sum / len(index)
+        T[:3, :3] = project_to_rotation(np.array(((r00, r01, r02), (r10, r11, r12), (r20, r21, r22))))
+        T[:3, 3] = (sx / count, sy / count, sz / count)
         T[3] = _LAST_ROW
-        return T
+        self._mean = T
+        return T.copy()
