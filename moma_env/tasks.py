@@ -51,10 +51,11 @@ class Task:
 
 #: The team objective of the coordination tasks (``RewardConfig`` weights): reach every
 #: goal soon (a time cost per step, a bonus per goal, progress per metre), keep the
-#: estimates accurate on the way (a cost per metre of mean error per step), and ask only
-#: for what the rules grant (refusals cost). The other weights are ``RewardConfig``'s defaults.
+#: estimates accurate on the way (a cost per metre of mean error per step) and at the end
+#: (a cost per metre of mean error when the last goal is reached), and ask only for what
+#: the rules grant (refusals cost). The other weights are ``RewardConfig``'s defaults.
 TEAM_REWARDS: Mapping[str, float] = MappingProxyType(
-    {"progress": 1.0, "localisation_error": -0.5, "refused": -0.05, "goal_bonus": 5.0, "time": -0.01}
+    {"progress": 1.0, "localisation_error": -0.5, "refused": -0.05, "goal_bonus": 5.0, "time": -0.01, "final_error": -50.0}
 )
 
 _TASK_LIST = (
@@ -69,7 +70,7 @@ _TASK_LIST = (
             "action_masks": True,
             "rewards": dict(TEAM_REWARDS),
         },
-        "4 UGVs to spread goals under one UAV: time, goals, localisation error on the way, refusals",
+        "4 UGVs to spread goals under one UAV: time, goals, localisation error on the way and at the end, refusals",
     ),
     Task(
         "top_observer_team6",
@@ -82,7 +83,7 @@ _TASK_LIST = (
             "action_masks": True,
             "rewards": dict(TEAM_REWARDS),
         },
-        "6 UGVs to spread goals under one UAV: time, goals, localisation error on the way, refusals",
+        "6 UGVs to spread goals under one UAV: time, goals, localisation error on the way and at the end, refusals",
     ),
 )
 

@@ -79,3 +79,22 @@ def test_team_count_stays_an_integer():
     with pytest.raises(ConfigError, match="top_observer.n_ugvs"):
         TopObserverConfig.random(np.random.default_rng(0), n_ugvs=2.5)
 
+
+def test_final_error_term_charges_the_mean_error_once_when_the_team_arrives():
+    from agents.policies import GreedyParallelPolicy
+    from moma_env.tasks import TEAM_REWARDS
+
+    env = parallel_env("top_observer_team4")
+    observations, infos = env.reset(seed=3)
+    policy = GreedyParallelPolicy()
+    policy.reset(env)
+    charged = []
+    terminations: dict[str, bool] = {}
+    while env.agents:
+        observations, _, terminations, _, infos = env.step(policy.act(observations, infos))
+        charged.append(infos["ugv_0"]["reward_terms"]["final_error"])
+    assert all(terminations.values())
+    assert all(value == 0.0 for value in charged[:-1])
+    errors = [infos[a]["localisation_error"] for a in infos]
+    assert charged[-1] == pytest.approx(TEAM_REWARDS["final_error"] * sum(errors) / len(errors), rel=1e-12)
+    assert charged[-1] < 0.0

@@ -56,6 +56,9 @@ class RewardConfig:
         lost: per step and per robot whose estimate is LOST.
         goal_bonus: once per UGV reaching its goal.
         time: per step (a negative value rewards finishing early).
+        final_error: per metre of the mean position error of the UGVs' estimates
+            (as ``localisation_error`` counts it) at the step the team reaches its
+            last goal; 0 at every other step.
         lost_error_m: error (m) charged for a robot without a usable estimate.
     """
 
@@ -67,6 +70,7 @@ class RewardConfig:
     lost: float = -0.05
     goal_bonus: float = 5.0
     time: float = -0.005
+    final_error: float = 0.0
     lost_error_m: float = 1.0
 
     def __post_init__(self) -> None:

@@ -37,6 +37,7 @@ class RewardInputs:
         new_collisions: collision pairs that were not in contact the step before.
         lost: UGVs whose estimate is LOST.
         newly_reached: UGVs that reached their goal this step.
+        finished: the team reached its last goal this step (the episode ends).
     """
 
     progress: float
@@ -46,6 +47,7 @@ class RewardInputs:
     new_collisions: int
     lost: int
     newly_reached: int
+    finished: bool
 
 
 @dataclass(frozen=True)
@@ -88,6 +90,10 @@ def _time(r: RewardInputs) -> float:
     return 1.0
 
 
+def _final_error(r: RewardInputs) -> float:
+    return r.mean_error if r.finished else 0.0
+
+
 #: The terms, in the order they are summed.
 REWARD_TERMS: tuple[RewardTerm, ...] = (
     RewardTerm("progress", _progress),
@@ -98,6 +104,7 @@ REWARD_TERMS: tuple[RewardTerm, ...] = (
     RewardTerm("lost", _lost),
     RewardTerm("goal_bonus", _goal_bonus),
     RewardTerm("time", _time),
+    RewardTerm("final_error", _final_error),
 )
 
 
@@ -181,6 +188,7 @@ class TeamReward:
             new_collisions=len(new_contacts),
             lost=n_lost,
             newly_reached=len(newly),
+            finished=bool(newly) and self.done,
         )
         terms = {term.name: getattr(w, term.name) * term.value(inputs) for term in REWARD_TERMS}
         values = iter(terms.values())
