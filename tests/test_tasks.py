@@ -98,3 +98,27 @@ def test_final_error_term_charges_the_mean_error_once_when_the_team_arrives():
     errors = [infos[a]["localisation_error"] for a in infos]
     assert charged[-1] == pytest.approx(TEAM_REWARDS["final_error"] * sum(errors) / len(errors), rel=1e-12)
     assert charged[-1] < 0.0
+
+
+def test_training_config_takes_a_task_and_its_objective():
+    from training.train.command import scenario_rewards
+    from training.train.config import TrainConfig
+    from moma_env.tasks import TEAM_REWARDS
+
+    config = TrainConfig(scenario="top_observer_team4")
+    assert "rewards" not in config.env_options  # the task's own weights apply
+    env = parallel_env(config.scenario, **config.env_options)
+    assert env.config.rewards.final_error == TEAM_REWARDS["final_error"]
+    assert scenario_rewards("top_observer_team4", []) is None
+    changed = scenario_rewards("top_observer_team4", ["time=-0.02"])
+    assert changed.time == -0.02 and changed.final_error == TEAM_REWARDS["final_error"]
+    assert scenario_rewards("top_observer", ["time=-0.02"]).final_error == 0.0
+    with pytest.raises(ConfigError, match="scenario"):
+        TrainConfig(scenario="top_observer_team5")
+
+
+def test_built_in_policies_load_for_a_task():
+    from training.evaluation import load_policy
+    from agents.policies import TopObserverLeapfrog
+
+    assert isinstance(load_policy("scripted", "top_observer_team4"), TopObserverLeapfrog)

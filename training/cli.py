@@ -171,7 +171,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
         return 2
     rig = TASKS[args.scenario].configuration if args.scenario in TASKS else args.scenario
     try:
-        policy = load_policy(args.policy, rig, args.seed, sample_actions=args.sample_actions)
+        policy = load_policy(args.policy, args.scenario, args.seed, sample_actions=args.sample_actions)
     except PolicyLoadError as err:
         print(f"moma-env evaluate: {err}", file=sys.stderr)
         return 2

@@ -193,14 +193,13 @@ def evaluate(
     """
     if configuration not in CONFIGURATIONS and configuration not in TASKS:
         raise ConfigError("scenario", f"unknown configuration or task {configuration!r}; known: {sorted(CONFIGURATIONS) + sorted(TASKS)}")
-    rig = TASKS[configuration].configuration if configuration in TASKS else configuration
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     if isinstance(policy_spec, str):
         label = policy_label(policy_spec)
-        policy = load_policy(policy_spec, rig, seed)
+        policy = load_policy(policy_spec, configuration, seed)
     else:
         label = type(policy_spec).__name__
         policy = policy_spec

@@ -81,7 +81,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
             caterpillar follower servoing to its stand-off, velocity mode),
             ``"random"`` or the path
             of a trained policy.
-        configuration: the configuration's name (``"top_observer"``, ...).
+        configuration: the configuration's or task's name (``"top_observer"``,
+            ``"top_observer_team4"``, ...); a built-in policy is its configuration's.
         seed: the random policy's seed (ignored by the others).
         sample_actions: a trained policy samples its actions (seeded per
             episode) instead of taking the distribution's mode; only for trained
@@ -91,6 +92,11 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         PolicyLoadError: an unknown spec, a path that does not exist or is not
             supported yet, or ``agents.policies`` missing or lacking the policy.
     """
+    tasks = importlib.import_module("moma_env.tasks").TASKS
+    if configuration in tasks:  # a built-in policy is that of the task's configuration
+        builtin_configuration = tasks[configuration].configuration
+    else:
+        builtin_configuration = configuration
     if not isinstance(spec, str) or not spec:
         raise PolicyLoadError(f"policy must be 'scripted', 'random' or a path, got {spec!r}")
     if sample_actions and spec in BUILTIN_POLICIES:
@@ -101,7 +107,7 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         if factory is None:
             raise PolicyLoadError("agents.policies has no scripted_policy(configuration)")
         try:
-            policy = factory(configuration)
+            policy = factory(builtin_configuration)
         except (KeyError, ValueError) as err:
             raise PolicyLoadError(f"no scripted policy for configuration {configuration!r}: {err}") from None
     elif spec == "greedy":
@@ -117,7 +123,7 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
             raise PolicyLoadError("agents.policies has no PlannedPolicy()")
         policy = cls()
     elif spec == "servo":
-        if configuration != "caterpillar":
+        if builtin_configuration != "caterpillar":
             raise PolicyLoadError(f"the servo policy is for the caterpillar configuration, not {configuration!r}")
         module = _agents_policies()
         cls = getattr(module, "CaterpillarServo", None)

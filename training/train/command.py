@@ -13,6 +13,8 @@ import sys
 from pathlib import Path
 
 from moma_env.config import ConfigError
+from moma_env.env.config import RewardConfig
+from moma_env.tasks import TASKS
 from training.train.config import ALGORITHMS, ROUTES, TrainConfig, reward_overrides
 
 __all__ = ["add_train_parser", "run_train", "config_from_args"]
@@ -32,7 +34,7 @@ def add_train_parser(sub, int_at_least) -> argparse.ArgumentParser:
     """Add ``train`` to the subparsers ``sub``; ``int_at_least(minimum, what)`` is the CLI's integer type."""
     defaults = {f.name: f.default for f in dataclasses.fields(TrainConfig) if f.default is not dataclasses.MISSING}
     tr = sub.add_parser("train", help="train a coordination policy with Stable-Baselines3")
-    tr.add_argument("--scenario", required=True, help="configuration name (top_observer, caterpillar, caterpillar_sled, caterpillar_multi)")
+    tr.add_argument("--scenario", required=True, help="configuration (top_observer, caterpillar, caterpillar_sled, caterpillar_multi) or task (top_observer_team4, top_observer_team6) name")
     tr.add_argument("--algo", choices=sorted(ALGORITHMS), default=defaults["algo"], help="algorithm (default ppo; dqn: switching + shared; maskable_ppo: switching, needs sb3-contrib; sac, td3: velocity)")
     tr.add_argument("--steps", type=int_at_least(1, "step count"), default=defaults["steps"],
                     help="total timesteps: env steps (centralised) or agent steps (shared) (default %(default)s)")
@@ -69,6 +71,15 @@ def add_train_parser(sub, int_at_least) -> argparse.ArgumentParser:
     return tr
 
 
+def scenario_rewards(scenario: str, pairs: list[str]) -> RewardConfig | None:
+    """None without ``--reward`` (the scenario's own weights), else those pairs over a
+    task's weights (:data:`moma_env.tasks.TASKS`) or the defaults."""
+    if not pairs:
+        return None
+    task = TASKS.get(scenario)
+    return reward_overrides(pairs, None if task is None else task.options.get("rewards"))
+
+
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
     """The :class:`TrainConfig` of parsed arguments (ConfigError names a bad field)."""
     return TrainConfig(
@@ -81,7 +92,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         action_mode=args.action_mode,
         route=args.route,
         max_cycles=args.max_cycles,
-        rewards=reward_overrides(args.reward),
+        rewards=scenario_rewards(args.scenario, args.reward),
         normalize=args.normalize,
         net_arch=tuple(args.net),
         n_steps=args.n_steps,

@@ -29,6 +29,7 @@ from typing import Any
 from moma_env.config import ConfigError, check_bool, check_choice, check_count, check_non_negative, check_positive, check_range, from_mapping
 from moma_env.env.config import ACTION_MODES, RewardConfig
 from moma_env.scenarios import CONFIGURATIONS
+from moma_env.tasks import TASKS
 
 __all__ = ["ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "TrainConfig", "reward_overrides"]
 
@@ -51,7 +52,8 @@ class TrainConfig:
     """One training run.
 
     Attributes:
-        scenario: configuration name (``"top_observer"``, ...).
+        scenario: configuration or task name (``"top_observer"``,
+            ``"top_observer_team4"``, ...; :mod:`moma_env.tasks`).
         algo: a key of :data:`ALGORITHMS` (``maskable_ppo``: sb3-contrib's
             MaskablePPO, the switching mode's actions masked by the motion rules).
         steps: total SB3 timesteps (env steps on the centralised route, agent
@@ -63,7 +65,8 @@ class TrainConfig:
         action_mode: ``"switching"`` or ``"velocity"``.
         route: ``"centralised"`` or ``"shared"``.
         max_cycles: episode length limit in steps (None: the scenario's).
-        rewards: reward weights (defaults of :class:`RewardConfig` overridden).
+        rewards: reward weights; None: the scenario's (a task's objective, else
+            :class:`RewardConfig`'s defaults).
         normalize: wrap the envs in ``VecNormalize`` (observations and rewards).
         net_arch: hidden layer sizes of the policy and value networks.
         n_steps: rollout length per slot (on-policy algorithms).
@@ -93,7 +96,7 @@ class TrainConfig:
     action_mode: str = "switching"
     route: str = "shared"
     max_cycles: int | None = None
-    rewards: RewardConfig = field(default_factory=RewardConfig)
+    rewards: RewardConfig | None = None
     normalize: bool = True
     net_arch: tuple[int, ...] = (64, 64)
     n_steps: int = 256
@@ -112,7 +115,7 @@ class TrainConfig:
     torch_threads: int = 1
 
     def __post_init__(self) -> None:
-        check_choice("scenario", self.scenario, sorted(CONFIGURATIONS))
+        check_choice("scenario", self.scenario, sorted(CONFIGURATIONS) + sorted(TASKS))
         check_choice("algo", self.algo, sorted(ALGORITHMS))
         check_count("steps", self.steps, 1)
         check_count("envs", self.envs, 1)
@@ -123,8 +126,8 @@ class TrainConfig:
         for name in ("max_cycles", "eval_max_cycles"):
             if getattr(self, name) is not None:
                 check_count(name, getattr(self, name), 1)
-        if not isinstance(self.rewards, RewardConfig):
-            raise ConfigError("rewards", f"must be a RewardConfig, got {type(self.rewards).__name__}")
+        if self.rewards is not None and not isinstance(self.rewards, RewardConfig):
+            raise ConfigError("rewards", f"must be a RewardConfig or None, got {type(self.rewards).__name__}")
         check_bool("normalize", self.normalize)
         if not isinstance(self.net_arch, tuple) or not self.net_arch:
             raise ConfigError("net_arch", f"must be a non-empty tuple of layer sizes, got {self.net_arch!r}")
@@ -154,14 +157,17 @@ class TrainConfig:
 
     @property
     def env_options(self) -> dict[str, Any]:
-        """Keyword options of :func:`moma_env.env.factory.parallel_env` for this run."""
-        return {
+        """Keyword options of :func:`moma_env.env.factory.parallel_env` for this run (a
+        task's own options apply beneath them)."""
+        options: dict[str, Any] = {
             "action_mode": self.action_mode,
             "observer_agent": False,
             "max_cycles": self.max_cycles,
-            "rewards": dataclasses.asdict(self.rewards),
             "random_scenarios": True,
         }
+        if self.rewards is not None:
+            options["rewards"] = dataclasses.asdict(self.rewards)
+        return options
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for the manifest (tuples as lists)."""
@@ -178,14 +184,15 @@ class TrainConfig:
         return from_mapping(cls, data, name="train")
 
 
-def reward_overrides(pairs: list[str] | tuple[str, ...]) -> RewardConfig:
-    """``["progress=2", "time=-0.01"]`` -> a :class:`RewardConfig` with those weights changed.
+def reward_overrides(pairs: list[str] | tuple[str, ...], base: Mapping[str, float] | None = None) -> RewardConfig:
+    """``["progress=2", "time=-0.01"]`` -> a :class:`RewardConfig` with those weights
+    changed from ``base`` (weights by name, e.g. a task's; None: the defaults).
 
     Raises:
         ConfigError: a pair without ``=``, a value that is not a number, or an
             unknown weight (named ``rewards.<name>``).
     """
-    values: dict[str, float] = {}
+    values: dict[str, float] = dict(base or {})
     for pair in pairs:
         name, sep, text = pair.partition("=")
         if not sep or not name:
