@@ -2,7 +2,7 @@
 
 ``python -m training.bench_step [--scenario top_observer] [--steps 5000]`` times the
 whole ``env.step`` under random actions (drawn before the clock starts, as in
-``moma-env bench``) and, inside it, the calls of ``GeometricCamera.measure``,
+``moma-env bench``) and, inside it, the env's camera measurement (``env.measure``),
 ``MomaEstimator.update`` and ``World.step``, by wrapping those methods of the one
 env it builds (instances only: nothing global is patched). With MPE2 installed it
 then times MPE2 ``simple_spread`` (N=3, parallel API, random actions, as in
@@ -37,10 +37,10 @@ def step_breakdown(scenario: str = "top_observer", steps: int = 5000, warmup: in
     env.reset(seed=seed)
     totals = {"camera": 0.0, "estimator": 0.0, "world": 0.0}
 
+    time_calls(env, "measure", totals, "camera")
+
     def instrument() -> None:
         # reset() may build a new estimator or world: wrap whatever the env holds now.
-        for camera in env.cameras.values():
-            time_calls(camera, "measure", totals, "camera")
         time_calls(env.estimator, "update", totals, "estimator")
         time_calls(env.world, "step", totals, "world")
 
