@@ -179,19 +179,7 @@ class LinearError:
     @staticmethod
     def mean(errors: Sequence[LinearError]) -> LinearError:
         """The error of the mean of estimates with these errors, their fresh noises independent."""
-        n = len(errors)
-        if n == 1:
-            return errors[0]
-        J: dict[str, np.ndarray] = {}
-        Q = np.zeros((6, 6))
-        for e in errors:
-            for s, Js in e.J.items():
-                if s in J:
-                    J[s] += Js
-                else:
-                    J[s] = Js.copy()
-            Q += e.Q
-        return LinearError._of({s: Js / n for s, Js in J.items()}, Q / (n * n))
+        return RunningErrorMean().mean(errors)
 
     def covariance(self, P: Mapping[tuple[str, str], np.ndarray]) -> np.ndarray:
         """6x6 covariance, given the joint covariance ``P[(s, r)]`` of the references' errors."""
