@@ -5,7 +5,9 @@ comparison of policies needs: the team, random layouts with held-out seeds, the
 action mode, the masks and the team objective (the reward's weights). Every
 constructor that takes a configuration name takes a task name too
 (``parallel_env("top_observer_team4")``, ``moma_env.vector.make(...)``, ``moma-env
-evaluate --scenario``); keywords given there override the task's.
+evaluate --scenario``, ``moma-env train --scenario``); keywords given there override
+the task's. Each task also has a Gymnasium id (``gymnasium.make("moma_env/TopObserverTeam4-v0")``
+and ``gymnasium.make_vec``), registered with the configurations' ids.
 
 Tasks where coordination matters (with two robots one must always stay behind as
 the reference, so there is little to coordinate):
@@ -34,6 +36,8 @@ class Task:
 
     Attributes:
         name: the task's name (what constructors take in place of a configuration).
+        gymnasium_id: its Gymnasium id (the whole team as one agent, as the
+            configurations' ids), e.g. ``"moma_env/TopObserverTeam4-v0"``.
         configuration: the configuration it runs.
         options: keywords of ``moma_env.env.factory.parallel_env``: env options and
             configuration fields.
@@ -41,6 +45,7 @@ class Task:
     """
 
     name: str
+    gymnasium_id: str
     configuration: str
     options: Mapping[str, Any] = field(default_factory=dict)
     objective: str = ""
@@ -61,6 +66,7 @@ TEAM_REWARDS: Mapping[str, float] = MappingProxyType(
 _TASK_LIST = (
     Task(
         "top_observer_team4",
+        "moma_env/TopObserverTeam4-v0",
         "top_observer",
         {
             "n_ugvs": 4,
@@ -74,6 +80,7 @@ _TASK_LIST = (
     ),
     Task(
         "top_observer_team6",
+        "moma_env/TopObserverTeam6-v0",
         "top_observer",
         {
             "n_ugvs": 6,

@@ -85,13 +85,16 @@ def test_every_spec_has_its_versioned_module_and_every_module_a_spec():
         assert module.env(max_cycles=5).metadata["name"] == spec.pettingzoo_module
 
 
-def test_every_spec_has_its_gymnasium_id_and_every_id_a_spec():
+def test_every_spec_has_its_gymnasium_id_and_every_id_a_spec_or_a_task():
+    from moma_env.tasks import TASKS
+
     ours = {env_id: entry for env_id, entry in gymnasium.registry.items() if env_id.startswith("moma_env/")}
-    assert set(ours) == {spec.gymnasium_id for spec in SPECS}
-    for spec in SPECS:
-        entry = ours[spec.gymnasium_id]
+    assert set(ours) == {spec.gymnasium_id for spec in SPECS} | {task.gymnasium_id for task in TASKS.values()}
+    named = [(spec.gymnasium_id, spec.name) for spec in SPECS] + [(task.gymnasium_id, task.name) for task in TASKS.values()]
+    for env_id, name in named:
+        entry = ours[env_id]
         assert entry.entry_point == "moma_env.env.factory:centralised_env"
-        assert entry.kwargs == {"configuration": spec.name}
+        assert entry.kwargs == {"configuration": name}
 
 
 def test_every_spec_has_its_pettingzoo_ids():

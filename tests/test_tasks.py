@@ -122,3 +122,18 @@ def test_built_in_policies_load_for_a_task():
     from agents.policies import TopObserverLeapfrog
 
     assert isinstance(load_policy("scripted", "top_observer_team4"), TopObserverLeapfrog)
+
+
+def test_tasks_have_gymnasium_ids():
+    import gymnasium
+
+    import moma_env  # noqa: F401  (registers the ids)
+
+    team = gymnasium.make("moma_env/TopObserverTeam4-v0")
+    observation, info = team.reset(seed=0)
+    assert team.unwrapped.parallel_env.scenario.name == "top_observer"
+    assert len([a for a in team.unwrapped.parallel_env.possible_agents if a.startswith("ugv")]) == 4
+    envs = gymnasium.make_vec("moma_env/TopObserverTeam6-v0", num_envs=2)
+    observations, _ = envs.reset(seed=0)
+    assert observations.shape[0] == 2
+    envs.close()
