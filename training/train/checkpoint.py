@@ -95,7 +95,7 @@ def save_checkpoint(
 
 
 #: Temporaries of :func:`moma_env.io.atomic_path` left by a process killed mid-write.
-_STALE_TEMPORARY = re.compile(r"^\.(model|vecnormalize|replay|manifest|evaluations)_?[\w]*\.[0-9a-f]{12}\.tmp\.(zip|pkl|json)$")
+_STALE_TEMPORARY = re.compile(r"^\.(model|vecnormalize|replay|manifest|evaluations|curves)_?[\w]*\.[0-9a-f]{12}\.tmp\.(zip|pkl|json|csv|png)$")
 
 
 def remove_stale_temporaries(out: Path) -> list[Path]:
