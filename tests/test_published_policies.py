@@ -193,3 +193,26 @@ def test_the_default_root_is_the_repositorys_policies_folder_which_git_keeps(mon
         assert ignored.returncode == 1, f"{path} is ignored by git"
     assert isinstance(moma_env.ENV_VERSION, str) and moma_env.ENV_VERSION
     assert sys.modules["moma_env"].ENV_VERSION == moma_env.ENV_VERSION
+
+
+def test_the_recorded_command_line_remakes_the_configuration():
+    import dataclasses
+
+    from moma_env.tasks import TASKS
+    from training.cli import build_parser
+    from training.train.command import config_from_args, train_command
+    from training.train.config import reward_overrides
+
+    configs = [
+        tiny(progress_bar=True, eval_max_cycles=None),
+        TrainConfig(scenario="top_observer", steps=4000, net_arch=(8, 8), learning_rate=1e-3, normalize=False, subproc=True,
+                    rewards=reward_overrides(["refused=-0.005", "progress=2"]), eval_sample_actions=True),
+        TrainConfig(scenario="top_observer_team4", algo="maskable_ppo", progress_bar=True,
+                    rewards=reward_overrides(["time=-0.02"], TASKS["top_observer_team4"].options["rewards"])),
+    ]
+    for config in configs:
+        argv, omitted = train_command(config, "out")
+        assert argv[:2] == ["moma-env", "train"] and argv[-2:] == ["--out", "out"] and omitted == []
+        assert config_from_args(build_parser().parse_args(argv[1:])) == config
+    argv, omitted = train_command(dataclasses.replace(configs[0], torch_threads=2, eval_max_cycles=7), "out")
+    assert omitted == ["eval_max_cycles", "torch_threads"]

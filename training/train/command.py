@@ -11,6 +11,7 @@ import dataclasses
 import json
 import sys
 from pathlib import Path
+from types import MappingProxyType
 
 from moma_env.config import ConfigError
 from moma_env.env.config import RewardConfig
@@ -110,16 +111,16 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
 
 
 #: TrainConfig fields -> their ``moma-env train`` option (value options; flags are handled apart).
-_VALUE_OPTIONS = {
+_VALUE_OPTIONS = MappingProxyType({
     "algo": "--algo", "steps": "--steps", "envs": "--envs", "seed": "--seed", "action_mode": "--action-mode",
     "route": "--route", "max_cycles": "--max-cycles", "n_steps": "--n-steps", "batch_size": "--batch-size",
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
     "eval_seed": "--eval-seed",
-}
+})
 #: TrainConfig fields -> (the flag, the field's value when the flag is given; without it, the other).
-_FLAGS = {"subproc": ("--subproc", True), "normalize": ("--no-normalize", False),
-          "eval_sample_actions": ("--eval-sample-actions", True), "progress_bar": ("--no-progress", False)}
+_FLAGS = MappingProxyType({"subproc": ("--subproc", True), "normalize": ("--no-normalize", False),
+                           "eval_sample_actions": ("--eval-sample-actions", True), "progress_bar": ("--no-progress", False)})
 
 
 def train_command(config: TrainConfig, out: str | Path) -> tuple[list[str], list[str]]:

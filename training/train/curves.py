@@ -29,6 +29,7 @@ import sys
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -54,7 +55,7 @@ CURVES_CSV = "curves.csv"
 CURVES_PNG = "curves.png"
 
 #: Columns of ``curves.csv`` -> the key of the evaluation record they come from.
-CURVE_COLUMNS: Mapping[str, str] = {
+CURVE_COLUMNS: Mapping[str, str] = MappingProxyType({
     "timesteps": "num_timesteps",
     "wall_time_s": "wall_time_s",
     "success_rate": "success_rate",
@@ -64,7 +65,7 @@ CURVE_COLUMNS: Mapping[str, str] = {
     "switches": "n_switches",
     "refusals": "n_refused",
     "return": "total_reward",
-}
+})
 
 #: The figure's panels: (column, axis label, scale from the CSV's unit to the axis's).
 _PANELS = (

@@ -47,6 +47,7 @@ from agents.learned import (
     read_manifest,
 )
 from moma_env import ENV_VERSION
+from moma_env.config import ConfigError
 from moma_env.io import write_json
 from training.evaluation.policies import BUILTIN_POLICIES
 from training.train.checkpoint import source_revision
@@ -181,7 +182,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         target = publish(args.run, args.name, args.root, args.replace)
-    except (PublishError, TrainingDirError) as err:
+    except (PublishError, TrainingDirError, ConfigError) as err:  # ConfigError: the manifest's configuration
         print(f"publish: {err}", file=sys.stderr)
         return 2
     manifest = json.loads((target / MANIFEST).read_text(encoding="utf-8"))
