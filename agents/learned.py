@@ -20,6 +20,15 @@ The UAV observer was flown by its tracking controller during training
 an env the policy fits, and ``reset`` refuses one it does not fit.
 
 Stable-Baselines3 (the ``train`` extra) is imported only when a model is loaded.
+
+Published policies: ``load_published("NAME")`` loads ``policies/NAME/`` (written by
+``python -m training.train.publish RUN_DIR NAME``; the root is the repository's
+``policies/`` folder, else ``$MOMA_POLICIES_DIR``, else a ``root`` argument, see
+:func:`policies_root`). Its manifest is a training manifest (same keys, files
+``model.zip`` and ``vecnormalize.pkl``) plus ``published`` (provenance) and the
+files' SHA-256. A manifest whose ``env_version`` differs from
+:data:`moma_env.ENV_VERSION` (observations, actions or rewards changed since it
+was trained) is refused, for published policies and training folders alike.
 Actions: by default the mode of the action distribution
 (``deterministic=True``, what SB3's evaluation does). With
 ``deterministic=False`` the policy samples from the distribution it was
@@ -43,8 +52,11 @@ slower (206 s against 40 s for 20 episodes).
 
 from __future__ import annotations
 
+import hashlib
 import json
+import os
 import pickle
+import re
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -53,10 +65,26 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from moma_env import ENV_VERSION
 from moma_env.env.centralised import CentralisedTeamEnv
 from moma_env.env.parallel import OBSERVER, MomaParallelEnv
 
-__all__ = ["LearnedPolicy", "TrainingDirError", "read_manifest", "sb3_class", "MANIFEST", "MANIFEST_FORMAT"]
+__all__ = [
+    "LearnedPolicy",
+    "TrainingDirError",
+    "read_manifest",
+    "sb3_class",
+    "MANIFEST",
+    "MANIFEST_FORMAT",
+    "POLICIES_ENV",
+    "PUBLISHED_NAME",
+    "policies_root",
+    "published_dir",
+    "published_names",
+    "read_published",
+    "load_published",
+    "file_sha256",
+]
 
 #: Name of the manifest in a training output folder.
 MANIFEST = "manifest.json"
@@ -64,6 +92,12 @@ MANIFEST = "manifest.json"
 MANIFEST_FORMAT = 1
 #: Routes a manifest may name.
 _ROUTES = ("centralised", "shared")
+#: Environment variable naming the folder of published policies (instead of the repository's ``policies/``).
+POLICIES_ENV = "MOMA_POLICIES_DIR"
+#: The repository's folder of published policies (the default root).
+_REPOSITORY_POLICIES = Path(__file__).resolve().parents[1] / "policies"
+#: What a published policy's name may be: letters, digits, ``_`` and ``-``, starting with a letter or digit.
+PUBLISHED_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 
 ObservationNormaliser = Callable[[np.ndarray], np.ndarray]
 
@@ -75,8 +109,12 @@ class TrainingDirError(ValueError):
 def read_manifest(directory: str | Path) -> dict[str, Any]:
     """The manifest of a training folder, checked: format, route, and every file it names exists.
 
+    A manifest that records an ``env_version`` must record :data:`moma_env.ENV_VERSION`
+    (manifests written before the version existed record none and are not checked).
+
     Raises:
-        TrainingDirError: no folder, no manifest, unreadable or inconsistent manifest.
+        TrainingDirError: no folder, no manifest, unreadable or inconsistent manifest,
+            another env version.
     """
     directory = Path(directory)
     if not directory.is_dir():
@@ -95,11 +133,114 @@ def read_manifest(directory: str | Path) -> dict[str, Any]:
             raise TrainingDirError(f"{str(path)!r} lacks the key {key!r}")
     if manifest["route"] not in _ROUTES:
         raise TrainingDirError(f"{str(path)!r} names an unknown route {manifest['route']!r}")
+    version = manifest.get("env_version")
+    if version is not None and version != ENV_VERSION:
+        raise TrainingDirError(
+            f"{str(path)!r} was trained on env version {version!r}, this code's is {ENV_VERSION!r} "
+            "(observations, actions or rewards changed): retrain it, or run it at the commit its manifest names"
+        )
     for key in ("model", "vecnormalize", "replay_buffer"):
         name = manifest.get(key)
         if name is not None and not (directory / name).is_file():
             raise TrainingDirError(f"{str(path)!r} names {key} file {name!r}, which is missing")
     return manifest
+
+
+def _first_line(err: BaseException) -> str:
+    text = str(err).strip().splitlines()
+    return f"{type(err).__name__}: {text[0]}" if text else type(err).__name__
+
+
+def file_sha256(path: str | Path) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def policies_root(root: str | Path | None = None) -> Path:
+    """The folder of published policies: ``root`` if given, else ``$MOMA_POLICIES_DIR`` if set
+    (and not empty), else the repository's ``policies/``."""
+    if root is not None:
+        return Path(root)
+    from_env = os.environ.get(POLICIES_ENV)
+    return Path(from_env) if from_env else _REPOSITORY_POLICIES
+
+
+def published_dir(name: str, root: str | Path | None = None) -> Path:
+    """The folder of published policy ``name`` under :func:`policies_root` (it may not exist).
+
+    Raises:
+        TrainingDirError: ``name`` is not a valid name (:data:`PUBLISHED_NAME`: no path separator).
+    """
+    if not isinstance(name, str) or not PUBLISHED_NAME.match(name):
+        raise TrainingDirError(
+            f"{name!r} is not a published policy name (letters, digits, '_' and '-', at most 64, no path separator)"
+        )
+    return policies_root(root) / name
+
+
+def published_names(root: str | Path | None = None) -> list[str]:
+    """The names of the policies published under :func:`policies_root` (folders with a manifest), sorted."""
+    folder = policies_root(root)
+    if not folder.is_dir():
+        return []
+    return sorted(p.name for p in folder.iterdir() if PUBLISHED_NAME.match(p.name) and (p / MANIFEST).is_file())
+
+
+def read_published(name: str, root: str | Path | None = None) -> dict[str, Any]:
+    """The checked manifest of published policy ``name``: a training manifest (:func:`read_manifest`:
+    files present, same env version) that records its env version, its provenance
+    (``published``) and the SHA-256 of every file, which must match the files.
+
+    Raises:
+        TrainingDirError: an invalid or unknown name (listing the published ones), a
+            manifest without env version or checksums, another env version, a file
+            whose bytes differ from its checksum (truncated or changed).
+    """
+    folder = published_dir(name, root)
+    if not (folder / MANIFEST).is_file():
+        known = published_names(root)
+        raise TrainingDirError(
+            f"no published policy {name!r} in {str(policies_root(root))!r} (published: {', '.join(known) if known else 'none'})"
+        )
+    manifest = read_manifest(folder)
+    where = str(folder / MANIFEST)
+    if "env_version" not in manifest:
+        raise TrainingDirError(f"{where!r} records no env_version: republish the policy from a run of this code")
+    checksums = manifest.get("sha256")
+    if not isinstance(checksums, dict) or manifest["model"] not in checksums:
+        raise TrainingDirError(f"{where!r} records no sha256 of its files: republish it with python -m training.train.publish")
+    for file_name, expected in checksums.items():
+        path = folder / file_name
+        if not path.is_file():
+            raise TrainingDirError(f"{where!r} names file {file_name!r}, which is missing")
+        if file_sha256(path) != expected:
+            raise TrainingDirError(f"{str(path)!r} differs from the sha256 its manifest records (truncated or changed): republish it")
+    return manifest
+
+
+def load_published(
+    name: str, configuration: str | None = None, deterministic: bool = True, root: str | Path | None = None
+) -> "LearnedPolicy":
+    """The published policy ``name`` (``policies/<name>/``), ready for the evaluation harness::
+
+        policy = agents.learned.load_published("top4_maskable")
+
+    Args:
+        name: its name (see :data:`PUBLISHED_NAME`).
+        configuration: if given, must be the configuration or task it was trained on.
+        deterministic: see :class:`LearnedPolicy`.
+        root: the folder of published policies (default :func:`policies_root`).
+
+    Raises:
+        TrainingDirError: see :func:`read_published`; a configuration mismatch; a
+            model that cannot be loaded.
+    """
+    read_published(name, root)
+    return LearnedPolicy.from_dir(published_dir(name, root), configuration, deterministic=deterministic)
 
 
 def sb3_class(name: str):
@@ -206,7 +347,8 @@ class LearnedPolicy:
             deterministic: see the class.
 
         Raises:
-            TrainingDirError: see :func:`read_manifest`; a configuration mismatch.
+            TrainingDirError: see :func:`read_manifest`; a configuration mismatch; a model
+                zip or statistics file that cannot be loaded (damaged, truncated).
         """
         directory = Path(directory)
         manifest = read_manifest(directory)
@@ -214,11 +356,20 @@ class LearnedPolicy:
         trained_on = config.get("scenario")
         if configuration is not None and trained_on != configuration:
             raise TrainingDirError(f"{str(directory)!r} was trained on {trained_on!r}, not {configuration!r}")
-        model = sb3_class(manifest["sb3_class"]).load(directory / manifest["model"], device="cpu")
+        algorithm = sb3_class(manifest["sb3_class"])
+        try:
+            model = algorithm.load(directory / manifest["model"], device="cpu")
+        except Exception as err:  # a truncated or foreign zip fails anywhere in SB3, zipfile or torch
+            raise TrainingDirError(f"cannot load the model {str(directory / manifest['model'])!r} (damaged or not an SB3 zip): "
+                                   f"{_first_line(err)}") from None
         normalise = None
         if manifest.get("vecnormalize"):
-            with open(directory / manifest["vecnormalize"], "rb") as f:
-                stats = pickle.load(f)
+            try:
+                with open(directory / manifest["vecnormalize"], "rb") as f:
+                    stats = pickle.load(f)
+            except Exception as err:  # truncated pickles raise EOFError, UnpicklingError, ...
+                raise TrainingDirError(f"cannot load the normalisation statistics {str(directory / manifest['vecnormalize'])!r}: "
+                                       f"{_first_line(err)}") from None
             if getattr(stats, "norm_obs", False):
                 normalise = stats.normalize_obs
         return cls(model, manifest["route"], config["action_mode"], normalise, trained_on, deterministic=deterministic)

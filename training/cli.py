@@ -125,7 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ev = sub.add_parser("evaluate", help="run a policy for N episodes and report success, errors and switches")
     ev.add_argument("--scenario", required=True, help="configuration (top_observer, caterpillar, caterpillar_sled, caterpillar_multi) or task (top_observer_team4, top_observer_team6) name")
-    ev.add_argument("--policy", default="scripted", help="'scripted' (one mover at a time), 'greedy' (as many movers as the rules allow), 'planned' (follows the MOMA navigation planner), 'servo' (caterpillar stand-off servo), 'random' or the path of a trained policy (default scripted)")
+    ev.add_argument("--policy", default="scripted", help="'scripted' (one mover at a time), 'greedy' (as many movers as the rules allow), 'planned' (follows the MOMA navigation planner), 'servo' (caterpillar stand-off servo), 'random', the path of a trained policy, or the name of a policy published under policies/ ($MOMA_POLICIES_DIR; python -m training.train.publish) (default scripted)")
     ev.add_argument("--episodes", type=_int_at_least(1, "episode count"), default=10, help="number of episodes (default 10)")
     ev.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first episode; episode k uses seed+k (default 0)")
     layouts = ev.add_mutually_exclusive_group()

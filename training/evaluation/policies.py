@@ -11,7 +11,11 @@ Specs understood by :func:`load_policy`:
 * ``"random"``: ``agents.policies.RandomPolicy(seed)``;
 * a path: the output folder of ``moma-env train``
   (:class:`agents.learned.LearnedPolicy`; it names the env options it fits in
-  ``env_options``).
+  ``env_options``);
+* a name without a path separator that is published under ``policies/`` (or
+  ``$MOMA_POLICIES_DIR``): :func:`agents.learned.load_published` (a policy of
+  another env version is refused). A name that is both a published policy and a
+  folder in the working directory is refused as ambiguous (write ``./NAME`` for the folder).
 
 ``agents.policies`` is imported lazily, when a policy is loaded.
 """
@@ -58,15 +62,42 @@ def _agents_policies():
         raise PolicyLoadError(f"the built-in policies need the package agents.policies, which cannot be imported: {err}") from None
 
 
+def _learned():
+    try:
+        return importlib.import_module("agents.learned")
+    except ImportError as err:
+        raise PolicyLoadError(f"trained policies need the module agents.learned, which cannot be imported: {err}") from None
+
+
 def _load_trained_policy(path: Path, configuration: str, sample_actions: bool = False) -> Policy:
     """A policy trained by ``moma-env train`` in folder ``path`` (:class:`agents.learned.LearnedPolicy`),
     sampling its actions if ``sample_actions``."""
-    try:
-        learned = importlib.import_module("agents.learned")
-    except ImportError as err:
-        raise PolicyLoadError(f"trained policies need the module agents.learned, which cannot be imported: {err}") from None
+    learned = _learned()
     try:
         return learned.LearnedPolicy.from_dir(path, configuration, deterministic=not sample_actions)
+    except learned.TrainingDirError as err:
+        raise PolicyLoadError(str(err)) from None
+
+
+def _published_folder(spec: str) -> Path | None:
+    """The folder of published policy ``spec`` if ``spec`` is a bare name (no path separator)
+    with a folder under the policies root, else None."""
+    learned = _learned()
+    if not learned.PUBLISHED_NAME.match(spec):
+        return None
+    folder = learned.published_dir(spec)
+    return folder if folder.is_dir() else None
+
+
+def _published_names() -> list[str]:
+    return _learned().published_names()
+
+
+def _load_published_policy(name: str, configuration: str, sample_actions: bool = False) -> Policy:
+    """The published policy ``name`` (:func:`agents.learned.load_published`), sampling if ``sample_actions``."""
+    learned = _learned()
+    try:
+        return learned.load_published(name, configuration, deterministic=not sample_actions)
     except learned.TrainingDirError as err:
         raise PolicyLoadError(str(err)) from None
 
@@ -79,8 +110,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
             movers at once), ``"planned"`` (follows the MOMA
             navigation planner's plan, velocity mode), ``"servo"`` (the
             caterpillar follower servoing to its stand-off, velocity mode),
-            ``"random"`` or the path
-            of a trained policy.
+            ``"random"``, the path
+            of a trained policy, or the name of a published one (``policies/<name>``).
         configuration: the configuration's or task's name (``"top_observer"``,
             ``"top_observer_team4"``, ...); a built-in policy is its configuration's.
         seed: the random policy's seed (ignored by the others).
@@ -90,7 +121,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
 
     Raises:
         PolicyLoadError: an unknown spec, a path that does not exist or is not
-            supported yet, or ``agents.policies`` missing or lacking the policy.
+            supported yet, a published policy that cannot be loaded (another env
+            version, damaged files), or ``agents.policies`` missing or lacking the policy.
     """
     tasks = importlib.import_module("moma_env.tasks").TASKS
     if configuration in tasks:  # a built-in policy is that of the task's configuration
@@ -138,11 +170,20 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         policy = cls(seed)
     else:
         path = Path(spec)
-        if not path.exists():
+        published = _published_folder(spec)
+        if published is not None:
+            if path.exists():
+                raise PolicyLoadError(
+                    f"policy {spec!r} is both a published policy ({str(published)!r}) and a folder here: write ./{spec} for the folder"
+                )
+            policy = _load_published_policy(spec, configuration, sample_actions)
+        elif not path.exists():
             raise PolicyLoadError(
-                f"unknown policy {spec!r}: expected 'scripted', 'greedy', 'planned', 'servo', 'random' or the folder of a trained policy"
+                f"unknown policy {spec!r}: expected 'scripted', 'greedy', 'planned', 'servo', 'random', the folder of a trained "
+                f"policy or a published policy's name (published: {', '.join(_published_names()) or 'none'})"
             )
-        policy = _load_trained_policy(path, configuration, sample_actions)
+        else:
+            policy = _load_trained_policy(path, configuration, sample_actions)
     if not isinstance(policy, Policy):
         raise PolicyLoadError(f"policy {spec!r} lacks reset(env, seed) or act(observations, infos)")
     return policy

@@ -17,12 +17,10 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from moma_env.io import write_json
 from training.train.config import TrainConfig
+from training.train.curves import EVALUATIONS, write_curves
 from training.train.evaluation import evaluate_model, headline
 
 __all__ = ["CheckpointCallback", "EvaluationCallback", "EVALUATIONS"]
-
-#: File of the held-out evaluations in the run's folder.
-EVALUATIONS = "evaluations.json"
 
 
 class CheckpointCallback(BaseCallback):
@@ -56,11 +54,12 @@ class CheckpointCallback(BaseCallback):
 class EvaluationCallback(BaseCallback):
     """Runs the evaluation harness on held-out random scenarios every ``config.eval_every`` timesteps.
 
-    Every evaluation appends a record (timesteps, training wall time, the
+    Every evaluation appends a record (timesteps, training wall time in s, the
     :func:`~training.train.evaluation.headline` numbers, whether the actions
     were sampled) and rewrites
-    ``<out>/evaluations.json`` whole; the numbers also go to the SB3 logger
-    (``eval/...``, in TensorBoard when it is installed).
+    ``<out>/evaluations.json``, ``<out>/curves.csv`` and ``<out>/curves.png``
+    (:mod:`training.train.curves`), each whole; the numbers also go to the SB3
+    logger (``eval/...``, in TensorBoard when it is installed).
 
     Args:
         config: the run (``eval_every``, ``eval_episodes``, ``eval_seed``, ...).
@@ -95,6 +94,7 @@ class EvaluationCallback(BaseCallback):
         for key in ("success_rate", "time_to_goal_s", "n_switches", "me_m", "e_f_m"):
             self.logger.record(f"eval/{key}", record[key])
         write_evaluations(self.out, self.config, self.records)
+        write_curves(self.out, self.records, f"{self.config.scenario}: {self.config.algo}, {self.config.route}, seed {self.config.seed}")
         return record
 
     def _on_step(self) -> bool:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import datetime
 import re
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -27,10 +28,31 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
 from agents.learned import MANIFEST, MANIFEST_FORMAT, read_manifest
+from moma_env import ENV_VERSION
 from moma_env.io import atomic_path, write_json
 from training.train.config import ALGORITHMS, TrainConfig
 
-__all__ = ["save_checkpoint", "read_manifest", "checkpoint_files", "remove_stale_temporaries"]
+__all__ = ["save_checkpoint", "read_manifest", "checkpoint_files", "remove_stale_temporaries", "source_revision"]
+
+#: The repository holding this file (where ``git`` is asked for the commit).
+_REPOSITORY = Path(__file__).resolve().parents[2]
+
+
+def source_revision(repository: Path = _REPOSITORY) -> dict[str, Any]:
+    """``{"commit": sha or None, "dirty": bool or None}`` of the code's git checkout
+    (None where git or the repository is unavailable; ``dirty``: tracked files differ
+    from the commit)."""
+
+    def git(*args: str) -> str | None:
+        try:
+            done = subprocess.run(["git", "-C", str(repository), *args], capture_output=True, text=True, timeout=10, check=True)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return done.stdout.strip()
+
+    commit = git("rev-parse", "HEAD")
+    status = git("status", "--porcelain", "--untracked-files=no") if commit else None
+    return {"commit": commit or None, "dirty": None if status is None else bool(status)}
 
 #: Files of checkpoints: ``<kind>_<timesteps>.<ext>``.
 _CHECKPOINT_FILE = re.compile(r"^(model|vecnormalize|replay)_\d+\.(zip|pkl)$")
@@ -55,7 +77,10 @@ def save_checkpoint(
         model: the model; its env is the (possibly ``VecNormalize``-wrapped) training env.
         config: the run's configuration (stored in the manifest).
         wall_time_s: training wall time so far (s), over every session of the run.
-        extra: more manifest entries (plain data).
+        extra: more manifest entries (plain data), such as ``{"git": source_revision()}``.
+
+    The manifest records :data:`moma_env.ENV_VERSION`, the version of the envs' observations,
+    actions and rewards the model was trained on (a policy of another version is refused).
     """
     out = Path(out)
     steps = int(model.num_timesteps)
@@ -73,6 +98,7 @@ def save_checkpoint(
             model.save_replay_buffer(tmp)
     manifest = {
         "format": MANIFEST_FORMAT,
+        "env_version": ENV_VERSION,
         "num_timesteps": steps,
         "sb3_class": ALGORITHMS[config.algo],
         "route": config.route,
@@ -95,7 +121,7 @@ def save_checkpoint(
 
 
 #: Temporaries of :func:`moma_env.io.atomic_path` left by a process killed mid-write.
-_STALE_TEMPORARY = re.compile(r"^\.(model|vecnormalize|replay|manifest|evaluations)_?[\w]*\.[0-9a-f]{12}\.tmp\.(zip|pkl|json)$")
+_STALE_TEMPORARY = re.compile(r"^\.(model|vecnormalize|replay|manifest|evaluations|curves)_?[\w]*\.[0-9a-f]{12}\.tmp\.(zip|pkl|json|csv|png)$")
 
 
 def remove_stale_temporaries(out: Path) -> list[Path]:

@@ -11,13 +11,14 @@ import dataclasses
 import json
 import sys
 from pathlib import Path
+from types import MappingProxyType
 
 from moma_env.config import ConfigError
 from moma_env.env.config import RewardConfig
 from moma_env.tasks import TASKS
 from training.train.config import ALGORITHMS, ROUTES, TrainConfig, reward_overrides
 
-__all__ = ["add_train_parser", "run_train", "config_from_args"]
+__all__ = ["add_train_parser", "run_train", "config_from_args", "train_command"]
 
 
 def _layers(text: str) -> tuple[int, ...]:
@@ -107,6 +108,48 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         eval_sample_actions=args.eval_sample_actions,
         progress_bar=args.progress_bar,
     )
+
+
+#: TrainConfig fields -> their ``moma-env train`` option (value options; flags are handled apart).
+_VALUE_OPTIONS = MappingProxyType({
+    "algo": "--algo", "steps": "--steps", "envs": "--envs", "seed": "--seed", "action_mode": "--action-mode",
+    "route": "--route", "max_cycles": "--max-cycles", "n_steps": "--n-steps", "batch_size": "--batch-size",
+    "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
+    "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
+    "eval_seed": "--eval-seed",
+})
+#: TrainConfig fields -> (the flag, the field's value when the flag is given; without it, the other).
+_FLAGS = MappingProxyType({"subproc": ("--subproc", True), "normalize": ("--no-normalize", False),
+                           "eval_sample_actions": ("--eval-sample-actions", True), "progress_bar": ("--no-progress", False)})
+
+
+def train_command(config: TrainConfig, out: str | Path) -> tuple[list[str], list[str]]:
+    """``(argv, fields)``: the ``moma-env train`` command line of ``config`` writing to ``out``
+    (options at their defaults left out), and the fields that differ from the defaults but
+    have no option (``buffer_size``, ``eval_max_cycles``, ``torch_threads``: a run made from
+    Python), which the command cannot reproduce."""
+    defaults = TrainConfig(scenario=config.scenario)
+    argv = ["moma-env", "train", "--scenario", config.scenario]
+    for name, option in _VALUE_OPTIONS.items():
+        value = getattr(config, name)
+        if value != getattr(defaults, name) and value is not None:
+            argv += [option, repr(value) if isinstance(value, float) else str(value)]
+    if config.net_arch != defaults.net_arch:
+        argv += ["--net", ",".join(map(str, config.net_arch))]
+    if config.rewards is not None:
+        task = TASKS.get(config.scenario)
+        base = RewardConfig(**(task.options.get("rewards", {}) if task is not None else {}))
+        for f in dataclasses.fields(RewardConfig):
+            value = getattr(config.rewards, f.name)
+            if value != getattr(base, f.name):
+                argv += ["--reward", f"{f.name}={value!r}"]
+    for name, (flag, when) in _FLAGS.items():
+        if getattr(config, name) == when:  # the command line's default is the other value
+            argv.append(flag)
+    argv += ["--out", str(out)]
+    known = set(_VALUE_OPTIONS) | set(_FLAGS) | {"scenario", "net_arch", "rewards"}
+    missing = [f.name for f in dataclasses.fields(TrainConfig) if f.name not in known and getattr(config, f.name) != getattr(defaults, f.name)]
+    return argv, missing
 
 
 def run_train(args: argparse.Namespace) -> int:

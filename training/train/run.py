@@ -24,7 +24,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 
 from moma_env.config import ConfigError
 from training.train.callbacks import EVALUATIONS, CheckpointCallback, EvaluationCallback
-from training.train.checkpoint import checkpoint_files, read_manifest, remove_stale_temporaries, save_checkpoint
+from training.train.checkpoint import checkpoint_files, read_manifest, remove_stale_temporaries, save_checkpoint, source_revision
 from agents.learned import torch_threads
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
@@ -94,13 +94,14 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
         model = build_model(config, venv)
         wall_before = 0.0
         records = []
+    provenance = {"git": source_revision()}  # the code of this session (a resume records its own)
     session_start = time.perf_counter()
 
     def wall_time() -> float:
         return wall_before + time.perf_counter() - session_start
 
     def save() -> dict[str, Any]:
-        return save_checkpoint(out, model, config, wall_time())
+        return save_checkpoint(out, model, config, wall_time(), provenance)
 
     evaluation = EvaluationCallback(config, out, records, wall_time)
     chain = CallbackList([CheckpointCallback(config.checkpoint_every, save), evaluation, *callbacks])
