@@ -10,13 +10,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 import moma_env
 from agents.learned import MANIFEST, POLICIES_ENV, LearnedPolicy, TrainingDirError, load_published, policies_root
-from moma_env.env.factory import parallel_env
-from policy_guard import guarded
+from policy_guard import episode_actions
 from training.cli import main
 from training.evaluation import PolicyLoadError, evaluate, load_policy
 from training.train import publish as publish_module
@@ -51,15 +49,7 @@ def policies(tmp_path, monkeypatch) -> Path:
 
 
 def _actions(policy, seed: int = 3, steps: int = 12) -> list[dict]:
-    env = parallel_env("top_observer", **(policy.env_options | {"max_cycles": steps}))
-    observations, infos = env.reset(seed=seed)
-    policy.reset(env, seed=seed)
-    out = []
-    while env.agents:
-        actions = policy.act(observations, guarded(infos))
-        out.append({a: np.asarray(v).tolist() for a, v in actions.items()})
-        observations, _, _, _, infos = env.step(actions)
-    return out
+    return episode_actions(policy, "top_observer", policy.env_options, seed, steps)
 
 
 def _one_error_line(capsys, prefix: str) -> str:

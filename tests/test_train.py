@@ -16,7 +16,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from agents.learned import LearnedPolicy, TrainingDirError
 from moma_env.config import ConfigError
 from moma_env.env.factory import parallel_env
-from policy_guard import guarded
+from policy_guard import episode_actions
 from training.cli import main
 from training.train.checkpoint import checkpoint_files, save_checkpoint
 from training.train.config import TrainConfig
@@ -52,15 +52,7 @@ class KeepModel(BaseCallback):
 
 
 def _episode_actions(policy, config: TrainConfig, seed: int, steps: int) -> list[dict]:
-    env = parallel_env(config.scenario, **(config.env_options | {"max_cycles": steps}))
-    observations, infos = env.reset(seed=seed)
-    policy.reset(env, seed=seed)
-    out = []
-    while env.agents:
-        actions = policy.act(observations, guarded(infos))
-        out.append({a: np.asarray(v).tolist() for a, v in actions.items()})
-        observations, _, _, _, infos = env.step(actions)
-    return out
+    return episode_actions(policy, config.scenario, config.env_options, seed, steps)
 
 
 @pytest.mark.parametrize(
