@@ -206,3 +206,19 @@ def test_the_recorded_command_line_remakes_the_configuration():
         assert config_from_args(build_parser().parse_args(argv[1:])) == config
     argv, omitted = train_command(dataclasses.replace(configs[0], torch_threads=2, eval_max_cycles=7), "out")
     assert omitted == ["eval_max_cycles", "torch_threads"]
+
+
+def test_every_policy_shipped_in_the_repository_loads_and_acts():
+    """The policies/ folder of the repository: each published policy loads by name (its
+    checksums and env version checked) and acts on a short episode of the task it was
+    trained on."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "policies"
+    names = sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith("."))
+    assert names, "no policy is shipped in policies/"
+    for name in names:
+        policy = load_published(name, root=root)
+        scenario = json.loads((root / name / "manifest.json").read_text())["config"]["scenario"]
+        actions = episode_actions(policy, scenario, policy.env_options, seed=5, steps=40)
+        assert len(actions) == 40
