@@ -188,6 +188,20 @@ def _record_contact(arbiter: pymunk.Arbiter, space: pymunk.Space, data: tuple[di
     contacts.add((copy, frozenset((name_a, name_b))))
 
 
+
+def run_substeps(space, h: float, substeps: int, ugvs, reeling, paying) -> None:
+    """World's inner loop (``World._advance``), replicated because it is private: per
+    substep of ``h`` s, drive the UGVs, reel the reeling sleds in, step ``space``, pay the
+    paying sleds' ropes out."""
+    for _ in range(substeps):
+        for ugv in ugvs:
+            ugv.drive()
+        for sled in reeling:
+            sled.reel(h)
+        space.step(h)
+        for sled in paying:
+            sled.pay_out()
+
 class _Copy:
     """One copy's static shapes, robots and sleds added to a space (World's ``reset``)."""
 
@@ -335,15 +349,7 @@ class PerCopySpaces(_Layout):
             for ugv, value in zip(ugvs, command):
                 ugv.set_command(*value)
             contacts.clear()
-            reeling, paying = part.reeling, part.paying
-            for _ in range(substeps):
-                for ugv in ugvs:
-                    ugv.drive()
-                for sled in reeling:
-                    sled.reel(h)
-                space.step(h)
-                for sled in paying:
-                    sled.pay_out()
+            run_substeps(space, h, substeps, ugvs, part.reeling, part.paying)
             for body in part.bodies:
                 x, y = body.position
                 rows += (x, y, body.angle)
@@ -420,15 +426,7 @@ class SharedSpace(_Layout):
         for ugv, value in zip(self.ugvs, self.current().reshape(-1, 3).tolist()):
             ugv.set_command(*value)
         self.contacts.clear()
-        ugvs, reeling, paying = self.ugvs, self.reeling, self.paying
-        for _ in range(self.substeps):
-            for ugv in ugvs:
-                ugv.drive()
-            for sled in reeling:
-                sled.reel(h)
-            space.step(h)
-            for sled in paying:
-                sled.pay_out()
+        run_substeps(space, h, self.substeps, self.ugvs, self.reeling, self.paying)
         rows: list[float] = []
         for part in self.parts:
             for body in part.bodies:
