@@ -53,7 +53,6 @@ slower (206 s against 40 s for 20 episodes).
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import pickle
 import re
@@ -68,6 +67,7 @@ from gymnasium import spaces
 from moma_env import ENV_VERSION
 from moma_env.env.centralised import CentralisedTeamEnv
 from moma_env.env.parallel import OBSERVER, MomaParallelEnv
+from moma_env.io import read_json_in
 
 __all__ = [
     "LearnedPolicy",
@@ -117,15 +117,9 @@ def read_manifest(directory: str | Path) -> dict[str, Any]:
             another env version.
     """
     directory = Path(directory)
-    if not directory.is_dir():
-        raise TrainingDirError(f"{str(directory)!r} is not a folder of a training run")
-    path = directory / MANIFEST
-    if not path.is_file():
-        raise TrainingDirError(f"{str(directory)!r} holds no {MANIFEST} (not a finished checkpoint of moma-env train)")
-    try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as err:
-        raise TrainingDirError(f"cannot read {str(path)!r}: {err}") from None
+    path, manifest = read_json_in(
+        directory, MANIFEST, TrainingDirError, "a folder of a training run", "not a finished checkpoint of moma-env train"
+    )
     if not isinstance(manifest, dict) or manifest.get("format") != MANIFEST_FORMAT:
         raise TrainingDirError(f"{str(path)!r} is not a version-{MANIFEST_FORMAT} training manifest")
     for key in ("sb3_class", "route", "model", "num_timesteps", "config"):

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "read_json_in",
     "atomic_path",
     "atomic_write_bytes",
     "atomic_write_text",
@@ -181,6 +182,26 @@ def write_json(path: PathLike, obj: Any) -> None:
     """
     text = json.dumps(to_jsonable(obj), sort_keys=True, indent=2, allow_nan=False)
     atomic_write_text(path, text + "\n")
+
+
+def read_json_in(folder: PathLike, name: str, error: type[Exception], folder_kind: str = "a folder", hint: str = "") -> tuple[Path, Any]:
+    """``(path, parsed JSON)`` of the file ``name`` in ``folder``.
+
+    Raises:
+        error: one line naming what is wrong: ``folder`` is not ``folder_kind`` (not a
+            folder), holds no ``name`` (with ``hint`` in brackets), or the file cannot be
+            read or parsed.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise error(f"{str(folder)!r} is not {folder_kind}")
+    path = folder / name
+    if not path.is_file():
+        raise error(f"{str(folder)!r} holds no {name}" + (f" ({hint})" if hint else ""))
+    try:
+        return path, json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        raise error(f"cannot read {str(path)!r}: {err}") from None
 
 
 def write_csv(

@@ -206,3 +206,23 @@ def test_no_temp_files_left_after_many_writes(tmp_path: Path) -> None:
         atomic_write_text(target, str(i))
     assert target.read_text() == "19"
     assert os.listdir(tmp_path) == ["r.txt"]
+
+
+def test_read_json_in_names_what_is_wrong(tmp_path):
+    import pytest
+
+    from moma_env.io import read_json_in
+
+    class Bad(ValueError):
+        pass
+
+    with pytest.raises(Bad, match="is not a run folder"):
+        read_json_in(tmp_path / "nope", "a.json", Bad, "a run folder")
+    with pytest.raises(Bad, match=r"holds no a\.json \(train first\)"):
+        read_json_in(tmp_path, "a.json", Bad, hint="train first")
+    (tmp_path / "a.json").write_text("{", encoding="utf-8")
+    with pytest.raises(Bad, match="cannot read"):
+        read_json_in(tmp_path, "a.json", Bad)
+    (tmp_path / "a.json").write_text('{"k": 1}', encoding="utf-8")
+    path, data = read_json_in(tmp_path, "a.json", Bad)
+    assert path == tmp_path / "a.json" and data == {"k": 1}

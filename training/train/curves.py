@@ -23,7 +23,6 @@ refusals per episode; return is the mean team return per episode.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import warnings
@@ -34,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from moma_env.io import atomic_path, write_csv
+from moma_env.io import atomic_path, read_json_in, write_csv
 
 __all__ = [
     "EVALUATIONS",
@@ -193,16 +192,7 @@ def read_run(folder: str | Path) -> tuple[dict[str, Any], list[dict[str, float]]
         CurvesError: not a folder, no or unreadable ``evaluations.json``, no records,
             a record lacking a number.
     """
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise CurvesError(f"{str(folder)!r} is not a folder")
-    path = folder / EVALUATIONS
-    if not path.is_file():
-        raise CurvesError(f"{str(folder)!r} holds no {EVALUATIONS} (a run of moma-env train with --eval-every)")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as err:
-        raise CurvesError(f"cannot read {str(path)!r}: {err}") from None
+    path, data = read_json_in(folder, EVALUATIONS, CurvesError, hint="a run of moma-env train with --eval-every")
     if not isinstance(data, dict) or not isinstance(data.get("records"), list):
         raise CurvesError(f"{str(path)!r} has no list of records")
     if not data["records"]:
