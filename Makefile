@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet "$(TORCH)"
-	$(BIN)/python -m pip install --quiet -e ".[train,dev,torchrl]"
+	$(BIN)/python -m pip install --quiet -e ".[train,dev,torchrl,ray]"
 	touch $(STAMP)
 
 square: $(STAMP)
