@@ -152,6 +152,9 @@ def build_parser() -> argparse.ArgumentParser:
     from training.train.command import add_train_parser
 
     add_train_parser(sub, _int_at_least)
+    from training.sweep.command import add_sweep_parser
+
+    add_sweep_parser(sub)
     return parser
 
 
