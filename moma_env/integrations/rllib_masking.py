@@ -1,7 +1,7 @@
 """An RLlib PPO module (new API stack) that acts only among the actions the motion rules would grant.
 
 With masks, a UGV's observation is ``{"observations": Box, "action_mask": Box(0, 1, (n,))}``
-(:class:`moma_env.integrations.rllib.MaskedObservations`): the networks see the
+(:class:`moma_env.integrations.rllib_env.MaskedObservations`): the networks see the
 observation only; the logits of masked actions get ``log(0)`` (clamped to the float
 minimum), so their probability is zero in exploration, inference and the loss alike.
 """
@@ -15,10 +15,9 @@ import torch
 from ray.rllib.algorithms.ppo.torch.ppo_torch_rl_module import PPOTorchRLModule
 from ray.rllib.core.columns import Columns
 
-__all__ = ["MaskedPPOTorchRLModule", "MASK_KEY", "OBS_KEY"]
+from moma_env.integrations.rllib_env import MASK_KEY, OBS_KEY
 
-MASK_KEY = "action_mask"
-OBS_KEY = "observations"
+__all__ = ["MaskedPPOTorchRLModule", "MASK_KEY", "OBS_KEY"]
 
 
 def _split(batch: dict[str, Any]) -> tuple[dict[str, Any], Any]:

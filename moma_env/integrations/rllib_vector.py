@@ -29,7 +29,7 @@ from ray.rllib.env.vector.vector_multi_agent_env import VectorMultiAgentEnv
 
 from moma_env.config import ConfigError, check_count
 from moma_env.env.parallel import MomaParallelEnv
-from moma_env.integrations.rllib import MaskedObservations, masked_parallel_env
+from moma_env.integrations.rllib_env import MaskedObservations, masked_parallel_env
 from moma_env.vector.env import measure_copies
 
 __all__ = ["BatchedMultiAgentEnv", "MomaVectorEnvRunner", "CopyView"]
@@ -60,7 +60,7 @@ class BatchedMultiAgentEnv(VectorMultiAgentEnv):
 
     Args:
         configuration: a configuration or task name.
-        env_config: the options of :func:`moma_env.integrations.rllib.masked_parallel_env`.
+        env_config: the options of :func:`moma_env.integrations.rllib_env.masked_parallel_env`.
         num_envs: copies (>= 1).
     """
 

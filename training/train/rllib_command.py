@@ -18,6 +18,9 @@ import sys
 from pathlib import Path
 
 from moma_env.config import ConfigError
+from moma_env.env.config import RewardConfig
+from moma_env.tasks import TASKS
+from training.train.config import reward_overrides
 from training.train.rllib_config import RLLIB_ROUTES, RllibTrainConfig
 
 __all__ = ["add_rllib_arguments", "run_rllib_train", "rllib_config_from_args", "BACKENDS"]
@@ -47,10 +50,16 @@ def _count(minimum: int):
     return parse
 
 
+def _rewards(scenario: str, pairs: list[str]) -> RewardConfig | None:
+    """None without ``--reward``, else those weights over the task's (or the defaults), as on the SB3 route."""
+    if not pairs:
+        return None
+    task = TASKS.get(scenario)
+    return reward_overrides(pairs, None if task is None else task.options.get("rewards"))
+
+
 def rllib_config_from_args(args: argparse.Namespace) -> RllibTrainConfig:
     """The :class:`RllibTrainConfig` of ``moma-env train --backend rllib`` (ConfigError names a bad option)."""
-    from training.train.command import scenario_rewards
-
     if args.algo != "ppo":
         raise ConfigError("algo", f"--backend rllib trains PPO only, got {args.algo!r}")
     if args.route != "shared":
@@ -60,7 +69,7 @@ def rllib_config_from_args(args: argparse.Namespace) -> RllibTrainConfig:
     train_batch = args.n_steps * args.envs * max(1, args.num_env_runners)
     return RllibTrainConfig(
         scenario=args.scenario, steps=args.steps, num_env_runners=args.num_env_runners, envs=args.envs, env_route=args.rllib_env,
-        seed=args.seed, action_mode=args.action_mode, max_cycles=args.max_cycles, rewards=scenario_rewards(args.scenario, args.reward),
+        seed=args.seed, action_mode=args.action_mode, max_cycles=args.max_cycles, rewards=_rewards(args.scenario, args.reward),
         net_arch=tuple(args.net), n_steps=args.n_steps, batch_size=train_batch, minibatch_size=min(args.batch_size, train_batch),
         learning_rate=args.learning_rate, gamma=args.gamma, ent_coef=args.ent_coef, checkpoint_every=args.checkpoint_every,
         eval_every=args.eval_every, eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, eval_sample_actions=args.eval_sample_actions,
