@@ -64,8 +64,10 @@ def test_a_cell_is_one_harness_episode_and_the_table_is_in_spec_order(tmp_path):
     assert keys == [(c.scenario, c.policy, str(c.seed)) for c in SPEC.cells()]
     # the row is run_cell's, which is the harness's episode
     row = run_cell(Cell("caterpillar", "random", 1), SPEC.options)
-    stored = json.loads((tmp_path / "s" / CELLS_DIR / "001_001_1.json").read_text())
+    with SweepFolder(tmp_path / "s", SPEC, resume=True) as folder:
+        stored = folder.stored()[Cell("caterpillar", "random", 1)]
     assert json.dumps(stored) == json.dumps(row)  # NaN != NaN, so compare the text
+    assert len(list((tmp_path / "s" / CELLS_DIR).glob("*.json"))) == 3  # one file per task of 3 cells
     summary = json.loads((tmp_path / "s" / "summary.json").read_text())
     assert [(g["scenario"], g["policy"], g["n_episodes"]) for g in summary["groups"]] == [
         ("top_observer", "scripted", 2), ("top_observer", "random", 2), ("caterpillar", "scripted", 2), ("caterpillar", "random", 2)]
@@ -120,3 +122,13 @@ def test_a_killed_sweep_resumes_without_redoing_finished_cells(tmp_path):
     assert fresh.n_run == 12
     for name in ("results.csv", "results.parquet", "summary.json"):
         assert (out / name).read_bytes() == (tmp_path / "fresh" / name).read_bytes(), name
+
+
+def test_a_damaged_result_file_is_refused_naming_it(tmp_path):
+    spec = SweepSpec(scenarios=("top_observer",), policies=("random",), seeds=(0, 1), max_cycles=5)
+    out = tmp_path / "s"
+    sweep(spec, out, LocalBackend(1))
+    damaged = sorted((out / CELLS_DIR).glob("*.json"))[0]
+    damaged.write_text('[{"scenario": "top_observer", "policy"')
+    with pytest.raises(ConfigError, match=damaged.name):
+        sweep(spec, out, LocalBackend(1), resume=True)

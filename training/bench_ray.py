@@ -82,7 +82,8 @@ def rllib_rows(steps: int, workers: Sequence[int], envs: int, routes: Sequence[s
         for n in workers:
             ray.init(num_cpus=n + 1, include_dashboard=False, log_to_driver=False)
             try:
-                algo = ppo_config("top_observer", options, route=route, num_env_runners=n, num_envs_per_env_runner=envs).build_algo()
+                algo = ppo_config("top_observer", options, route=route, num_env_runners=n, num_envs_per_env_runner=envs,
+                                  rollout_fragment_length=64, train_batch_size=64 * envs * n, minibatch_size=64).build_algo()
                 try:
                     group = algo.env_runner_group
                     group.foreach_env_runner(lambda r: _sample(r, 64 * envs), local_env_runner=False)  # warm-up

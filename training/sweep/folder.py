@@ -6,10 +6,11 @@ Layout of ``OUT/``:
   holding another sweep's spec is refused, the same spec is resumed with ``resume``);
 * ``sweep.lock``: an exclusive ``flock`` held while a sweep runs, so a second sweep
   into the same folder is refused at once (the kernel drops the lock of a killed process);
-* ``cells/<s>_<p>_<seed>.json``: the row of every finished cell (``s``, ``p``: the
-  scenario's and the policy's index in the spec), each written whole or not at all,
-  floats in ``repr`` precision (NaN kept), so a resumed sweep reads back exactly what
-  an uninterrupted one holds in memory;
+* ``cells/<s>_<p>_<seed>.json``: the rows of every finished task, one file per task named
+  after its first cell (``s``, ``p``: the scenario's and the policy's index in the spec),
+  each written whole or not at all (one ``fsync`` per task, not per cell: the driver's
+  cost), floats in ``repr`` precision (NaN kept), so a resumed sweep reads back exactly
+  what an uninterrupted one holds in memory;
 * the table, summary and figure of :mod:`training.sweep.table`, written at the end.
 """
 
@@ -19,6 +20,7 @@ import fcntl
 import json
 import os
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -111,34 +113,45 @@ class SweepFolder:
                 raise ConfigError(name, f"the sweep in {str(self.out)!r} has {value!r}, the command gives {new[name]!r}; resume with its own settings")
 
     def cell_path(self, cell: Cell) -> Path:
-        """Where ``cell``'s row is stored."""
+        """The file of a task whose first cell is ``cell``."""
         return self.out / CELLS_DIR / f"{self._scenario_index[cell.scenario]:03d}_{self._policy_index[cell.policy]:03d}_{cell.seed}.json"
 
-    def write_row(self, cell: Cell, row: dict[str, Any]) -> None:
-        """Store a finished cell's row, whole or not at all."""
-        if (row.get("scenario"), row.get("policy"), row.get("seed")) != (cell.scenario, cell.policy, cell.seed):
-            raise ValueError(f"the row of cell {cell.key} names another cell")
-        atomic_write_text(self.cell_path(cell), json.dumps(row, allow_nan=True))
-
-    def read_row(self, cell: Cell) -> dict[str, Any] | None:
-        """The stored row of ``cell``, or None if it has no result yet.
+    def write_rows(self, cells: Sequence[Cell], rows: Sequence[dict[str, Any]]) -> None:
+        """Store a finished task's rows in one file, whole or not at all.
 
         Raises:
-            ConfigError: ``out``, for a stored row that is unreadable or names another cell.
+            ValueError: no cells, or a row that does not name its cell.
         """
-        path = self.cell_path(cell)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            return None
-        try:
-            row = json.loads(text)
-        except ValueError as err:
-            raise ConfigError("out", f"{str(path)!r} is not a readable cell result: {err}") from None
-        if not isinstance(row, dict) or (row.get("scenario"), row.get("policy"), row.get("seed")) != (cell.scenario, cell.policy, cell.seed):
-            raise ConfigError("out", f"{str(path)!r} does not hold the result of cell {cell.key}")
-        return row
+        if not cells or len(cells) != len(rows):
+            raise ValueError(f"a task's rows must match its cells, got {len(cells)} cells and {len(rows)} rows")
+        for cell, row in zip(cells, rows):
+            if (row.get("scenario"), row.get("policy"), row.get("seed")) != (cell.scenario, cell.policy, cell.seed):
+                raise ValueError(f"the row of cell {cell.key} names another cell")
+        atomic_write_text(self.cell_path(cells[0]), json.dumps(list(rows), allow_nan=True))
+
+    def stored(self) -> dict[Cell, dict[str, Any]]:
+        """Every stored row by its cell.
+
+        Raises:
+            ConfigError: ``out``, for a file that is unreadable or holds a row of no cell of the spec.
+        """
+        known = set(self.spec.cells())
+        out: dict[Cell, dict[str, Any]] = {}
+        folder = self.out / CELLS_DIR
+        for path in sorted(folder.iterdir()) if folder.is_dir() else []:
+            if not _CELL_FILE.match(path.name):
+                continue
+            try:
+                rows = json.loads(path.read_text(encoding="utf-8"))
+                cells = [Cell(r["scenario"], r["policy"], r["seed"]) for r in rows]
+            except (ValueError, TypeError, KeyError) as err:
+                raise ConfigError("out", f"{str(path)!r} is not a readable task result: {err}") from None
+            for cell, row in zip(cells, rows):
+                if cell not in known:
+                    raise ConfigError("out", f"{str(path)!r} holds a result of {cell.key}, which is no cell of this sweep")
+                out[cell] = row
+        return out
 
     def finished(self) -> set[Cell]:
         """The cells of the spec with a stored row."""
-        return {cell for cell in self.spec.cells() if self.cell_path(cell).is_file()}
+        return set(self.stored())

@@ -2,8 +2,8 @@
 
 The cells without a stored result are grouped into tasks of ``cells_per_task``
 consecutive cells and run on the backend; every finished task's rows are stored at
-once (:class:`training.sweep.folder.SweepFolder`), so a sweep killed at any instant
-loses at most the tasks in flight, and ``resume=True`` redoes only the cells that have
+once, one file per task (:class:`training.sweep.folder.SweepFolder`), so a sweep killed at
+any instant loses at most the tasks in flight, and ``resume=True`` redoes only the cells that have
 no result. When every cell has one, the rows are read back from their files in table
 order and the table, the summary and the figure are written (:mod:`training.sweep.table`):
 the same cells give the same bytes whatever backend ran them, in what order, in how
@@ -82,18 +82,16 @@ def sweep(
         advance = progress(len(todo)) if progress is not None else None
 
         def on_done(cells: Sequence[Cell], rows: list[dict[str, Any]]) -> None:
-            for cell, row in zip(cells, rows, strict=True):
-                folder.write_row(cell, row)
+            folder.write_rows(cells, rows)
             if advance is not None:
                 advance(len(cells))
 
         if tasks:
             backend.run(tasks, spec.options, on_done)
-        rows = []
-        for cell in spec.cells():
-            row = folder.read_row(cell)
-            if row is None:  # pragma: no cover - every task has reported or raised
-                raise RuntimeError(f"cell {cell.key} has no result after the sweep")
-            rows.append(row)
+        stored = folder.stored()
+        missing = [cell.key for cell in spec.cells() if cell not in stored]
+        if missing:  # pragma: no cover - every task has reported or raised
+            raise RuntimeError(f"cells without a result after the sweep: {missing[:5]}")
+        rows = [stored[cell] for cell in spec.cells()]
         files = write_outputs(folder.out, rows, {"spec": spec.to_dict(), "n_cells": len(rows)})
     return SweepReport(n_cells=len(rows), n_run=len(todo), wall_time_s=time.perf_counter() - start, files=files)
