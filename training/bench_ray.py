@@ -5,6 +5,9 @@ Rows:
 * **sweep, local**: ``moma-env sweep --backend local --jobs J`` (episodes/s), J = 1, 2;
 * **sweep, ray**: the same cells as Ray tasks on a local Ray of ``num_cpus = J`` (episodes/s;
   Ray's start-up is reported apart, not counted);
+* **sweep driver**: what a task ships (pickled arguments, bytes), what it returns
+  (pickled rows, bytes per cell of a 2- and a 6-UGV team) and the driver's cost of
+  storing one finished task of 8 cells (ms, median of 25, an ``fsync`` each);
 * **rllib sampling**: env steps/s of RLlib's remote env runners sampling with the PPO
   module (``num_env_runners = J``, ``envs`` copies each), for both routes (``pettingzoo``:
   RLlib's PettingZoo wrapper, copies stepped one by one; ``vector``: the batched env).
@@ -26,7 +29,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["sweep_rows", "rllib_rows", "run", "format_rows", "main"]
+__all__ = ["sweep_rows", "rllib_rows", "driver_row", "run", "format_rows", "main"]
 
 
 def _spec(episodes: int, max_cycles: int | None):
@@ -63,6 +66,33 @@ def sweep_rows(episodes: int, workers: Sequence[int], max_cycles: int | None = N
             rows.append({"row": "sweep", "backend": "ray", "workers": jobs, "episodes": report.n_run, "wall_s": report.wall_time_s,
                          "episodes_per_s": report.episodes_per_s, "ray_startup_s": startup})
     return rows
+
+
+def driver_row(cells_per_task: int = 8, tasks: int = 25) -> dict[str, Any]:
+    """Bytes shipped to and from a sweep task, and the driver's time to store one task's rows."""
+    import pickle
+    import statistics
+
+    from training.sweep.cells import run_cell
+    from training.sweep.folder import SweepFolder
+    from training.sweep.spec import SweepSpec
+
+    spec = SweepSpec(scenarios=("top_observer", "top_observer_team6"), policies=("scripted",), seeds=(0,), max_cycles=50)
+    cells = spec.cells()
+    rows = [run_cell(cell, spec.options) for cell in cells]
+    big = SweepSpec(scenarios=("top_observer",), policies=("scripted",), seeds=tuple(range(cells_per_task * tasks)))
+    times = []
+    with tempfile.TemporaryDirectory() as tmp, SweepFolder(Path(tmp) / "s", big) as folder:
+        every = big.cells()
+        for k in range(0, len(every), cells_per_task):
+            task = every[k:k + cells_per_task]
+            task_rows = [dict(rows[0], seed=cell.seed) for cell in task]
+            start = time.perf_counter()
+            folder.write_rows(task, task_rows)
+            times.append(time.perf_counter() - start)
+    return {"row": "sweep_driver", "task_args_bytes": len(pickle.dumps((cells[:2], spec.options))),
+            "row_bytes_2_ugvs": len(pickle.dumps(rows[0])), "row_bytes_6_ugvs": len(pickle.dumps(rows[1])),
+            "cells_per_task": cells_per_task, "store_task_ms": 1e3 * statistics.median(times)}
 
 
 def _sample(runner: Any, steps: int) -> int:
@@ -107,7 +137,7 @@ def run(episodes: int, steps: int, workers: Sequence[int] = (1, 2), envs: int = 
 
     import ray
 
-    rows = sweep_rows(episodes, workers, max_cycles) + rllib_rows(steps, workers, envs, routes)
+    rows = sweep_rows(episodes, workers, max_cycles) + [driver_row()] + rllib_rows(steps, workers, envs, routes)
     return {"cpus": os.cpu_count(), "python": platform.python_version(), "ray": ray.__version__, "rows": rows}
 
 
@@ -116,7 +146,11 @@ def format_rows(result: dict[str, Any]) -> str:
     lines = [f"{result['cpus']} CPUs, Python {result['python']}, Ray {result['ray']}", "",
              "| row | backend / route | workers | work | wall s | throughput |", "|---|---|---|---|---|---|"]
     for r in result["rows"]:
-        if r["row"] == "sweep":
+        if r["row"] == "sweep_driver":
+            lines.append(f"| sweep driver | - | - | a task ships {r['task_args_bytes']} B (2 cells), returns {r['row_bytes_2_ugvs']} B "
+                         f"(2 UGVs) / {r['row_bytes_6_ugvs']} B (6 UGVs) per cell | - | storing a task of {r['cells_per_task']} cells: "
+                         f"{r['store_task_ms']:.1f} ms |")
+        elif r["row"] == "sweep":
             extra = f" (Ray start {r['ray_startup_s']:.1f} s, not counted)" if "ray_startup_s" in r else ""
             lines.append(f"| sweep | {r['backend']} | {r['workers']} | {r['episodes']} episodes | {r['wall_s']:.2f} | "
                          f"{r['episodes_per_s']:.2f} episodes/s{extra} |")
