@@ -89,3 +89,21 @@ def test_a_killed_worker_costs_a_retry_not_a_cell(ray_local, tmp_path):
     sweep(spec, tmp_path / "local", LocalBackend(1))
     for name in OUTPUTS:
         assert (tmp_path / "ray" / name).read_bytes() == (tmp_path / "local" / name).read_bytes(), name
+
+
+def test_the_command_runs_on_an_existing_cluster_given_its_address(ray_local, tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    address = ray_local.get_runtime_context().gcs_address
+    repo = Path(__file__).resolve().parents[1]
+    args = ["sweep", "--scenarios", "caterpillar", "--policies", "random", "--seeds", "0:3", "--max-cycles", "30", "--no-progress"]
+    done = subprocess.run([sys.executable, "-m", "training.cli", *args, "--address", address, "--out", str(tmp_path / "cluster")],
+                          cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(repo), OMP_NUM_THREADS="1"),
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    spec = SweepSpec(scenarios=("caterpillar",), policies=("random",), seeds=(0, 1, 2), max_cycles=30)
+    sweep(spec, tmp_path / "local", LocalBackend(1))
+    for name in OUTPUTS:
+        assert (tmp_path / "cluster" / name).read_bytes() == (tmp_path / "local" / name).read_bytes(), name
