@@ -52,6 +52,7 @@ def test_cli_rejects_bad_input_in_one_line(tmp_path, capsys):
                  "--backend", "local", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip()
     assert "no_such_policy" in err and "\n" not in err
+    assert not (tmp_path / "b").exists()  # refused before the folder was made
 
 
 def test_a_cell_is_one_harness_episode_and_the_table_is_in_spec_order(tmp_path):

@@ -100,7 +100,10 @@ class RayBackend:
             raise RuntimeError(f"the Ray backend needs the 'ray' extra (pip install -e '.[ray]'): {err}") from None
         started = False
         if not ray.is_initialized():
-            ray.init(address=self.address, include_dashboard=False, log_to_driver=False)
+            if self.address is None:
+                ray.init(include_dashboard=False, log_to_driver=False)
+            else:  # a cluster's own settings apply (a ray:// client accepts few options)
+                ray.init(address=self.address)
             started = True
         try:
             remote = ray.remote(num_cpus=1, max_retries=self.retries, retry_exceptions=False)(run_cells)

@@ -18,12 +18,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from training.evaluation.policies import load_policy
 from training.sweep.backends import Backend
 from training.sweep.folder import SweepFolder
 from training.sweep.spec import Cell, SweepSpec, chunks
 from training.sweep.table import write_outputs
 
-__all__ = ["sweep", "SweepReport"]
+__all__ = ["sweep", "check_policies", "SweepReport"]
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,18 @@ class SweepReport:
     def episodes_per_s(self) -> float:
         """Cells run by this call per second of its wall time."""
         return self.n_run / self.wall_time_s if self.wall_time_s > 0 else float("nan")
+
+
+def check_policies(spec: SweepSpec) -> None:
+    """Load every policy for every scenario once in the driver, before anything is written,
+    so a misspelt policy or a policy that does not fit a scenario fails at once.
+
+    Raises:
+        PolicyLoadError: naming the policy.
+    """
+    for scenario in spec.scenarios:
+        for policy in spec.policies:
+            load_policy(policy, scenario, spec.seeds[0])
 
 
 def sweep(
@@ -71,10 +84,11 @@ def sweep(
 
     Raises:
         ConfigError: see :class:`~training.sweep.folder.SweepFolder`; a bad ``cells_per_task``.
-        PolicyLoadError: a policy that cannot be loaded (raised by the task that met it;
-            the cells finished before are kept).
+        PolicyLoadError: a policy that cannot be loaded for a scenario (:func:`check_policies`,
+            before the folder is touched).
     """
     start = time.perf_counter()
+    check_policies(spec)
     with SweepFolder(out, spec, resume=resume) as folder:
         finished = folder.finished()
         todo = [cell for cell in spec.cells() if cell not in finished]

@@ -161,7 +161,10 @@ def train_rllib(config: RllibTrainConfig, out: str | Path, resume: bool = False,
             shutil.rmtree(path, ignore_errors=True)
     started = False
     if not ray.is_initialized():
-        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        if address is None:
+            ray.init(include_dashboard=False, log_to_driver=False)
+        else:  # a cluster's own settings apply (a ray:// client accepts few options)
+            ray.init(address=address)
         started = True
     algo = None
     try:
