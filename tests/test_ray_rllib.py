@@ -99,18 +99,21 @@ def test_the_batched_vector_env_steps_like_rllibs_pettingzoo_copies():
     assert resets >= 3  # every copy ended (max_cycles 30) and was reset by the batch
 
 
-@pytest.mark.parametrize("route", ["pettingzoo", "vector"])
-def test_one_ppo_iteration_per_route(ray_local, route):
-    config = ppo_config("top_observer", dict(OPTIONS), route=route, num_envs_per_env_runner=2, rollout_fragment_length=32,
-                        train_batch_size=128, minibatch_size=64, num_epochs=1)
+@pytest.mark.parametrize(("route", "observer_agent"), [("pettingzoo", False), ("vector", False), ("pettingzoo", True)])
+def test_one_ppo_iteration_per_route(ray_local, route, observer_agent):
+    config = ppo_config("top_observer", {**OPTIONS, "observer_agent": observer_agent}, route=route, num_envs_per_env_runner=2,
+                        rollout_fragment_length=32, train_batch_size=128, minibatch_size=64, num_epochs=1)
+    policies = [UGV_POLICY, OBSERVER_POLICY] if observer_agent else [UGV_POLICY]
+    assert sorted(config.policies) == sorted(policies)
     algo = config.build_algo()
     try:
         if route == "vector":
             assert isinstance(algo.env_runner.env, BatchedMultiAgentEnv)
-        before = {k: v.detach().clone() for k, v in algo.get_module(UGV_POLICY).state_dict().items()}
+        before = {p: {k: v.detach().clone() for k, v in algo.get_module(p).state_dict().items()} for p in policies}
         result = algo.train()
         assert result["env_runners"]["num_env_steps_sampled_lifetime"] >= 128
-        after = algo.get_module(UGV_POLICY).state_dict()
-        assert any(not torch.equal(before[k], after[k]) for k in before), "PPO did not update the UGV policy"
+        for p in policies:
+            after = algo.get_module(p).state_dict()
+            assert any(not torch.equal(before[p][k], after[k]) for k in before[p]), f"PPO did not update policy {p}"
     finally:
         algo.stop()
