@@ -86,6 +86,11 @@ def test_one_folder_holds_one_sweep(tmp_path):
     with pytest.raises(ConfigError) as err:
         sweep(other, out, LocalBackend(1), resume=True)
     assert err.value.field == "scenarios"
+    elsewhere = tmp_path / "evaluation"
+    elsewhere.mkdir()
+    (elsewhere / "summary.json").write_text("{}")
+    with pytest.raises(ConfigError, match="holds other files"):
+        sweep(other, elsewhere, LocalBackend(1))
 
 
 def _cell_files(out: Path) -> dict[str, tuple[int, int]]:

@@ -94,8 +94,9 @@ class SweepFolder:
         if not path.is_file():
             if self.resume:
                 raise ConfigError("out", f"{str(self.out)!r} holds no sweep to resume (no {SPEC_FILE})")
-            if (self.out / CELLS_DIR).exists():
-                raise ConfigError("out", f"{str(self.out)!r} holds cell results without a {SPEC_FILE}: choose another folder")
+            others = sorted(p.name for p in self.out.iterdir() if p.name != LOCK_FILE)
+            if others:
+                raise ConfigError("out", f"{str(self.out)!r} holds other files ({', '.join(others[:3])}) and no sweep: choose an empty or new folder")
             write_json(path, {"format": FORMAT, "spec": self.spec.to_dict()})
             return
         if not self.resume:
