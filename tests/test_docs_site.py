@@ -78,3 +78,15 @@ def test_readme_links_resolve() -> None:
     assert links, "the README links into the docs"
     missing = [link for link in links if not (ROOT / link).exists()]
     assert missing == [], f"README links to missing files: {missing}"
+
+
+def test_readme_tables_cover_every_configuration_and_command() -> None:
+    from moma_env.scenarios import SPECS
+    from training.cli import build_parser
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    for spec in SPECS:
+        assert re.search(rf"^\| `{spec.name}` \|.*`{re.escape(spec.gymnasium_id)}` \|$", readme, re.M), spec.name
+    commands = re.search(r"\{([a-z,]+)\}", build_parser().format_help()).group(1).split(",")
+    for command in commands:
+        assert f"| `moma-env {command}" in readme, command
