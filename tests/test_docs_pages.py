@@ -65,9 +65,21 @@ def test_options_table_refuses_an_undocumented_field() -> None:
     assert "| `known` | `int` | `1` | documented. |" in table
 
 
-def test_options_table_escapes_pipes_in_types() -> None:
+def test_options_table_keeps_pipes_in_code_and_escapes_them_in_text() -> None:
     table = options_table(EnvConfig, ["max_cycles"])
-    assert "`int \\| None`" in table
+    assert "`int | None`" in table
+
+    @dataclasses.dataclass
+    class Piped:
+        """Piped.
+
+        Attributes:
+            x: a | b, or `c | d`.
+        """
+
+        x: int = 0
+
+    assert "| a \\| b, or `c | d`. |" in options_table(Piped)
 
 
 @pytest.mark.parametrize("spec", SPECS, ids=lambda spec: spec.name)
@@ -107,8 +119,8 @@ def test_configurations_index_lists_configurations_options_and_tasks() -> None:
         assert f"[`{spec.name}`]({spec.name}.md)" in page
     for field in dataclasses.fields(EnvConfig):
         assert f"| `{field.name}` |" in page
-    for name in ("render_mode", "random_scenarios"):
-        assert f"| `{name}` |" in page
+    assert "| `render_mode` | `str | None` | `None` |" in page
+    assert "| `random_scenarios` | `bool` | `False` |" in page
     for task in TASKS.values():
         assert f"| `{task.name}` | `{task.gymnasium_id}` |" in page
 
@@ -127,6 +139,13 @@ def test_cli_page_has_every_command() -> None:
     for command in commands:
         assert f"## moma-env {command}" in page
     assert "## moma-env experiment square" in page and "--runs" in page
+
+
+def test_cli_page_does_not_depend_on_the_terminal(monkeypatch) -> None:
+    monkeypatch.setenv("COLUMNS", "60")
+    narrow = docs_pages.cli_page()
+    monkeypatch.setenv("COLUMNS", "250")
+    assert docs_pages.cli_page() == narrow
 
 
 def test_home_page_rewrites_links_into_docs() -> None:

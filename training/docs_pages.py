@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import inspect
 import re
 import sys
@@ -61,6 +62,9 @@ _CONSTRUCTOR_OPTIONS = {
     "(the configuration's `random`, keeping its team fields).",
 }
 
+#: Width (characters) of the command line page's ``--help`` texts.
+_HELP_WIDTH = 100
+
 _ROLE = re.compile(r":(?:class|func|meth|attr|data|mod|obj|exc|const):`~?([^`]+)`")
 _LITERAL = re.compile(r"``([^`]+)``")
 _SECTION = re.compile(r"^(Args|Arguments|Attributes|Returns|Raises|Yields|Examples?|Notes?|See Also):\s*$")
@@ -86,8 +90,10 @@ def rst_to_markdown(text: str) -> str:
 
 
 def _cell(text: str) -> str:
-    """``text`` fit for one Markdown table cell: one line, pipes escaped."""
-    return " ".join(text.split()).replace("|", "\\|")
+    """``text`` fit for one Markdown table cell: one line, pipes escaped outside code spans
+    (Python-Markdown's tables keep a pipe inside backticks, and show a backslash there)."""
+    parts = " ".join(text.split()).split("`")
+    return "`".join(part if i % 2 else part.replace("|", "\\|") for i, part in enumerate(parts))
 
 
 def _docstring(obj: Any) -> str:
@@ -145,12 +151,12 @@ def _format_default(f: dataclasses.Field) -> str:
         return "required"
     if isinstance(value, float) and value.is_integer() and abs(value) < 1e15:
         return f"`{value:g}`" if "e" not in f"{value:g}" else f"`{value!r}`"
-    return f"`{_cell(repr(value))}`"
+    return _cell(f"`{value!r}`")
 
 
 def _type_name(f: dataclasses.Field) -> str:
     kind = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", repr(f.type))
-    return f"`{_cell(kind)}`"
+    return _cell(f"`{kind}`")
 
 
 def options_table(cls: type, fields: Iterable[str] | None = None, prefix: str = "") -> str:
@@ -193,7 +199,7 @@ def _space_text(space: Any) -> str:
 
 
 def _space(space: Any) -> str:
-    return f"`{_cell(_space_text(space))}`"
+    return _cell(f"`{_space_text(space)}`")
 
 
 # ---------------------------------------------------------------------------- configurations
@@ -287,7 +293,7 @@ def _tasks_of(name: str) -> list[Any]:
 def _task_table(tasks: Sequence[Any]) -> str:
     rows = ["| task | Gymnasium id | options | objective |", "|---|---|---|---|"]
     for task in tasks:
-        options = ", ".join(f"`{k}={_cell(repr(v))}`" for k, v in task.options.items() if k != "rewards")
+        options = ", ".join(_cell(f"`{k}={v!r}`") for k, v in task.options.items() if k != "rewards")
         rows.append(f"| `{task.name}` | `{task.gymnasium_id}` | {options} | {_cell(task.objective)} |")
     return "\n".join(rows)
 
@@ -438,10 +444,12 @@ def configurations_index() -> str:
     if undocumented:
         raise DocsError(f"configuration_env keyword {undocumented[0]!r} is neither an EnvConfig field nor described in training/docs_pages.py")
     out.append(options_table(EnvConfig, [k for k in keywords if k in env_fields]))
+    parameters = inspect.signature(configuration_env).parameters
     for key in keywords:
         if key in _CONSTRUCTOR_OPTIONS:
-            default = inspect.signature(configuration_env).parameters[key].default
-            out.append(f"| `{key}` | | `{default!r}` | {_CONSTRUCTOR_OPTIONS[key]} |")
+            parameter = parameters[key]
+            kind = parameter.annotation if isinstance(parameter.annotation, str) else getattr(parameter.annotation, "__name__", "")
+            out.append(f"| `{key}` | {_cell(f'`{kind}`')} | `{parameter.default!r}` | {_CONSTRUCTOR_OPTIONS[key]} |")
     out.append("")
 
     out.append("## Reward weights\n")
@@ -500,6 +508,8 @@ def cli_page() -> str:
         out.append(f"| [`{command}`](#{anchor}) | {_cell(helptext)} |")
     out.append("")
     for command, _, sub in commands:
+        # a fixed width, so that the page does not depend on the terminal that builds it
+        sub.formatter_class = functools.partial(sub.formatter_class, width=_HELP_WIDTH)
         out.append(f"## {command}\n")
         out.append("```text\n" + sub.format_help().rstrip() + "\n```\n")
     return "\n".join(out)
