@@ -46,6 +46,7 @@ def test_mkdocs_build_strict(tmp_path: Path) -> None:
     assert "ugv_0" in top and "goal_spread" in top
     api = (site / "api" / "env" / "index.html").read_text(encoding="utf-8")
     assert "MomaParallelEnv" in api and "EnvConfig" in api
+    assert ":class:" not in api and "``" not in api, "Sphinx roles made code spans (training/docs_griffe.py)"
 
 
 def test_every_docs_page_is_in_the_nav() -> None:
