@@ -98,6 +98,8 @@ def test_configuration_page_names_every_agent_option_and_reward(spec) -> None:
     for term in REWARD_TERMS:
         assert f"| `{term.name}` | {getattr(RewardConfig(), term.name):g} |" in page
     assert spec.gymnasium_id in page and spec.pettingzoo_module in page
+    has_observer = spec.config_type().scenario().world.uav is not None
+    assert ("the observer, when it is an agent" in page) == has_observer
     for task in TASKS.values():
         assert (task.name in page) == (task.configuration == spec.name)
 

@@ -335,20 +335,23 @@ def configuration_page(name: str) -> str:
     out.append(f"| episode length with the defaults | {scenario.max_cycles} steps (`max_cycles`) |\n")
 
     out.append("## Agents and spaces\n")
-    out.append(
-        "Every agent of every mode with the defaults. In `switching` mode the observer (if any) flies "
-        "itself unless `observer_agent=True`; in `velocity` mode it is an agent unless `observer_agent=False`.\n"
+    has_observer = scenario.world.uav is not None
+    observer_note = (
+        " In `switching` mode the observer flies itself (its tracking controller, on the detections) unless "
+        "`observer_agent=True`; in `velocity` mode it is an agent unless `observer_agent=False`."
+        if has_observer
+        else " This configuration has no observer: every camera is carried by a robot."
     )
+    out.append(f"Every agent of every mode with the defaults.{observer_note}\n")
     out.append(_agents_table(envs) + "\n")
     out.append("### Actions\n")
     for mode in ACTION_MODES:
         text = rst_to_markdown(" ".join(_docstring(ACTION_MODE_TYPES[mode]).split()))
         text = text.removeprefix(f"`{mode}`:").strip()
         out.append(f"- `{mode}`: {text}")
-    out.append(
-        "- the observer, when it is an agent: `Box(-1, 1, (4,))`: vx, vy, yaw rate, climb rate "
-        "(times its limits).\n"
-    )
+    if has_observer:
+        out.append("- the observer, when it is an agent: `Box(-1, 1, (4,))`: vx, vy, yaw rate, climb rate (times its limits).")
+    out.append("")
     out.append("### Observations\n")
     out.append(
         "Every value comes from the estimator, the detections, the owner's declarations and the clock, "
