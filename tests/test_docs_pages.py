@@ -15,7 +15,15 @@ from moma_env.scenarios import SPECS
 from moma_env.scenarios.common import ScenarioConfig
 from moma_env.tasks import TASKS
 from training import docs_pages
-from training.docs_pages import DocsError, attribute_docs, home_page, options_table, rst_to_markdown, site_links
+from training.docs_pages import (
+    DocsError,
+    attribute_docs,
+    home_page,
+    options_table,
+    rst_tables_as_text,
+    rst_to_markdown,
+    site_links,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -23,6 +31,16 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_rst_roles_become_code_spans() -> None:
     text = "see :class:`~moma_env.sim.Frame`, :func:`moma_env.io.write_json` and ``x = 1``"
     assert rst_to_markdown(text) == "see `Frame`, `moma_env.io.write_json` and `x = 1`"
+    fenced = "```text\na  b\n```"
+    assert rst_to_markdown(fenced) == fenced
+
+
+def test_rst_simple_tables_are_fenced_as_text() -> None:
+    text = "Rows:\n\n===  ====\na    one\nb    two\n     more\n===  ====\n\nAfter."
+    assert rst_tables_as_text(text) == "Rows:\n\n```text\n===  ====\na    one\nb    two\n     more\n===  ====\n```\n\nAfter."
+    headed = "===  ===\nx    y\n===  ===\n1    2\n===  ==="
+    assert rst_tables_as_text(headed) == "```text\n" + headed + "\n```"
+    assert rst_tables_as_text("no table == here") == "no table == here"
 
 
 def test_attribute_docs_reads_multi_name_entries_and_continuations() -> None:

@@ -41,6 +41,7 @@ __all__ = [
     "ACTION_MODES",
     "attribute_docs",
     "rst_to_markdown",
+    "rst_tables_as_text",
     "options_table",
     "configuration_page",
     "configurations_index",
@@ -66,7 +67,7 @@ _CONSTRUCTOR_OPTIONS = {
 _HELP_WIDTH = 100
 
 _ROLE = re.compile(r":(?:class|func|meth|attr|data|mod|obj|exc|const):`~?([^`]+)`")
-_LITERAL = re.compile(r"``([^`]+)``")
+_LITERAL = re.compile(r"(?<!`)``([^`]+)``(?!`)")  # not the backticks of a ``` fence
 _SECTION = re.compile(r"^(Args|Arguments|Attributes|Returns|Raises|Yields|Examples?|Notes?|See Also):\s*$")
 
 
@@ -87,6 +88,31 @@ def rst_to_markdown(text: str) -> str:
         return f"`{target.rsplit('.', 1)[-1]}`" if ":`~" in whole else f"`{target}`"
 
     return _LITERAL.sub(r"`\1`", _ROLE.sub(role, text))
+
+
+_RST_BORDER = re.compile(r"^=+(?: +=+)+\s*$")
+
+
+def rst_tables_as_text(text: str) -> str:
+    """RST simple tables of a docstring (rows between ``=====  =====`` borders) fenced as
+    ```` ```text ```` blocks, which Markdown would otherwise run together into one
+    paragraph. A table ends at a border line followed by a blank line or the end."""
+    lines = text.splitlines()
+    out: list[str] = []
+    inside = False
+    for i, line in enumerate(lines):
+        border = bool(_RST_BORDER.match(line))
+        if border and not inside:
+            out += ["```text", line]
+            inside = True
+            continue
+        out.append(line)
+        if border and inside and (i + 1 == len(lines) or not lines[i + 1].strip()):
+            out.append("```")
+            inside = False
+    if inside:
+        out.append("```")
+    return "\n".join(out)
 
 
 def _cell(text: str) -> str:
