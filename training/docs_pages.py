@@ -444,6 +444,7 @@ def configurations_index() -> str:
     from moma_env.env.config import EnvConfig, RewardConfig
     from moma_env.env.factory import configuration_env
     from moma_env.estimator import EstimatorConfig, OutlierGateConfig
+    import moma_env.tasks as tasks_module
     from moma_env.scenarios import SPECS
     from moma_env.tasks import TASKS
 
@@ -495,7 +496,7 @@ def configurations_index() -> str:
     out.append(options_table(OutlierGateConfig, prefix="estimator.gate.") + "\n")
 
     out.append("## Tasks\n")
-    out.append(f"{rst_to_markdown(_first_paragraph(_docstring(sys.modules['moma_env.tasks'])))} "
+    out.append(f"{rst_to_markdown(_first_paragraph(_docstring(tasks_module)))} "
                "Accepted wherever a configuration name is.\n")
     out.append(_task_table(list(TASKS.values())) + "\n")
     return "\n".join(out)
