@@ -174,6 +174,11 @@ class SwitchingActions(ActionMode):
     robot and reels the sled in (sled mobile until the rope is at its minimum or the
     sled is stuck, then static).
 
+    On a scenario with ``routes``, a robot's legs go to its via poses in turn
+    (each at most ``leg_length``, driving with the via pose's heading) and then
+    to its goal (with the goal's heading); a via pose counts as passed once a leg starts within the goal
+    tolerance of it.
+
     The executive owns its state: the legs being driven, the sleds being reeled in,
     and the progress that tells a blocked leg or a stuck sled.
     """
@@ -188,6 +193,7 @@ class SwitchingActions(ActionMode):
         self.reeling: set[str] = set()
         self._reel_progress: dict[str, tuple[float, float]] = {}  # sled -> (shortest rope m, when s)
         self._leg_progress: dict[str, tuple[float, float, float]] = {}  # robot -> (closest m, rad, when s)
+        self._vias_passed: dict[str, int] = {}  # robot -> via poses of its route passed
 
     def space(self, agent: str) -> spaces.Space:
         return spaces.Discrete(3 if agent in self.tows else 2)
@@ -197,6 +203,7 @@ class SwitchingActions(ActionMode):
         self.reeling = set()
         self._reel_progress = {}
         self._leg_progress = {}
+        self._vias_passed = {}
 
     def requests(self, actions: Mapping[str, Any], mobile: frozenset[str]) -> dict[str, bool]:
         wants: dict[str, bool] = {}
@@ -235,7 +242,8 @@ class SwitchingActions(ActionMode):
         self._stopped(device)
 
     def _next_leg(self, device: str, simulation: Simulation) -> tuple[float, float, float]:
-        """Target of the next advance: at most ``leg_length`` towards the goal, from the estimate."""
+        """Target of the next advance: at most ``leg_length`` towards the next via pose
+        of the route or the goal, from the estimate."""
         scenario = simulation.scenario
         goal = scenario.goals.get(device)
         pose = simulation.frame.usable_pose(device)
@@ -244,10 +252,18 @@ class SwitchingActions(ActionMode):
         if goal is None:
             return pose
         x, y, yaw = pose
-        dx, dy = goal[0] - x, goal[1] - y
+        route = scenario.routes.get(device, ())
+        passed = self._vias_passed.get(device, 0)
+        while passed < len(route) and math.hypot(route[passed][0] - x, route[passed][1] - y) <= scenario.goal_tolerance_m:
+            passed += 1
+        self._vias_passed[device] = passed
+        target = route[passed] if passed < len(route) else goal
+        if route:
+            yaw = target[2]  # on a route, drive with the heading of the segment
+        dx, dy = target[0] - x, target[1] - y
         dist = math.hypot(dx, dy)
         if dist <= scenario.leg_length:
-            return goal
+            return target
         f = scenario.leg_length / dist
         return (x + f * dx, y + f * dy, yaw)
 
