@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from moma_env.config import ConfigError
+from moma_env.control.route import Route
 from moma_env.env.factory import parallel_env
 from moma_env.planning.paths import box_distances
 from moma_env.scenarios import Scenario
@@ -87,6 +88,19 @@ def test_random_layouts_keep_the_bend_and_straight_draws_are_unchanged():
         CaterpillarMultiConfig.random(np.random.default_rng(0), bend=0.1)
 
 
+def test_a_route_is_measured_by_arc_length():
+    route = Route((0.0, 0.0), ((1.0, 0.0, 0.0), (1.0, 2.0, 1.5), (3.0, 2.0, 0.0)))
+    assert route.length == pytest.approx(5.0)
+    assert route.pose_at(0.5) == pytest.approx((0.5, 0.0, 0.0))
+    assert route.pose_at(1.5) == pytest.approx((1.0, 0.5, 1.5))  # past the corner, with the next segment's heading
+    assert route.pose_at(7.0) == (3.0, 2.0, 0.0)
+    assert route.project(0.9, 1.0) == pytest.approx(2.0)
+    assert route.project(0.2, 0.1) == pytest.approx(0.2)
+    assert route.project(0.2, 0.1, not_before=1.2) == pytest.approx(1.2)  # never behind the progress made
+    with pytest.raises(ValueError, match="goal"):
+        Route((0.0, 0.0), ())
+
+
 def test_scenario_routes_are_checked():
     world = CaterpillarMultiConfig(n_ugvs=2).scenario().world
     assert isinstance(world, WorldConfig)
@@ -115,9 +129,9 @@ def test_advance_drives_to_the_corners_first_with_the_segment_heading():
     tolerance = 0.03  # the executive's position tolerance plus the estimate's error
     assert ends[0][:2] == pytest.approx((JOG_START_M, 0.0), abs=tolerance)  # the first corner, not 0.5 m towards the goal
     assert ends[0][2] == pytest.approx(0.0, abs=0.05)
-    corner = np.array(simulation.scenario.routes["ugv_0"][1][:2])
-    start = np.array(ends[0][:2])
-    expected = start + simulation.scenario.leg_length * (corner - start) / np.linalg.norm(corner - start)
-    assert ends[1][:2] == pytest.approx(tuple(expected), abs=tolerance)  # a leg towards the second corner
+    # the next leg: leg_length further along the trail, on the diagonal (the first leg's end
+    # is within the tolerance of the corner, so the second's within twice of its place)
+    expected = trail_pose((0.0, 0.0, 0.0), 1.0, JOG_START_M + simulation.scenario.leg_length)
+    assert ends[1][:2] == pytest.approx(expected[:2], abs=2 * tolerance)
     # turned to the diagonal's heading, within the executive's yaw tolerance (0.04 rad) and the estimate's error
     assert ends[1][2] == pytest.approx(JOG_ANGLE_RAD, abs=0.07)

@@ -26,6 +26,7 @@ from gymnasium import spaces
 
 from moma_env.config import all_finite
 from moma_env.control import WaypointFollower, WaypointFollowerConfig
+from moma_env.control.route import Route
 from moma_env.estimator import Status
 from moma_env.geometry import wrap_angle
 from moma_env.sim import Frame, Simulation, Switch
@@ -174,10 +175,11 @@ class SwitchingActions(ActionMode):
     robot and reels the sled in (sled mobile until the rope is at its minimum or the
     sled is stuck, then static).
 
-    On a scenario with ``routes``, a robot's legs go to its via poses in turn
-    (each at most ``leg_length``, driving with the via pose's heading) and then
-    to its goal (with the goal's heading); a via pose counts as passed once a leg starts within the goal
-    tolerance of it.
+    On a scenario with ``routes``, a robot advances along the polyline from its
+    start through its via poses to its goal (:class:`~moma_env.control.route.Route`),
+    ``leg_length`` metres of arc a leg from where its estimate projects on the
+    route, each leg ending with the heading of the segment it ends on; robots on
+    one trail so keep their spacing along it.
 
     The executive owns its state: the legs being driven, the sleds being reeled in,
     and the progress that tells a blocked leg or a stuck sled.
@@ -193,7 +195,8 @@ class SwitchingActions(ActionMode):
         self.reeling: set[str] = set()
         self._reel_progress: dict[str, tuple[float, float]] = {}  # sled -> (shortest rope m, when s)
         self._leg_progress: dict[str, tuple[float, float, float]] = {}  # robot -> (closest m, rad, when s)
-        self._vias_passed: dict[str, int] = {}  # robot -> via poses of its route passed
+        self._routes: dict[str, Route] = {}  # robot -> its route, if the scenario gives one
+        self._route_s: dict[str, float] = {}  # robot -> arc length (m) of its last leg's start on its route
 
     def space(self, agent: str) -> spaces.Space:
         return spaces.Discrete(3 if agent in self.tows else 2)
@@ -203,7 +206,13 @@ class SwitchingActions(ActionMode):
         self.reeling = set()
         self._reel_progress = {}
         self._leg_progress = {}
-        self._vias_passed = {}
+        scenario = simulation.scenario
+        self._routes = {
+            ugv.name: Route(ugv.initial_pose, (*scenario.routes[ugv.name], scenario.goals[ugv.name]))
+            for ugv in scenario.world.ugvs
+            if ugv.name in scenario.routes
+        }
+        self._route_s = {name: 0.0 for name in self._routes}
 
     def requests(self, actions: Mapping[str, Any], mobile: frozenset[str]) -> dict[str, bool]:
         wants: dict[str, bool] = {}
@@ -252,18 +261,15 @@ class SwitchingActions(ActionMode):
         if goal is None:
             return pose
         x, y, yaw = pose
-        route = scenario.routes.get(device, ())
-        passed = self._vias_passed.get(device, 0)
-        while passed < len(route) and math.hypot(route[passed][0] - x, route[passed][1] - y) <= scenario.goal_tolerance_m:
-            passed += 1
-        self._vias_passed[device] = passed
-        target = route[passed] if passed < len(route) else goal
-        if route:
-            yaw = target[2]  # on a route, drive with the heading of the segment
-        dx, dy = target[0] - x, target[1] - y
+        route = self._routes.get(device)
+        if route is not None:
+            s = route.project(x, y, not_before=self._route_s[device] - scenario.leg_length)
+            self._route_s[device] = s
+            return route.pose_at(s + scenario.leg_length)
+        dx, dy = goal[0] - x, goal[1] - y
         dist = math.hypot(dx, dy)
         if dist <= scenario.leg_length:
-            return target
+            return goal
         f = scenario.leg_length / dist
         return (x + f * dx, y + f * dy, yaw)
 
