@@ -26,6 +26,7 @@ from gymnasium import spaces
 
 from moma_env.config import all_finite
 from moma_env.control import WaypointFollower, WaypointFollowerConfig
+from moma_env.control.route import Route
 from moma_env.estimator import Status
 from moma_env.geometry import wrap_angle
 from moma_env.sim import Frame, Simulation, Switch
@@ -174,6 +175,12 @@ class SwitchingActions(ActionMode):
     robot and reels the sled in (sled mobile until the rope is at its minimum or the
     sled is stuck, then static).
 
+    On a scenario with ``routes``, a robot advances along the polyline from its
+    start through its via poses to its goal (:class:`~moma_env.control.route.Route`),
+    ``leg_length`` metres of arc a leg from where its estimate projects on the
+    route, each leg ending with the heading of the segment it ends on; robots on
+    one trail so keep their spacing along it.
+
     The executive owns its state: the legs being driven, the sleds being reeled in,
     and the progress that tells a blocked leg or a stuck sled.
     """
@@ -188,6 +195,8 @@ class SwitchingActions(ActionMode):
         self.reeling: set[str] = set()
         self._reel_progress: dict[str, tuple[float, float]] = {}  # sled -> (shortest rope m, when s)
         self._leg_progress: dict[str, tuple[float, float, float]] = {}  # robot -> (closest m, rad, when s)
+        self._routes: dict[str, Route] = {}  # robot -> its route, if the scenario gives one
+        self._route_s: dict[str, float] = {}  # robot -> arc length (m) of its last leg's start on its route
 
     def space(self, agent: str) -> spaces.Space:
         return spaces.Discrete(3 if agent in self.tows else 2)
@@ -197,6 +206,13 @@ class SwitchingActions(ActionMode):
         self.reeling = set()
         self._reel_progress = {}
         self._leg_progress = {}
+        scenario = simulation.scenario
+        self._routes = {
+            ugv.name: Route(ugv.initial_pose, (*scenario.routes[ugv.name], scenario.goals[ugv.name]))
+            for ugv in scenario.world.ugvs
+            if ugv.name in scenario.routes
+        }
+        self._route_s = {name: 0.0 for name in self._routes}
 
     def requests(self, actions: Mapping[str, Any], mobile: frozenset[str]) -> dict[str, bool]:
         wants: dict[str, bool] = {}
@@ -235,7 +251,8 @@ class SwitchingActions(ActionMode):
         self._stopped(device)
 
     def _next_leg(self, device: str, simulation: Simulation) -> tuple[float, float, float]:
-        """Target of the next advance: at most ``leg_length`` towards the goal, from the estimate."""
+        """Target of the next advance: at most ``leg_length`` towards the next via pose
+        of the route or the goal, from the estimate."""
         scenario = simulation.scenario
         goal = scenario.goals.get(device)
         pose = simulation.frame.usable_pose(device)
@@ -244,6 +261,11 @@ class SwitchingActions(ActionMode):
         if goal is None:
             return pose
         x, y, yaw = pose
+        route = self._routes.get(device)
+        if route is not None:
+            s = route.project(x, y, not_before=self._route_s[device] - scenario.leg_length)
+            self._route_s[device] = s
+            return route.pose_at(s + scenario.leg_length)
         dx, dy = goal[0] - x, goal[1] - y
         dist = math.hypot(dx, dy)
         if dist <= scenario.leg_length:
