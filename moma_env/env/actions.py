@@ -181,6 +181,11 @@ class SwitchingActions(ActionMode):
     route, each leg ending with the heading of the segment it ends on; robots on
     one trail so keep their spacing along it.
 
+    With ``commit_legs``, a leg once started runs to its end: ``hold`` (and ``reel``)
+    from a robot driving a leg with a localised estimate is ignored, and its mask
+    allows only ``advance``; a robot whose estimate is not localised (it waits for
+    it) can still be held. The leg still ends early when it is blocked.
+
     The executive owns its state: the legs being driven, the sleds being reeled in,
     and the progress that tells a blocked leg or a stuck sled.
     """
@@ -188,8 +193,10 @@ class SwitchingActions(ActionMode):
     name = "switching"
     HOLD, ADVANCE, REEL = 0, 1, 2
 
-    def __init__(self, tows: Mapping[str, str], max_speeds: Mapping[str, tuple[float, float]]):
+    def __init__(self, tows: Mapping[str, str], max_speeds: Mapping[str, tuple[float, float]], commit_legs: bool = False):
         super().__init__(tows, max_speeds)
+        self.commit_legs = commit_legs
+        self.committed: set[str] = set()  # with commit_legs: robots driving a leg on a localised estimate
         self.follower = WaypointFollower(WaypointFollowerConfig(max_speed=0.3, position_tolerance=0.02, yaw_tolerance=0.04))
         self.legs: dict[str, tuple[float, float, float]] = {}
         self.reeling: set[str] = set()
@@ -204,6 +211,7 @@ class SwitchingActions(ActionMode):
     def reset(self, simulation: Simulation) -> None:
         self.legs = {}
         self.reeling = set()
+        self.committed = set()
         self._reel_progress = {}
         self._leg_progress = {}
         scenario = simulation.scenario
@@ -217,6 +225,8 @@ class SwitchingActions(ActionMode):
     def requests(self, actions: Mapping[str, Any], mobile: frozenset[str]) -> dict[str, bool]:
         wants: dict[str, bool] = {}
         for agent, action in actions.items():
+            if action != self.ADVANCE and agent in self.committed:
+                continue  # the leg runs to its end
             if action == self.ADVANCE:
                 wants[agent] = True
             elif agent in mobile:  # hold, or reel (the camera must be static)
@@ -242,6 +252,7 @@ class SwitchingActions(ActionMode):
                     self._leg_progress[device] = (math.inf, math.inf, t)
 
     def _stopped(self, device: str) -> None:
+        self.committed.discard(device)
         self.legs.pop(device, None)
         self._leg_progress.pop(device, None)
         self.reeling.discard(device)
@@ -291,6 +302,7 @@ class SwitchingActions(ActionMode):
         for device, leg in list(self.legs.items()):
             pose = frame.usable_pose(device)
             if pose is None or frame.estimates[device].status is not Status.LOCALISED:
+                self.committed.discard(device)  # a robot waiting for its estimate can be held
                 commands[device] = np.zeros(3)  # wait where it is until it is localised again
                 closest, aligned, _ = self._leg_progress[device]
                 self._leg_progress[device] = (closest, aligned, t)  # waiting is not being blocked
@@ -304,6 +316,8 @@ class SwitchingActions(ActionMode):
                 note(device, f"leg_blocked:{device}")
                 commands[device] = np.zeros(3)
             else:
+                if self.commit_legs:
+                    self.committed.add(device)
                 commands[device] = self.follower.command(pose, leg)
         return commands
 
@@ -339,6 +353,10 @@ class SwitchingActions(ActionMode):
         if references is None:
             references = simulation.reference_devices()
         mask = np.ones(self.space(agent).n, dtype=np.int8)
+        if agent in self.committed:
+            mask[:] = 0
+            mask[self.ADVANCE] = 1  # the leg runs to its end
+            return mask
         mobile = simulation.mobile
         check = simulation.check_mobile
         if agent not in mobile:
@@ -358,10 +376,17 @@ class SwitchingActions(ActionMode):
 ACTION_MODE_TYPES: Mapping[str, type[ActionMode]] = MappingProxyType({cls.name: cls for cls in (VelocityActions, SwitchingActions)})
 
 
-def action_mode(name: str, tows: Mapping[str, str], max_speeds: Mapping[str, tuple[float, float]]) -> ActionMode:
-    """The action mode called ``name`` (one of :data:`ACTION_MODE_TYPES`)."""
+def action_mode(
+    name: str, tows: Mapping[str, str], max_speeds: Mapping[str, tuple[float, float]], commit_legs: bool = False
+) -> ActionMode:
+    """The action mode called ``name`` (one of :data:`ACTION_MODE_TYPES`); ``commit_legs``
+    is :class:`SwitchingActions`'s (switching mode only)."""
     try:
         cls = ACTION_MODE_TYPES[name]
     except KeyError:
         raise ValueError(f"unknown action mode {name!r}; known: {sorted(ACTION_MODE_TYPES)}") from None
+    if cls is SwitchingActions:
+        return SwitchingActions(tows, max_speeds, commit_legs=commit_legs)
+    if commit_legs:
+        raise ValueError(f"commit_legs exists only in switching mode, not {name!r}")
     return cls(tows, max_speeds)
