@@ -58,9 +58,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     algos = sorted(ALGORITHMS)
     tr.add_argument("--algo", choices=algos, type=choice(algos, "algorithm"), default=defaults["algo"],
                     help="algorithm (default %(default)s; dqn: switching + shared; maskable_ppo: switching, needs sb3-contrib; sac, td3: velocity)")
-    tr.add_argument("--timesteps", dest="steps", type=int_at_least(1, "timestep count"), default=defaults["steps"], metavar="TIMESTEPS",
+    tr.add_argument("--timesteps", type=int_at_least(1, "timestep count"), default=defaults["steps"], metavar="TIMESTEPS",
                     help="total training timesteps: env steps (centralised) or agent steps (shared) (default %(default)s)")
-    tr.add_argument("--num-envs", dest="envs", type=int_at_least(1, "env count"), default=defaults["envs"], metavar="K",
+    tr.add_argument("--num-envs", type=int_at_least(1, "env count"), default=defaults["envs"], metavar="K",
                     help="env copies K stepped together (default %(default)s)")
     tr.add_argument("--subproc", action="store_true", help="run the env copies in worker processes (default: in this process)")
     tr.add_argument("--seed", type=int_at_least(0, "seed"), default=defaults["seed"], help="seed of the model and the envs (default %(default)s)")
@@ -114,8 +114,8 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
     return TrainConfig(
         scenario=args.scenario,
         algo=args.algo,
-        steps=args.steps,
-        envs=args.envs,
+        steps=args.timesteps,
+        envs=args.num_envs,
         subproc=args.subproc,
         seed=args.seed,
         action_mode=args.action_mode,
