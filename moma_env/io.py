@@ -404,11 +404,15 @@ def run_folder(target: PathLike, kind: str) -> Iterator[RunFolder]:
 
     Raises:
         RunFolderError: ``target`` is a file, holds another kind of run, or holds files
-            that are not a run (checked again before the replacement).
+            that are not a run (checked again before the replacement), or is the current
+            folder or one holding it (which the replacement would pull away).
     """
     target = Path(target)
     if not isinstance(kind, str) or not kind:
         raise ValueError(f"kind must be a non-empty str, got {kind!r}")
+    here = Path.cwd().resolve()
+    if target.resolve() in (here, *here.parents):
+        raise RunFolderError(f"output folder {str(target)!r} is the current folder or holds it: it would be replaced, choose a folder for the run")
     _check_target(target, kind)
     target.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_run_folders(target)

@@ -104,6 +104,19 @@ def test_a_folder_of_another_kind_or_of_other_files_is_refused(tmp_path):
         run_kind(tmp_path / "bad")
 
 
+def test_the_current_folder_or_one_holding_it_is_refused(tmp_path, monkeypatch):
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    for target in (".", "..", str(here), str(tmp_path)):
+        with pytest.raises(RunFolderError, match="is the current folder or holds it"):
+            with run_folder(target, "demo"):
+                pytest.fail("the block must not run")
+    with run_folder("sub", "demo") as run:  # a folder inside the current one is fine
+        (run.path / "x.txt").write_text("1")
+    assert (here / "sub" / "x.txt").read_text() == "1" and sorted(p.name for p in here.iterdir()) == ["sub"]
+
+
 def test_claim_marks_a_folder_written_in_place(tmp_path):
     assert claim_run_folder(tmp_path / "train", "train") == tmp_path / "train"
     assert run_kind(tmp_path / "train") == "train"
