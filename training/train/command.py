@@ -25,10 +25,11 @@ if TYPE_CHECKING:
 
 #: Exit statuses of ``moma-env train`` (its ``--help`` epilog).
 TRAIN_EPILOG = """exit status:
-  0  trained (or resumed) to --timesteps; the manifest names the final checkpoint
-  2  bad input, one line on stderr: an option value, a configuration the algorithm
-     cannot train, --out holding another run (or a training run without --resume),
-     --resume without a loadable checkpoint, the 'train' extra missing
+  0    trained (or resumed) to --timesteps; the manifest names the final checkpoint
+  2    bad input, one line on stderr: an option value, a configuration the algorithm
+       cannot train, --out holding another run (or a training run without --resume),
+       --resume without a loadable checkpoint, the 'train' extra missing
+  130  interrupted (Ctrl-C): --out keeps the last checkpoint; --resume continues from it
 """
 
 __all__ = ["add_train_parser", "run_train", "config_from_args", "train_command"]
