@@ -165,3 +165,16 @@ def test_an_evaluation_replaces_its_previous_results_whole(tmp_path, capsys):
     assert not (out / "tum" / "ep_001").exists()  # the first run's second episode is gone with it
     assert json.loads((out / "summary.json").read_text())["summary"]["n_episodes"] == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["eval"]
+
+
+def test_a_training_run_killed_before_its_first_checkpoint_is_cleaned_by_the_next(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    out = claim_run_folder(tmp_path / "train", "train")  # what the killed run had made
+    stale = out / ".model_000000000032.0123456789ab.tmp.zip"
+    stale.write_bytes(b"half a zip")
+    argv = ["train", "--scenario", "caterpillar", "--timesteps", "32", "--num-envs", "1", "--n-steps", "32", "--batch-size", "32",
+            "--net", "8", "--max-cycles", "20", "--out", str(out), "--no-progress", "--json"]
+    assert main(argv) == 0
+    assert not stale.exists()
+    assert json.loads(capsys.readouterr().out)["num_timesteps"] >= 32  # a whole rollout of every slot
+    assert run_kind(out) == "train"

@@ -96,6 +96,7 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
         if out.exists() and ((out / "manifest.json").exists() or checkpoint_files(out)):
             raise ConfigError("out", f"{str(out)!r} already holds a training run; pass --resume to continue it or choose another folder")
         claim_run_folder(out, "train")  # RunFolderError: another kind of run, or files that are not a run
+        remove_stale_temporaries(out)  # a run killed before its first checkpoint
         venv = wrap_normalisation(make_vec_env(config, config.seed), config)
         model = build_model(config, venv)
         wall_before = 0.0
