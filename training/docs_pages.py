@@ -527,7 +527,7 @@ def cli_page() -> str:
     commands = _subcommands(parser, parser.prog)
     if not commands:
         raise DocsError("training.cli.build_parser has no sub-commands")
-    out = ["# Command line: `moma-env`\n"]
+    out = ["# Command-line reference: `moma-env`\n"]
     out.append(
         "Made from the parser (`training.cli.build_parser`) when the site is built, so every option is listed "
         "with its default. After `make test` or `make square`, the command is `.venv/bin/moma-env`.\n"
@@ -601,7 +601,7 @@ def generated_pages(readme: str) -> dict[str, str]:
     """Site path (relative to ``docs/``) -> Markdown of every generated page."""
     from moma_env.scenarios import SPECS
 
-    pages = {"index.md": home_page(readme), "cli.md": cli_page(), "configurations/index.md": configurations_index()}
+    pages = {"index.md": home_page(readme), "cli_reference.md": cli_page(), "configurations/index.md": configurations_index()}
     for spec in SPECS:
         pages[f"configurations/{spec.name}.md"] = configuration_page(spec.name)
     return pages
