@@ -125,6 +125,7 @@ def read_manifest(directory: str | Path) -> dict[str, Any]:
     for key in ("sb3_class", "route", "model", "num_timesteps", "config"):
         if key not in manifest:
             raise TrainingDirError(f"{str(path)!r} lacks the key {key!r}")
+    _check_manifest_types(path, manifest)
     if manifest["route"] not in _ROUTES:
         raise TrainingDirError(f"{str(path)!r} names an unknown route {manifest['route']!r}")
     version = manifest.get("env_version")
@@ -138,6 +139,38 @@ def read_manifest(directory: str | Path) -> dict[str, Any]:
         if name is not None and not (directory / name).is_file():
             raise TrainingDirError(f"{str(path)!r} names {key} file {name!r}, which is missing")
     return manifest
+
+
+def _check_manifest_types(path: Path, manifest: dict[str, Any]) -> None:
+    """TrainingDirError naming ``path`` and the key whose value has the wrong type."""
+
+    def wrong(key: str, expected: str) -> TrainingDirError:
+        value = manifest[key]
+        return TrainingDirError(f"{str(path)!r}: {key!r} must be {expected}, got {type(value).__name__} {value!r:.60}")
+
+    for key in ("sb3_class", "route"):
+        if not isinstance(manifest[key], str):
+            raise wrong(key, "a str")
+    for key in ("model", "vecnormalize", "replay_buffer"):
+        name = manifest.get(key)
+        if key in manifest and not (name is None and key != "model") and (
+            not isinstance(name, str) or not name or Path(name).name != name
+        ):
+            raise wrong(key, "a file name in the run's folder" + ("" if key == "model" else " or null"))
+    steps = manifest["num_timesteps"]
+    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
+        raise wrong("num_timesteps", "an integer >= 0")
+    if "wall_time_s" in manifest and (isinstance(manifest["wall_time_s"], bool) or not isinstance(manifest["wall_time_s"], (int, float))):
+        raise wrong("wall_time_s", "a number of seconds")
+    if "env_version" in manifest and not isinstance(manifest["env_version"], (str, type(None))):
+        raise wrong("env_version", "a str")
+    config = manifest["config"]
+    if not isinstance(config, dict):
+        raise wrong("config", "a mapping of the run's TrainConfig")
+    for key in ("scenario", "action_mode"):
+        if not isinstance(config.get(key), str):
+            value = config.get(key)
+            raise TrainingDirError(f"{str(path)!r}: 'config.{key}' must be a str, got {type(value).__name__} {value!r:.60}")
 
 
 def _first_line(err: BaseException) -> str:
@@ -364,6 +397,9 @@ class LearnedPolicy:
             except Exception as err:  # truncated pickles raise EOFError, UnpicklingError, ...
                 raise TrainingDirError(f"cannot load the normalisation statistics {str(directory / manifest['vecnormalize'])!r}: "
                                        f"{_first_line(err)}") from None
+            if not callable(getattr(stats, "normalize_obs", None)):
+                raise TrainingDirError(f"cannot load the normalisation statistics {str(directory / manifest['vecnormalize'])!r}: "
+                                       f"a pickled {type(stats).__name__}, not SB3 VecNormalize statistics")
             if getattr(stats, "norm_obs", False):
                 normalise = stats.normalize_obs
         return cls(model, manifest["route"], config["action_mode"], normalise, trained_on, deterministic=deterministic)

@@ -6,6 +6,14 @@ renamed over the destination with :func:`os.replace`, which is atomic on POSIX a
 Windows when both paths are on the same file system. A crash or an exception
 half-way leaves the previous file (if any) untouched and no temporary file behind,
 so a figure, a JSON summary or a CSV table is never half written.
+
+A whole run's folder follows the same rule (:func:`run_folder`): a command writes
+its results into a temporary sibling folder and only then replaces the target
+folder whole, so an output folder holds one run, never a new file beside an old
+one; a folder holding another kind of run (or files that are not a run) is refused
+with one line (:class:`RunFolderError`), and the temporary folders of a killed run
+are removed by the next run into the same folder. Each run folder holds a marker,
+:data:`RUN_MARKER`, naming its kind.
 """
 
 from __future__ import annotations
@@ -17,6 +25,8 @@ import io
 import json
 import math
 import os
+import re
+import shutil
 import uuid
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
@@ -25,6 +35,11 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "RUN_MARKER",
+    "RunFolder",
+    "RunFolderError",
+    "run_folder",
+    "claim_run_folder",
     "read_json_in",
     "atomic_path",
     "atomic_write_bytes",
@@ -258,3 +273,176 @@ def _csv_cell(value: Any) -> Any:
     if isinstance(value, float):
         return repr(value)
     return value
+
+
+#: The marker file of a run folder: ``{"kind": "<command>", "format": 1}``.
+RUN_MARKER = ".moma-run.json"
+_RUN_MARKER_FORMAT = 1
+
+
+class RunFolderError(ValueError):
+    """An output folder that a run may not write into (one line naming the folder)."""
+
+
+def run_kind(folder: PathLike) -> str | None:
+    """The kind recorded by ``folder``'s :data:`RUN_MARKER`, or None without a marker.
+
+    Raises:
+        RunFolderError: the marker cannot be read or is not a run marker.
+    """
+    path = Path(folder) / RUN_MARKER
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        raise RunFolderError(f"cannot read the run marker {str(path)!r}: {err}") from None
+    if not isinstance(data, dict) or not isinstance(data.get("kind"), str):
+        raise RunFolderError(f"{str(path)!r} is not a run marker (no 'kind')")
+    return data["kind"]
+
+
+def _check_target(target: Path, kind: str, unmarked_ok: bool = False) -> bool:
+    """Whether ``target`` exists as a folder a ``kind`` run may take over (False: it does
+    not exist); :class:`RunFolderError` if it may not."""
+    if not target.exists():
+        return False
+    if not target.is_dir():
+        raise RunFolderError(f"output folder {str(target)!r} is a file, not a folder")
+    found = run_kind(target)
+    if found is None:
+        if unmarked_ok or not any(target.iterdir()):
+            return True
+        raise RunFolderError(
+            f"output folder {str(target)!r} holds files that are not a moma-env {kind} run: choose a new or empty folder"
+        )
+    if found != kind:
+        raise RunFolderError(
+            f"output folder {str(target)!r} holds a {found} run's results, not a {kind} run's: choose another folder or delete it"
+        )
+    return True
+
+
+def _write_marker(folder: Path, kind: str) -> None:
+    write_json(folder / RUN_MARKER, {"format": _RUN_MARKER_FORMAT, "kind": kind})
+
+
+def _process_alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True  # exists, owned by someone else (or cannot tell): leave its folder alone
+    return True
+
+
+def _sibling_pattern(target: Path) -> re.Pattern[str]:
+    return re.compile(rf"^\.{re.escape(target.name)}\.(run|old)-(\d+)-[0-9a-f]{{12}}$")
+
+
+def remove_stale_run_folders(target: PathLike) -> list[Path]:
+    """Remove the temporary sibling folders of ``target`` left by killed runs (their
+    process is gone); return what was removed. Folders of live processes stay."""
+    target = Path(target)
+    if not target.parent.is_dir():
+        return []
+    pattern = _sibling_pattern(target)
+    removed = []
+    for path in sorted(target.parent.iterdir()):
+        match = pattern.match(path.name)
+        if match and path.is_dir() and not _process_alive(int(match[2])):
+            shutil.rmtree(path, ignore_errors=True)
+            removed.append(path)
+    return removed
+
+
+def _sibling(target: Path, what: str) -> Path:
+    return target.with_name(f".{target.name}.{what}-{os.getpid()}-{uuid.uuid4().hex[:12]}")
+
+
+@dataclasses.dataclass(frozen=True)
+class RunFolder:
+    """A run being written: ``path`` is the temporary folder to write into, ``target``
+    the folder it becomes when the run finishes."""
+
+    path: Path
+    target: Path
+
+    def final(self, obj: Any) -> Any:
+        """``obj`` (a path, or mappings and lists of paths) with every path under
+        :attr:`path` moved under :attr:`target`: where the files will be."""
+        if isinstance(obj, Path):
+            try:
+                return self.target / obj.relative_to(self.path)
+            except ValueError:
+                return obj
+        if isinstance(obj, Mapping):
+            return {key: self.final(value) for key, value in obj.items()}
+        if isinstance(obj, list):
+            return [self.final(value) for value in obj]
+        return obj
+
+
+@contextlib.contextmanager
+def run_folder(target: PathLike, kind: str) -> Iterator[RunFolder]:
+    """Write one ``kind`` run's results into ``target``, replacing what it held whole.
+
+    Checks ``target`` first (before anything runs): it may be missing, empty, or hold a
+    run of the same ``kind`` (its :data:`RUN_MARKER`); anything else raises
+    :class:`RunFolderError`. Removes the temporary folders killed runs left beside it,
+    then yields a :class:`RunFolder` whose ``path`` is a new temporary sibling folder
+    (marked with ``kind``). On a normal exit the old ``target`` is moved aside, the
+    temporary folder renamed to ``target`` and the old one deleted; if the block raises
+    (including ``KeyboardInterrupt``), the temporary folder is deleted and ``target``
+    keeps its previous results::
+
+        with run_folder("runs/square", "experiment square") as run:
+            write_json(run.path / "summary.json", summary)
+
+    Raises:
+        RunFolderError: ``target`` is a file, holds another kind of run, or holds files
+            that are not a run (checked again before the replacement), or is the current
+            folder or one holding it (which the replacement would pull away).
+    """
+    target = Path(target)
+    if not isinstance(kind, str) or not kind:
+        raise ValueError(f"kind must be a non-empty str, got {kind!r}")
+    here = Path.cwd().resolve()
+    if target.resolve() in (here, *here.parents):
+        raise RunFolderError(f"output folder {str(target)!r} is the current folder or holds it: it would be replaced, choose a folder for the run")
+    _check_target(target, kind)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_run_folders(target)
+    tmp = _sibling(target, "run")
+    tmp.mkdir()
+    try:
+        _write_marker(tmp, kind)
+        yield RunFolder(tmp, target)
+        if _check_target(target, kind):
+            old = _sibling(target, "old")
+            os.replace(target, old)
+            os.replace(tmp, target)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, target)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    _fsync_dir(target.parent)
+
+
+def claim_run_folder(target: PathLike, kind: str, unmarked_ok: bool = False) -> Path:
+    """Check and mark ``target`` for a run that writes in place (a resumable training
+    run: its files are written whole one by one, see :func:`atomic_path`): it is
+    created if missing; a folder holding another kind of run, or (unless
+    ``unmarked_ok``) files without a :data:`RUN_MARKER`, raises :class:`RunFolderError`.
+    Returns ``target``."""
+    target = Path(target)
+    _check_target(target, kind, unmarked_ok)
+    target.mkdir(parents=True, exist_ok=True)
+    if run_kind(target) is None:
+        _write_marker(target, kind)
+    return target

@@ -16,6 +16,11 @@ the reference, so there is little to coordinate):
   random layouts, arriving twice (1.5 times) as spread out as they start, so the
   UAV climbs to keep the team in view and its ceiling bounds the spread; several
   robots may move at once as long as each stays observed from a static reference.
+* ``caterpillar_multi_bend4``: a file of 4 robots, each follower's camera on the
+  board of the robot ahead, that must jog 1 m sideways around a wall on random
+  layouts: the file bends, so a follower keeps its board in view only if the
+  robots ahead do not run too far into the turn; several robots may move at once
+  as long as each keeps a static neighbour in view.
 """
 
 from __future__ import annotations
@@ -91,6 +96,21 @@ _TASK_LIST = (
             "rewards": dict(TEAM_REWARDS),
         },
         "6 UGVs to spread goals under one UAV: time, goals, localisation error on the way and at the end, refusals",
+    ),
+    Task(
+        "caterpillar_multi_bend4",
+        "moma_env/CaterpillarMultiBend4-v0",
+        "caterpillar_multi",
+        {
+            "n_ugvs": 4,
+            "bend": 0.5,
+            "goal_distance": 2.5,
+            "random_scenarios": True,
+            "action_mode": "switching",
+            "action_masks": True,
+            "rewards": dict(TEAM_REWARDS),
+        },
+        "a file of 4 robots around a wall: time, goals, localisation error on the way and at the end, refusals",
     ),
 )
 

@@ -250,32 +250,30 @@ def test_cli_video_writes_a_gif(fake_policies, tmp_path, capsys):
     assert "video:" in stdout
 
 
-def test_interrupted_writes_leave_no_partial_file(fake_policies, tmp_path, capsys, monkeypatch):
+def test_an_interrupted_second_run_leaves_the_first_runs_results_whole(fake_policies, tmp_path, capsys, monkeypatch):
     out = tmp_path / "crash"
-    out.mkdir()
-    (out / "summary.json").write_text("previous\n")
+    first = ["evaluate", "--scenario", "top_observer", "--policy", "random", "--episodes", "1", "--max-cycles", "10", "--out", str(out)]
+    assert main(first) == 0
+    before = {p.relative_to(out).as_posix(): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert "summary.json" in before and "episodes.csv" in before
 
     fsync = moma_env.io._fsync_file
 
     def crash_on_summary(path):
-        # summary.json is written last: every other file is complete by then
+        # summary.json is written last: every other file of the second run is complete by then
         if Path(path).name.startswith(".summary."):
             assert Path(path).stat().st_size > 100  # its content was written, not yet renamed
             raise KeyboardInterrupt("simulated crash after writing the content")
         fsync(path)
 
     monkeypatch.setattr(moma_env.io, "_fsync_file", crash_on_summary)
-    with pytest.raises(KeyboardInterrupt):
-        main(["evaluate", "--scenario", "top_observer", "--policy", "random", "--episodes", "1",
-              "--max-cycles", "10", "--out", str(out)])
-    capsys.readouterr()
-    files = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
-    assert files == [
-        "episodes.csv", "summary.json", "top_observer.png",
-        "tum/ep_000/ugv_0_moma.tum", "tum/ep_000/ugv_0_truth.tum",
-        "tum/ep_000/ugv_1_moma.tum", "tum/ep_000/ugv_1_truth.tum",
-    ]
-    assert (out / "summary.json").read_text() == "previous\n"
+    second = [*first[:-4], "--episodes", "2", "--out", str(out)]
+    assert main(second) == 130  # Ctrl-C: exit status 130, one line
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("moma-env: interrupted")
+    after = {p.relative_to(out).as_posix(): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert after == before  # the first run's files, byte for byte; none of the second's beside them
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["crash"]  # no temporary folder left
 
 
 def test_gif_recorder_interrupted_save_leaves_nothing(tmp_path, monkeypatch):
@@ -301,7 +299,6 @@ def test_gif_recorder_interrupted_save_leaves_nothing(tmp_path, monkeypatch):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--scenario", "nope", "--episodes", "2"], "unknown scenario 'nope'"),
         (["--scenario", "top_observer", "--policy", "foo", "--episodes", "2"], "unknown policy 'foo'"),
     ],
 )
@@ -311,6 +308,14 @@ def test_cli_bad_names_exit_2_with_one_line(fake_policies, args, message, capsys
     assert stdout == ""
     lines = err.strip().splitlines()
     assert len(lines) == 1 and message in lines[0]
+
+
+def test_cli_unknown_scenario_is_refused_by_the_parser_with_a_hint(fake_policies, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", "--scenario", "top_observer_tem4", "--episodes", "2"])
+    assert exit_info.value.code == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "invalid choice: 'top_observer_tem4' is no scenario (did you mean 'top_observer_team4'?" in last
 
 
 def test_cli_trained_policy_path_without_a_run_exits_2(tmp_path, capsys):

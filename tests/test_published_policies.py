@@ -72,7 +72,7 @@ def test_publish_copies_the_final_checkpoint_with_its_manifest(run_dir, policies
     published = manifest["published"]
     assert published["name"] == "tiny_ppo" and published["seed"] == 0 and published["num_timesteps"] == 64
     assert published["wall_time_s"] == trained["wall_time_s"] > 0
-    assert published["command"].startswith("moma-env train --scenario top_observer --steps 64 --envs 1 ")
+    assert published["command"].startswith("moma-env train --scenario top_observer --timesteps 64 --num-envs 1 ")
     assert published["command_omits"] == {"eval_max_cycles": 10}  # no CLI option for it
     assert published["last_evaluation"]["num_timesteps"] == 64
     assert set(manifest["sha256"]) == {"model.zip", "vecnormalize.pkl"}

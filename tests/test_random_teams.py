@@ -33,7 +33,10 @@ TEAM_CONFIGS = (TopObserverConfig, CaterpillarMultiConfig)
 
 def test_team_fields_are_stated():
     assert TopObserverConfig.TEAM_FIELDS == {"n_ugvs": (2, top_observer.MAX_KEPT_UGVS), "goal_spread": (1.0, top_observer.MAX_GOAL_SPREAD)}
-    assert CaterpillarMultiConfig.TEAM_FIELDS == {"n_ugvs": (2, caterpillar_multi.MAX_KEPT_UGVS)}
+    assert CaterpillarMultiConfig.TEAM_FIELDS == {
+        "n_ugvs": (2, caterpillar_multi.MAX_KEPT_UGVS),
+        "bend": (-caterpillar_multi.MAX_BEND_M, caterpillar_multi.MAX_BEND_M),
+    }
     assert CaterpillarConfig.TEAM_FIELDS == {} and CaterpillarSledConfig.TEAM_FIELDS == {}
     assert scenario_spec("top_observer").team_fields is TopObserverConfig.TEAM_FIELDS
 
@@ -138,7 +141,7 @@ def test_random_refuses_a_team_it_cannot_keep(cls, team, field, message):
 def test_random_scenarios_is_a_picklable_factory():
     factory = scenario_factory("caterpillar_multi", True, n_ugvs=6, distance=0.9)
     assert isinstance(factory, RandomScenarios)
-    assert factory.configuration == "caterpillar_multi" and factory.team == {"n_ugvs": 6}
+    assert factory.configuration == "caterpillar_multi" and factory.team == {"n_ugvs": 6, "bend": 0.0}
     assert factory.overrides == {"n_ugvs": 6, "distance": 0.9} and factory.base == CaterpillarMultiConfig(n_ugvs=6, distance=0.9)
     assert factory(None) is factory(None) and factory(None) == factory.base.scenario()
     copy = pickle.loads(pickle.dumps(factory))

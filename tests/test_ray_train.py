@@ -18,23 +18,23 @@ from training.cli import main  # noqa: E402
 from training.evaluation.harness import evaluate  # noqa: E402
 from training.train.evaluation import headline  # noqa: E402
 
-ARGS = ["train", "--backend", "rllib", "--scenario", "top_observer", "--envs", "2", "--n-steps", "32", "--batch-size", "64",
+ARGS = ["train", "--backend", "rllib", "--scenario", "top_observer", "--num-envs", "2", "--n-steps", "32", "--batch-size", "64",
         "--max-cycles", "40", "--checkpoint-every", "64", "--eval-every", "64", "--eval-episodes", "2", "--eval-sample-actions", "--seed", "3"]
 
 
 def test_train_checkpoint_resume_and_evaluate(ray_local, tmp_path, capsys):
     out = tmp_path / "run"
-    assert main([*ARGS, "--steps", "64", "--out", str(out), "--json"]) == 0
+    assert main([*ARGS, "--timesteps", "64", "--out", str(out), "--json"]) == 0
     first = json.loads(capsys.readouterr().out)
     assert first["backend"] == "rllib" and first["num_timesteps"] >= 64 and is_rllib_run(out)
     assert (out / first["checkpoint"] / "rllib_checkpoint.json").is_file()
 
-    assert main([*ARGS, "--steps", "64", "--out", str(out)]) == 2  # one run per folder
+    assert main([*ARGS, "--timesteps", "64", "--out", str(out)]) == 2  # one run per folder
     assert "already holds a training run" in capsys.readouterr().err
-    assert main([*ARGS[:-1], "4", "--steps", "256", "--out", str(out), "--resume"]) == 2  # another seed
+    assert main([*ARGS[:-1], "4", "--timesteps", "256", "--out", str(out), "--resume"]) == 2  # another seed
     assert "seed" in capsys.readouterr().err
 
-    assert main([*ARGS, "--steps", "160", "--out", str(out), "--resume", "--json"]) == 0
+    assert main([*ARGS, "--timesteps", "160", "--out", str(out), "--resume", "--json"]) == 0
     resumed = json.loads(capsys.readouterr().out)
     assert resumed["num_timesteps"] >= 160 and resumed["iteration"] > first["iteration"]
     assert sorted(p.name for p in out.iterdir() if p.name.startswith("checkpoint_")) == [resumed["checkpoint"]]

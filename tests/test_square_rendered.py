@@ -94,6 +94,9 @@ def test_vo_loses_track_on_a_plain_floor_and_holds_its_pose():
 def test_cli_line_with_the_rendered_camera_end_to_end(tmp_path, capsys, monkeypatch):
     small = ExperimentPreset(name="small", description="small rendered images", camera_backend="rendered", camera=SMALL)
     monkeypatch.setitem(presets.PRESETS, "small", small)
+    import training.cli
+
+    monkeypatch.setattr(training.cli, "PRESET_NAMES", (*training.cli.PRESET_NAMES, "small"))  # the parser's names-only list
     out = tmp_path / "line"
     argv = ["experiment", "line", "--length", "0.4", "--passes", "1", "--switches-per-pass", "1", "--preset", "small", "--out", str(out)]
     assert main([*argv, "--runs", "1", "--json"]) == 0

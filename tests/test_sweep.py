@@ -17,6 +17,7 @@ import pytest
 pytest.importorskip("pyarrow", reason="the sweep's Parquet table needs the 'ray' extra")
 
 from moma_env.config import ConfigError
+from moma_env.io import RunFolderError
 from training.cli import main
 from training.sweep.backends import LocalBackend
 from training.sweep.cells import run_cell
@@ -89,12 +90,13 @@ def test_one_folder_holds_one_sweep(tmp_path):
     elsewhere = tmp_path / "evaluation"
     elsewhere.mkdir()
     (elsewhere / "summary.json").write_text("{}")
-    with pytest.raises(ConfigError, match="holds other files"):
+    with pytest.raises(RunFolderError, match="not a moma-env sweep run"):
         sweep(other, elsewhere, LocalBackend(1))
+    assert sorted(p.name for p in elsewhere.iterdir()) == ["summary.json"]  # untouched
 
 
 def _cell_files(out: Path) -> dict[str, tuple[int, int]]:
-    return {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (out / CELLS_DIR).glob("*.json")}
+    return {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (out / CELLS_DIR).glob("[0-9]*.json")}
 
 
 def test_a_killed_sweep_resumes_without_redoing_finished_cells(tmp_path):
@@ -108,7 +110,7 @@ def test_a_killed_sweep_resumes_without_redoing_finished_cells(tmp_path):
     )
     deadline = time.monotonic() + 60
     try:
-        while len(list((out / CELLS_DIR).glob("*.json")) if (out / CELLS_DIR).is_dir() else []) < 3:
+        while len(list((out / CELLS_DIR).glob("[0-9]*.json")) if (out / CELLS_DIR).is_dir() else []) < 3:
             assert proc.poll() is None, "the sweep ended before it could be killed"
             assert time.monotonic() < deadline
             time.sleep(0.02)
@@ -124,6 +126,7 @@ def test_a_killed_sweep_resumes_without_redoing_finished_cells(tmp_path):
     assert report.n_run == 12 - len(before)
     after = _cell_files(out)
     assert {name: after[name] for name in before} == before  # finished cells untouched
+    assert sorted(p.name for p in (out / CELLS_DIR).iterdir()) == sorted(after)  # no half-written file left
     fresh = sweep(spec, tmp_path / "fresh", LocalBackend(1), cells_per_task=5)
     assert fresh.n_run == 12
     for name in ("results.csv", "results.parquet", "summary.json"):

@@ -88,7 +88,7 @@ def test_resume_after_a_kill_continues_from_the_checkpoint_with_its_statistics(t
         train(config, out, callbacks=[Kill()])
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["num_timesteps"] == 256
-    assert sorted(p.name for p in out.iterdir()) == ["logs", "manifest.json", "model_000000000256.zip", "vecnormalize_000000000256.pkl"]
+    assert sorted(p.name for p in out.iterdir()) == [".moma-run.json", "logs", "manifest.json", "model_000000000256.zip", "vecnormalize_000000000256.pkl"]
     with open(out / manifest["vecnormalize"], "rb") as f:
         saved_count = float(pickle.load(f).obs_rms.count)
 
@@ -264,7 +264,6 @@ def test_learned_policy_runs_its_network_on_its_own_thread_count(tmp_path):
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--scenario", "nowhere"], "scenario: unknown value 'nowhere'"),
         (["--scenario", "top_observer", "--algo", "sac"], "algo: sac needs continuous actions"),
         (["--scenario", "top_observer", "--algo", "dqn", "--route", "centralised"], "algo: dqn needs one discrete action"),
         (["--scenario", "top_observer", "--reward", "speed=1"], "rewards.speed: unknown field"),
@@ -283,7 +282,7 @@ def test_train_cli_bad_input_exits_2_with_one_line(tmp_path, capsys, args, messa
     assert len(lines) == 1 and message in lines[0]
 
 
-@pytest.mark.parametrize("args", [["--envs", "0"], ["--steps", "ten"], ["--net", "64,0"], ["--route", "solo"]])
+@pytest.mark.parametrize("args", [["--num-envs", "0"], ["--timesteps", "ten"], ["--net", "64,0"], ["--route", "solo"]])
 def test_train_cli_rejects_malformed_numbers_and_choices(tmp_path, capsys, args):
     with pytest.raises(SystemExit) as exit_info:
         main(["train", "--scenario", "top_observer", "--out", str(tmp_path), *args])
@@ -292,7 +291,7 @@ def test_train_cli_rejects_malformed_numbers_and_choices(tmp_path, capsys, args)
 
 
 def test_train_cli_trains_and_reports(tmp_path, capsys):
-    code = main(["train", "--scenario", "caterpillar", "--steps", "64", "--envs", "1", "--n-steps", "32", "--batch-size", "32",
+    code = main(["train", "--scenario", "caterpillar", "--timesteps", "64", "--num-envs", "1", "--n-steps", "32", "--batch-size", "32",
                  "--net", "8", "--max-cycles", "30", "--out", str(tmp_path / "run"), "--no-progress", "--json"])
     assert code == 0
     manifest = json.loads(capsys.readouterr().out)

@@ -5,12 +5,16 @@ Subcommands:
     experiment line     the paper's 4.6 m line, forward-back-forward: keypoint table, figures, JSON, CSV.
     experiment flips    how often a nearly face-on board's pose comes out flipped, per pose rule.
     experiment consistency  Monte Carlo NEES of MOMA's covariance (square, line; planar, 6-DoF): table, figures, JSON, CSV.
-    bench               environment steps per second against MPE2, memory over a long run.
+    bench               environment steps per second against MPE2, memory over a long run; --cli: this command's start-up.
     evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
     train               train a coordination policy with Stable-Baselines3 (training/train/).
 
 Every subcommand validates its arguments at the boundary and exits with status 2
-and a one-line message on bad input.
+and a one-line message on bad input (:data:`EXIT_STATUSES`, docs/cli.md). Building
+the parser imports names only (:mod:`training.cli_args`); each subcommand imports
+the envs, matplotlib, torch or Stable-Baselines3 when it runs, so ``--help`` is
+quick. An output folder holds one run (:func:`moma_env.io.run_folder`): results are
+written into a temporary sibling folder that replaces the folder whole at the end.
 """
 
 from __future__ import annotations
@@ -24,143 +28,248 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from moma_env.config import ConfigError
+from moma_env.io import RunFolderError
+from training.cli_args import (
+    ACTION_MODE_NAMES,
+    CAMERA_BACKEND_NAMES,
+    PRESET_NAMES,
+    SCENARIO_NAMES,
+    choice,
+    int_at_least,
+    positive_float,
+)
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "EXIT_STATUSES"]
 
-
-def _int_at_least(minimum: int, what: str):
-    """An argparse type: an integer >= ``minimum``."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer {what}, got {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"{what} must be >= {minimum}, got {value}")
-        return value
-
-    return parse
+#: The exit statuses of ``moma-env`` (the epilog of every ``--help``; docs/cli.md).
+EXIT_STATUSES = """exit status:
+  0    done: every run completed and its outputs are written
+  1    done, but not every run completed: an experiment run (square, line,
+       consistency) stopped by its time limit before the end of its path; the
+       outputs are written and flag those runs ("completed": false). E.g.
+       'moma-env experiment square --max-time 1' returns 1: one simulated
+       second stops every run long before the square is closed
+  2    bad input, one line on stderr, nothing written: an option value, an
+       unknown scenario or policy, a damaged policy folder (model zip,
+       normalisation pickle, manifest), an output folder holding another kind of
+       run or files that are not a moma-env run
+  130  interrupted (Ctrl-C): the output folder keeps its previous results
+"""
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``moma-env``."""
-    parser = argparse.ArgumentParser(prog="moma-env", description="MOMA visual mobile marker odometry environment.")
-    sub = parser.add_subparsers(dest="command", required=True)
+    """The argument parser of ``moma-env``: one ``_add_<command>`` function per subcommand.
 
-    exp = sub.add_parser("experiment", help="run one of the paper's experiments")
-    exp_sub = exp.add_subparsers(dest="experiment", required=True)
-    sq = exp_sub.add_parser("square", help="two UGVs leapfrog around a 1 m square under a UAV observer")
+    Building it (and ``--help``) imports no env, camera, pymunk, OpenCV, matplotlib,
+    torch or Stable-Baselines3: each subcommand imports what it needs when it runs.
+    """
+    parser = argparse.ArgumentParser(
+        prog="moma-env",
+        description="MOMA visual mobile marker odometry environment (docs/cli.md).",
+        epilog=EXIT_STATUSES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    exp = add_subcommand(sub, "experiment", "run one of the paper's experiments or an estimator check")
+    exp_sub = exp.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
+    for add in (_add_square, _add_line, _add_flips, _add_consistency):
+        add(exp_sub)
+    for add in (_add_bench, _add_evaluate, _add_train):
+        add(sub)
+    from training.sweep.command import add_sweep_parser
+
+    add_sweep_parser(sub, add_subcommand)
+    return parser
+
+
+def add_subcommand(sub, name: str, help_text: str) -> argparse.ArgumentParser:
+    """A subcommand of ``sub`` whose ``--help`` shows ``help_text`` and the exit statuses."""
+    return sub.add_parser(
+        name,
+        help=help_text,
+        description=help_text[0].upper() + help_text[1:] + ".",
+        epilog=EXIT_STATUSES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+
+
+def _add_square(exp_sub) -> None:
+    sq = add_subcommand(exp_sub, "square", "two UGVs leapfrog around a 1 m square under a UAV observer (docs/experiments.md)")
     _add_experiment_arguments(sq, default_runs=10, default_out=Path("runs/square"))
-    sq.add_argument("--side", type=_positive_float("side (m)"), default=1.0, help="side of the square in m (default 1, the paper's)")
-    sq.add_argument("--leg", type=_positive_float("leg (m)"), default=0.5, help="length of the main robot's legs in m (default 0.5)")
+    sq.add_argument("--side", type=positive_float("side (m)"), default=1.0, help="side of the square in m (default 1, the paper's)")
+    sq.add_argument("--leg", type=positive_float("leg (m)"), default=0.5, help="length of the main robot's legs in m (default 0.5)")
     sq.set_defaults(handler=_run_experiment)
 
-    ln = exp_sub.add_parser("line", help="the 4.6 m line driven forward, back and forward, 6 switches per pass")
+
+def _add_line(exp_sub) -> None:
+    ln = add_subcommand(exp_sub, "line", "the 4.6 m line driven forward, back and forward, 6 switches per pass (docs/experiments.md)")
     _add_experiment_arguments(ln, default_runs=5, default_out=Path("runs/line"))
-    ln.add_argument("--length", type=_positive_float("length (m)"), default=4.595, help="length of the line in m (default 4.595: 13.785 m in 3 passes)")
-    ln.add_argument("--passes", type=_int_at_least(1, "pass count"), default=3, help="passes, alternately forward and back (default 3)")
-    ln.add_argument("--switches-per-pass", type=_int_at_least(1, "switch count"), default=6, help="keypoints per pass (default 6)")
+    ln.add_argument("--length", type=positive_float("length (m)"), default=4.595, help="length of the line in m (default 4.595: 13.785 m in 3 passes)")
+    ln.add_argument("--passes", type=int_at_least(1, "pass count"), default=3, help="passes, alternately forward and back (default 3)")
+    ln.add_argument("--switches-per-pass", type=int_at_least(1, "switch count"), default=6, help="keypoints per pass (default 6)")
     ln.set_defaults(handler=_run_experiment)
 
-    fl = exp_sub.add_parser("flips", help="flip rate of a board at 3 m with 1 px noise, per pose rule and tilt (docs/pnp.md)")
-    fl.add_argument("--views", type=_int_at_least(1, "view count"), default=1000, help="random views per tilt (default 1000)")
-    fl.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the views and the noise (default 0)")
+
+def _add_experiment_arguments(parser: argparse.ArgumentParser, default_runs: int, default_out: Path) -> None:
+    """The arguments every leapfrog experiment takes."""
+    parser.add_argument("--runs", type=int_at_least(1, "count"), default=default_runs, help=f"number of runs (default {default_runs})")
+    parser.add_argument("--seed", type=int_at_least(0, "seed"), default=0, help="seed of the first run; run k uses seed+k (default 0)")
+    parser.add_argument(
+        "--jobs", type=int_at_least(1, "job count"), default=1, help="worker processes for the runs (default 1; same results for any value)"
+    )
+    parser.add_argument("--out", type=Path, default=default_out, help=f"output folder, one run (default {default_out})")
+    observers = ("quadcopter", "handheld", "both")
+    parser.add_argument(
+        "--observer",
+        choices=observers,
+        type=choice(observers, "observer"),
+        default="quadcopter",
+        help="the observer carrying the camera; 'both' runs each and compares them (outputs in OUT/<observer>/, OUT/observers.png) "
+        "(default quadcopter)",
+    )
+    parser.add_argument(
+        "--preset", choices=PRESET_NAMES, type=choice(PRESET_NAMES, "preset"), default="default",
+        help="sensing settings (camera, altitude, board; default 'default')",
+    )
+    parser.add_argument(
+        "--camera", choices=CAMERA_BACKEND_NAMES, type=choice(CAMERA_BACKEND_NAMES, "camera backend"), default=None,
+        help="camera backend (default: the preset's; 'rendered' adds the visual odometry baseline)",
+    )
+    parser.add_argument("--noise-px", type=float, default=None, help="corner noise std in pixels of the geometric camera (default: the preset's)")
+    parser.add_argument(
+        "--full-6dof", action="store_true", help="estimate the UGVs' full 3D pose instead of constraining them upright on the floor"
+    )
+    parser.add_argument(
+        "--plain-floor",
+        action="store_true",
+        help="a perfectly plain floor (one gray level) outside the textured regions, instead of the preset's floor grain",
+    )
+    parser.add_argument(
+        "--max-time", type=positive_float("time limit (s)"), default=None,
+        help="simulated time limit of a run in s; a run stopped by it is flagged and the exit status is 1 (default: the experiment's)",
+    )
+    parser.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
+
+
+def _add_flips(exp_sub) -> None:
+    fl = add_subcommand(exp_sub, "flips", "flip rate of a board at 3 m with 1 px noise, per pose rule and tilt (docs/pnp.md)")
+    fl.add_argument("--views", type=int_at_least(1, "view count"), default=1000, help="random views per tilt (default 1000)")
+    fl.add_argument("--seed", type=int_at_least(0, "seed"), default=0, help="seed of the views and the noise (default 0)")
     fl.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     fl.add_argument(
-        "--envs",
-        type=_int_at_least(1, "episode count"),
+        "--env-episodes",
+        type=int_at_least(1, "episode count"),
         default=None,
         metavar="EPISODES",
-        help="also measure the detected normals' errors in every configuration over EPISODES scripted episodes",
+        help="also measure the detected normals' errors in every configuration over EPISODES scripted episodes (default: not measured)",
     )
     fl.set_defaults(handler=_run_flips)
 
-    cons = exp_sub.add_parser(
-        "consistency", help="Monte Carlo NEES of MOMA's covariance on the square and the line (planar and 6-DoF UGVs)"
+
+def _add_consistency(exp_sub) -> None:
+    cons = add_subcommand(
+        exp_sub, "consistency", "Monte Carlo NEES of MOMA's covariance on the square and the line, planar and 6-DoF (docs/consistency.md)"
     )
-    cons.add_argument("--runs", type=_int_at_least(1, "count"), default=20, help="runs of each geometric-camera case (default 20)")
+    cons.add_argument("--runs", type=int_at_least(1, "count"), default=20, help="runs of each geometric-camera case (default 20)")
     cons.add_argument(
-        "--rendered-runs", type=_int_at_least(0, "count"), default=2, help="runs of each rendered-camera case (default 2; 0 skips them)"
+        "--rendered-runs", type=int_at_least(0, "count"), default=2, help="runs of each rendered-camera case (default 2; 0 skips them)"
     )
-    cons.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first run of each case; run k uses seed+k (default 0)")
+    cons.add_argument("--seed", type=int_at_least(0, "seed"), default=0, help="seed of the first run of each case; run k uses seed+k (default 0)")
     cons.add_argument(
-        "--jobs", type=_int_at_least(1, "job count"), default=1, help="worker processes for the runs (default 1; same results for any value)"
+        "--jobs", type=int_at_least(1, "job count"), default=1, help="worker processes for the runs (default 1; same results for any value)"
     )
-    cons.add_argument("--experiments", nargs="+", choices=("square", "line"), default=["square", "line"], help="experiments to run (default both)")
+    experiments = ("square", "line")
     cons.add_argument(
-        "--max-time", type=_positive_float("time limit (s)"), default=None, help="simulated time limit of a run in s (default: the experiment's)"
+        "--experiments", nargs="+", choices=experiments, type=choice(experiments, "experiment"), default=list(experiments),
+        help="experiments to run (default both)",
     )
-    cons.add_argument("--out", type=Path, default=Path("runs/consistency"), help="output folder (default runs/consistency)")
+    cons.add_argument(
+        "--max-time", type=positive_float("time limit (s)"), default=None,
+        help="simulated time limit of a run in s; a run stopped by it is flagged and the exit status is 1 (default: the experiment's)",
+    )
+    cons.add_argument("--out", type=Path, default=Path("runs/consistency"), help="output folder, one run (default runs/consistency)")
     cons.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     cons.set_defaults(handler=_run_consistency)
 
-    bench = sub.add_parser("bench", help="steps per second of every environment against MPE2, and memory over a long run")
-    bench.add_argument("--steps", type=_int_at_least(100, "step count"), default=5000, help="random-action steps per row (default 5000)")
+
+def _add_bench(sub) -> None:
+    bench = add_subcommand(sub, "bench", "steps per second of every environment against MPE2, memory over a long run (docs/benchmarks.md)")
+    bench.add_argument("--steps", type=int_at_least(100, "step count"), default=5000, help="random-action env steps per row (default 5000)")
     bench.add_argument(
-        "--memory-steps", type=_int_at_least(0, "step count"), default=100_000, help="steps of the memory run (default 100000; 0 skips it)"
+        "--memory-steps", type=int_at_least(0, "step count"), default=100_000, help="env steps of the memory run (default 100000; 0 skips it)"
     )
     bench.add_argument(
-        "--rendered-steps", type=_int_at_least(0, "step count"), default=1000,
-        help="steps of each rendered-camera row (top_observer, 720x576 with noise; default 1000; 0 skips it)",
+        "--rendered-steps", type=int_at_least(0, "step count"), default=1000,
+        help="env steps of each rendered-camera row (top_observer, 720x576 with noise; default 1000; 0 skips it)",
     )
     bench.add_argument("--rendered-only", action="store_true", help="run only the rendered-camera rows")
     bench.add_argument(
-        "--train-steps", type=_int_at_least(0, "step count"), default=16_384, help="PPO timesteps per training row (default 16384; 0 skips them)"
+        "--train-timesteps", type=int_at_least(0, "timestep count"), default=16_384,
+        help="PPO training timesteps per training row (default 16384; 0 skips them)",
     )
     bench.add_argument(
-        "--rounds", type=_int_at_least(1, "round count"), default=3,
-        help="interleaved rounds of the step-rate rows; each row reports its best round (default 3)",
+        "--rounds", type=int_at_least(1, "round count"), default=3,
+        help="interleaved rounds of the step-rate rows and of --cli; each row reports its best round (default 3)",
     )
-    bench.add_argument(
+    modes = bench.add_mutually_exclusive_group()
+    modes.add_argument(
         "--vector", action="store_true",
         help="instead: env-steps per second of the batched env (moma_env.vector) against MPE2 and VMAS (training.bench_vector)",
     )
+    modes.add_argument(
+        "--cli", action="store_true",
+        help="instead: wall time of 'moma-env --help' and of every subcommand's --help, each in a fresh process (training.bench_cli)",
+    )
     bench.add_argument(
-        "--num-envs", type=_int_at_least(1, "batch size"), nargs="+", default=[1, 64, 256, 1024],
-        help="with --vector: the batch sizes (default 1 64 256 1024)",
+        "--num-envs", type=int_at_least(1, "env count"), nargs="+", default=[1, 64, 256, 1024],
+        help="with --vector: the batch sizes, env copies stepped together (default 1 64 256 1024)",
     )
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
     bench.set_defaults(handler=_run_bench)
 
-    ev = sub.add_parser("evaluate", help="run a policy for N episodes and report success, errors and switches")
-    ev.add_argument("--scenario", required=True, help="configuration (top_observer, caterpillar, caterpillar_sled, caterpillar_multi) or task (top_observer_team4, top_observer_team6) name")
-    ev.add_argument("--policy", default="scripted", help="'scripted' (one mover at a time), 'greedy' (as many movers as the rules allow), 'planned' (follows the MOMA navigation planner), 'servo' (caterpillar stand-off servo), 'random', the path of a trained policy, or the name of a policy published under policies/ ($MOMA_POLICIES_DIR; python -m training.train.publish) (default scripted)")
-    ev.add_argument("--episodes", type=_int_at_least(1, "episode count"), default=10, help="number of episodes (default 10)")
-    ev.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first episode; episode k uses seed+k (default 0)")
+
+def _add_evaluate(sub) -> None:
+    ev = add_subcommand(sub, "evaluate", "run a policy for N episodes and report success, errors and switches (docs/baselines.md)")
+    ev.add_argument(
+        "--scenario", required=True, choices=SCENARIO_NAMES, type=choice(SCENARIO_NAMES, "scenario"), metavar="NAME",
+        help=f"configuration or task: {', '.join(SCENARIO_NAMES)} (required)",
+    )
+    ev.add_argument(
+        "--policy", default="scripted",
+        help="'scripted' (one mover at a time), 'greedy' (as many movers as the rules allow), 'planned' (follows the MOMA "
+        "navigation planner), 'servo' (caterpillar stand-off servo), 'random', the path of a trained policy, or the name of a "
+        "policy published under policies/ ($MOMA_POLICIES_DIR; python -m training.train.publish) (default scripted)",
+    )
+    ev.add_argument("--episodes", type=int_at_least(1, "episode count"), default=10, help="number of episodes (default 10)")
+    ev.add_argument("--seed", type=int_at_least(0, "seed"), default=0, help="seed of the first episode; episode k uses seed+k (default 0)")
     layouts = ev.add_mutually_exclusive_group()
     layouts.add_argument(
         "--random-scenarios", dest="random_scenarios", action="store_true", default=True, help="a random layout per episode (default)"
     )
     layouts.add_argument("--fixed", dest="random_scenarios", action="store_false", help="the configuration's default layout every episode")
-    ev.add_argument("--out", type=Path, default=None, help="output folder (default runs/evaluate/<scenario>_<policy>)")
+    ev.add_argument("--out", type=Path, default=None, help="output folder, one run (default runs/evaluate/<scenario>_<policy>)")
     ev.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
     ev.add_argument("--video", action="store_true", help="write an animated GIF of the first episode")
     ev.add_argument(
-        "--action-mode",
-        choices=("switching", "velocity"),
-        default=None,
+        "--action-mode", choices=ACTION_MODE_NAMES, type=choice(ACTION_MODE_NAMES, "action mode"), default=None,
         help="the env's action mode (default: the policy's own, velocity for 'planned', else switching)",
     )
-    ev.add_argument("--max-cycles", type=_int_at_least(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
+    ev.add_argument("--max-cycles", type=int_at_least(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
     ev.add_argument(
         "--sample-actions", action="store_true",
         help="a trained policy samples its actions (seeded by the episode's seed) instead of taking the most likely one",
     )
     ev.set_defaults(handler=_run_evaluate)
 
+
+def _add_train(sub) -> None:
     from training.train.command import add_train_parser
 
-    add_train_parser(sub, _int_at_least)
-    from training.sweep.command import add_sweep_parser
-
-    add_sweep_parser(sub)
-    return parser
+    add_train_parser(sub, int_at_least)
 
 
 def _run_evaluate(args: argparse.Namespace) -> int:
-    from moma_env.io import to_jsonable
-    from moma_env.scenarios import CONFIGURATIONS
+    from moma_env.io import run_folder, to_jsonable
     from moma_env.tasks import TASKS
     from training.evaluation import PolicyLoadError, evaluate, load_policy, policy_label
     from training.evaluation.policies import POLICY_ACTION_MODES
@@ -168,10 +277,6 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     from training.evaluation.report import format_table, write_outputs
     from training.evaluation.video import GifRecorder
 
-    if args.scenario not in CONFIGURATIONS and args.scenario not in TASKS:
-        known = ", ".join(sorted(CONFIGURATIONS) + sorted(TASKS))
-        print(f"moma-env evaluate: unknown scenario {args.scenario!r}; known: {known}", file=sys.stderr)
-        return 2
     rig = TASKS[args.scenario].configuration if args.scenario in TASKS else args.scenario
     try:
         policy = load_policy(args.policy, args.scenario, args.seed, sample_actions=args.sample_actions)
@@ -190,24 +295,26 @@ def _run_evaluate(args: argparse.Namespace) -> int:
 
         recorder = GifRecorder(fps=make_scenario(rig).world.control_hz)
     start = time.perf_counter()
-    with EpisodeProgress(args.episodes, f"{args.scenario}/{label}") as bar:
-        result = evaluate(
-            args.scenario,
-            policy,
-            args.episodes,
-            args.seed,
-            random_scenarios=args.random_scenarios,
-            action_mode=args.action_mode or env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(args.policy, "switching"),
-            max_cycles=args.max_cycles,
-            frame_sink=recorder,
-            progress=lambda _episode: bar.update(),
-            **env_options,
-        )
-    result = dataclasses.replace(result, policy=label)
-    paths = write_outputs(result, out)
-    if recorder is not None:
-        paths["video"] = out / f"{args.scenario}_episode_000.gif"
-        recorder.write(paths["video"])
+    with run_folder(out, "evaluate") as run:
+        with EpisodeProgress(args.episodes, f"{args.scenario}/{label}") as bar:
+            result = evaluate(
+                args.scenario,
+                policy,
+                args.episodes,
+                args.seed,
+                random_scenarios=args.random_scenarios,
+                action_mode=args.action_mode or env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(args.policy, "switching"),
+                max_cycles=args.max_cycles,
+                frame_sink=recorder,
+                progress=lambda _episode: bar.update(),
+                **env_options,
+            )
+        result = dataclasses.replace(result, policy=label)
+        paths = write_outputs(result, run.path)
+        if recorder is not None:
+            paths["video"] = run.path / f"{args.scenario}_episode_000.gif"
+            recorder.write(paths["video"])
+        paths = run.final(paths)
     wall = time.perf_counter() - start
     if args.json:
         print(json.dumps(to_jsonable(dict(result.summary) | {"scenario": args.scenario, "policy": label, "seed": args.seed,
@@ -223,23 +330,29 @@ def _run_flips(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     result = flip_rates(FlipConfig(views=args.views, seed=args.seed))
-    if args.envs is not None:
+    if args.env_episodes is not None:
         from moma_env.scenarios import CONFIGURATIONS
         from training.experiments.board_normals import format_normal_table, normal_errors
 
-        result["environments"] = [normal_errors(name, args.envs, args.seed) for name in CONFIGURATIONS]
+        result["environments"] = [normal_errors(name, args.env_episodes, args.seed) for name in CONFIGURATIONS]
     wall = time.perf_counter() - start
     if args.json:
         print(json.dumps(result | {"wall_time_s": wall}, indent=2))
     else:
         tables = [format_flip_table(result)]
-        if args.envs is not None:
+        if args.env_episodes is not None:
             tables.append(format_normal_table(result["environments"]))
         print("\n\n".join(tables) + f"\n\nwall time: {wall:.1f} s")
     return 0
 
 
 def _run_bench(args: argparse.Namespace) -> int:
+    if args.cli:
+        from training.bench_cli import format_cli_bench, run_cli_bench
+
+        result = run_cli_bench(args.rounds)
+        print(json.dumps(result, indent=2) if args.json else format_cli_bench(result))
+        return 0
     if args.vector:
         from training.bench_vector import format_vector_bench, run_vector_bench
 
@@ -248,60 +361,9 @@ def _run_bench(args: argparse.Namespace) -> int:
         return 0
     from training.bench import format_bench, run_bench
 
-    result = run_bench(args.steps, args.memory_steps, args.rendered_steps, args.rendered_only, args.train_steps, args.rounds)
+    result = run_bench(args.steps, args.memory_steps, args.rendered_steps, args.rendered_only, args.train_timesteps, args.rounds)
     print(json.dumps(result, indent=2) if args.json else format_bench(result))
     return 0
-
-
-def _add_experiment_arguments(parser: argparse.ArgumentParser, default_runs: int, default_out: Path) -> None:
-    """The arguments every leapfrog experiment takes."""
-    from moma_env.camera import CAMERA_BACKENDS
-    from training.experiments.presets import PRESETS
-
-    parser.add_argument("--runs", type=_int_at_least(1, "count"), default=default_runs, help=f"number of runs (default {default_runs})")
-    parser.add_argument("--seed", type=_int_at_least(0, "seed"), default=0, help="seed of the first run; run k uses seed+k (default 0)")
-    parser.add_argument(
-        "--jobs", type=_int_at_least(1, "job count"), default=1, help="worker processes for the runs (default 1; same results for any value)"
-    )
-    parser.add_argument("--out", type=Path, default=default_out, help=f"output folder (default {default_out})")
-    parser.add_argument(
-        "--observer",
-        choices=("quadcopter", "handheld", "both"),
-        default="quadcopter",
-        help="the observer carrying the camera; 'both' runs each and compares them (outputs in OUT/<observer>/, OUT/observers.png)",
-    )
-    parser.add_argument("--preset", choices=sorted(PRESETS), default="default", help="sensing settings (camera, altitude, board; default 'default')")
-    parser.add_argument(
-        "--camera", choices=CAMERA_BACKENDS, default=None, help="camera backend (default: the preset's; 'rendered' adds the visual odometry baseline)"
-    )
-    parser.add_argument("--noise-px", type=float, default=None, help="corner noise std in pixels of the geometric camera (default: the preset's)")
-    parser.add_argument(
-        "--full-6dof", action="store_true", help="estimate the UGVs' full 3D pose instead of constraining them upright on the floor"
-    )
-    parser.add_argument(
-        "--plain-floor",
-        action="store_true",
-        help="a perfectly plain floor (one gray level) outside the textured regions, instead of the preset's floor grain",
-    )
-    parser.add_argument(
-        "--max-time", type=_positive_float("time limit (s)"), default=None, help="simulated time limit of a run in s; a run stopped by it is flagged (default: the experiment's)"
-    )
-    parser.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
-
-
-def _positive_float(what: str):
-    """An argparse type: a finite number > 0."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number for the {what}, got {text!r}") from None
-        if not value > 0.0 or value == float("inf"):
-            raise argparse.ArgumentTypeError(f"the {what} must be a finite number > 0, got {text}")
-        return value
-
-    return parse
 
 
 def _experiment_config(args: argparse.Namespace, observer: str):
@@ -327,7 +389,7 @@ def _experiment_config(args: argparse.Namespace, observer: str):
 
 
 def _run_experiment(args: argparse.Namespace) -> int:
-    from moma_env.io import to_jsonable
+    from moma_env.io import run_folder, to_jsonable
     from training.experiments import line_report, square_report
     from training.experiments.line import summarise_line
     from training.experiments.leapfrog_run import summarise
@@ -339,19 +401,21 @@ def _run_experiment(args: argparse.Namespace) -> int:
     configs = {observer: _experiment_config(args, observer) for observer in observers}  # all validated before any run
     start = time.perf_counter()
     results, tables, all_runs, files = {}, [], {}, {}
-    for observer, config in configs.items():
-        out = args.out / observer if len(observers) > 1 else args.out
-        runs = run_many(config, args.runs, args.seed, log=lambda line, o=observer: print(f"[{o}] {line}", file=sys.stderr), jobs=args.jobs)
-        summary = summarise_runs(runs)
-        files[observer] = report.write_outputs(runs, summary, config, out)
-        results[observer] = report.results_dict(runs, summary, config)
-        tables.append(report.format_table(summary, config, sum(r.completed for r in runs), len(runs)))
-        if args.experiment == "line":
-            tables.append(line_report.format_keypoints(runs[0]))
-        all_runs[observer] = runs
-    if len(observers) > 1:
-        files["observers_figure"] = args.out / "observers.png"
-        plot_observer_errors(all_runs, files["observers_figure"])
+    with run_folder(args.out, f"experiment {args.experiment}") as run:
+        for observer, config in configs.items():
+            out = run.path / observer if len(observers) > 1 else run.path
+            runs = run_many(config, args.runs, args.seed, log=lambda line, o=observer: print(f"[{o}] {line}", file=sys.stderr), jobs=args.jobs)
+            summary = summarise_runs(runs)
+            files[observer] = report.write_outputs(runs, summary, config, out)
+            results[observer] = report.results_dict(runs, summary, config)
+            tables.append(report.format_table(summary, config, sum(r.completed for r in runs), len(runs)))
+            if args.experiment == "line":
+                tables.append(line_report.format_keypoints(runs[0]))
+            all_runs[observer] = runs
+        if len(observers) > 1:
+            files["observers_figure"] = run.path / "observers.png"
+            plot_observer_errors(all_runs, files["observers_figure"])
+        files = run.final(files)
     wall = time.perf_counter() - start
     completed = all(r.completed for runs in all_runs.values() for r in runs)
     if args.json:
@@ -362,11 +426,14 @@ def _run_experiment(args: argparse.Namespace) -> int:
         for name, paths in files.items():
             print("\n" + (f"{name}: {paths}" if isinstance(paths, Path) else "\n".join(f"{kind}: {path}" for kind, path in paths.items())))
         print(f"wall time: {wall:.1f} s")
+    if not completed:
+        print(f"moma-env experiment {args.experiment}: not every run completed (see 'completed' in the results); exit status 1",
+              file=sys.stderr)
     return 0 if completed else 1
 
 
 def _run_consistency(args: argparse.Namespace) -> int:
-    from moma_env.io import to_jsonable
+    from moma_env.io import run_folder, to_jsonable
     from training.experiments.consistency import consistency_cases, run_consistency
     from training.experiments.consistency_report import format_table, results_dict, write_outputs
 
@@ -376,19 +443,23 @@ def _run_consistency(args: argparse.Namespace) -> int:
         print(f"moma-env experiment consistency: {err}", file=sys.stderr)
         return 2
     start = time.perf_counter()
-    results = run_consistency(cases, args.seed, jobs=args.jobs, log=lambda line: print(line, file=sys.stderr))
-    files = write_outputs(results, args.seed, args.out)
+    with run_folder(args.out, "experiment consistency") as run:
+        results = run_consistency(cases, args.seed, jobs=args.jobs, log=lambda line: print(line, file=sys.stderr))
+        files = run.final(write_outputs(results, args.seed, run.path))
     wall = time.perf_counter() - start
     if args.json:
         print(json.dumps(to_jsonable(results_dict(results, args.seed) | {"wall_time_s": wall, "files": files}), indent=2, sort_keys=True))
     else:
         print(format_table(results))
         print("\n" + "\n".join(f"{kind}: {path}" for kind, path in files.items()) + f"\nwall time: {wall:.1f} s")
-    return 0 if all(r.n_completed == r.case.n_runs for r in results) else 1
+    completed = all(r.n_completed == r.case.n_runs for r in results)
+    if not completed:
+        print("moma-env experiment consistency: not every run completed; exit status 1", file=sys.stderr)
+    return 0 if completed else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``moma-env`` console script."""
+    """Entry point of the ``moma-env`` console script; returns the exit status (:data:`EXIT_STATUSES`)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -396,6 +467,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConfigError as err:
         print(f"moma-env: invalid configuration: {err}", file=sys.stderr)
         return 2
+    except RunFolderError as err:
+        print(f"moma-env: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("moma-env: interrupted; the output folder keeps its previous results", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

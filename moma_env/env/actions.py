@@ -26,6 +26,7 @@ from gymnasium import spaces
 
 from moma_env.config import all_finite
 from moma_env.control import WaypointFollower, WaypointFollowerConfig
+from moma_env.control.route import Route
 from moma_env.estimator import Status
 from moma_env.geometry import wrap_angle
 from moma_env.sim import Frame, Simulation, Switch
@@ -174,6 +175,17 @@ class SwitchingActions(ActionMode):
     robot and reels the sled in (sled mobile until the rope is at its minimum or the
     sled is stuck, then static).
 
+    On a scenario with ``routes``, a robot advances along the polyline from its
+    start through its via poses to its goal (:class:`~moma_env.control.route.Route`),
+    ``leg_length`` metres of arc a leg from where its estimate projects on the
+    route, each leg ending with the heading of the segment it ends on; robots on
+    one trail so keep their spacing along it.
+
+    With ``commit_legs``, a leg once started runs to its end: ``hold`` (and ``reel``)
+    from a robot driving a leg with a localised estimate is ignored, and its mask
+    allows only ``advance``; a robot whose estimate is not localised (it waits for
+    it) can still be held. The leg still ends early when it is blocked.
+
     The executive owns its state: the legs being driven, the sleds being reeled in,
     and the progress that tells a blocked leg or a stuck sled.
     """
@@ -181,13 +193,17 @@ class SwitchingActions(ActionMode):
     name = "switching"
     HOLD, ADVANCE, REEL = 0, 1, 2
 
-    def __init__(self, tows: Mapping[str, str], max_speeds: Mapping[str, tuple[float, float]]):
+    def __init__(self, tows: Mapping[str, str], max_speeds: Mapping[str, tuple[float, float]], commit_legs: bool = False):
         super().__init__(tows, max_speeds)
+        self.commit_legs = commit_legs
+        self.committed: set[str] = set()  # with commit_legs: robots driving a leg on a localised estimate
         self.follower = WaypointFollower(WaypointFollowerConfig(max_speed=0.3, position_tolerance=0.02, yaw_tolerance=0.04))
         self.legs: dict[str, tuple[float, float, float]] = {}
         self.reeling: set[str] = set()
         self._reel_progress: dict[str, tuple[float, float]] = {}  # sled -> (shortest rope m, when s)
         self._leg_progress: dict[str, tuple[float, float, float]] = {}  # robot -> (closest m, rad, when s)
+        self._routes: dict[str, Route] = {}  # robot -> its route, if the scenario gives one
+        self._route_s: dict[str, float] = {}  # robot -> arc length (m) of its last leg's start on its route
 
     def space(self, agent: str) -> spaces.Space:
         return spaces.Discrete(3 if agent in self.tows else 2)
@@ -195,12 +211,22 @@ class SwitchingActions(ActionMode):
     def reset(self, simulation: Simulation) -> None:
         self.legs = {}
         self.reeling = set()
+        self.committed = set()
         self._reel_progress = {}
         self._leg_progress = {}
+        scenario = simulation.scenario
+        self._routes = {
+            ugv.name: Route(ugv.initial_pose, (*scenario.routes[ugv.name], scenario.goals[ugv.name]))
+            for ugv in scenario.world.ugvs
+            if ugv.name in scenario.routes
+        }
+        self._route_s = {name: 0.0 for name in self._routes}
 
     def requests(self, actions: Mapping[str, Any], mobile: frozenset[str]) -> dict[str, bool]:
         wants: dict[str, bool] = {}
         for agent, action in actions.items():
+            if action != self.ADVANCE and agent in self.committed:
+                continue  # the leg runs to its end
             if action == self.ADVANCE:
                 wants[agent] = True
             elif agent in mobile:  # hold, or reel (the camera must be static)
@@ -226,6 +252,7 @@ class SwitchingActions(ActionMode):
                     self._leg_progress[device] = (math.inf, math.inf, t)
 
     def _stopped(self, device: str) -> None:
+        self.committed.discard(device)
         self.legs.pop(device, None)
         self._leg_progress.pop(device, None)
         self.reeling.discard(device)
@@ -235,7 +262,8 @@ class SwitchingActions(ActionMode):
         self._stopped(device)
 
     def _next_leg(self, device: str, simulation: Simulation) -> tuple[float, float, float]:
-        """Target of the next advance: at most ``leg_length`` towards the goal, from the estimate."""
+        """Target of the next advance: at most ``leg_length`` towards the next via pose
+        of the route or the goal, from the estimate."""
         scenario = simulation.scenario
         goal = scenario.goals.get(device)
         pose = simulation.frame.usable_pose(device)
@@ -244,6 +272,11 @@ class SwitchingActions(ActionMode):
         if goal is None:
             return pose
         x, y, yaw = pose
+        route = self._routes.get(device)
+        if route is not None:
+            s = route.project(x, y, not_before=self._route_s[device] - scenario.leg_length)
+            self._route_s[device] = s
+            return route.pose_at(s + scenario.leg_length)
         dx, dy = goal[0] - x, goal[1] - y
         dist = math.hypot(dx, dy)
         if dist <= scenario.leg_length:
@@ -269,6 +302,7 @@ class SwitchingActions(ActionMode):
         for device, leg in list(self.legs.items()):
             pose = frame.usable_pose(device)
             if pose is None or frame.estimates[device].status is not Status.LOCALISED:
+                self.committed.discard(device)  # a robot waiting for its estimate can be held
                 commands[device] = np.zeros(3)  # wait where it is until it is localised again
                 closest, aligned, _ = self._leg_progress[device]
                 self._leg_progress[device] = (closest, aligned, t)  # waiting is not being blocked
@@ -282,6 +316,8 @@ class SwitchingActions(ActionMode):
                 note(device, f"leg_blocked:{device}")
                 commands[device] = np.zeros(3)
             else:
+                if self.commit_legs:
+                    self.committed.add(device)
                 commands[device] = self.follower.command(pose, leg)
         return commands
 
@@ -317,6 +353,10 @@ class SwitchingActions(ActionMode):
         if references is None:
             references = simulation.reference_devices()
         mask = np.ones(self.space(agent).n, dtype=np.int8)
+        if agent in self.committed:
+            mask[:] = 0
+            mask[self.ADVANCE] = 1  # the leg runs to its end
+            return mask
         mobile = simulation.mobile
         check = simulation.check_mobile
         if agent not in mobile:
@@ -336,10 +376,17 @@ class SwitchingActions(ActionMode):
 ACTION_MODE_TYPES: Mapping[str, type[ActionMode]] = MappingProxyType({cls.name: cls for cls in (VelocityActions, SwitchingActions)})
 
 
-def action_mode(name: str, tows: Mapping[str, str], max_speeds: Mapping[str, tuple[float, float]]) -> ActionMode:
-    """The action mode called ``name`` (one of :data:`ACTION_MODE_TYPES`)."""
+def action_mode(
+    name: str, tows: Mapping[str, str], max_speeds: Mapping[str, tuple[float, float]], commit_legs: bool = False
+) -> ActionMode:
+    """The action mode called ``name`` (one of :data:`ACTION_MODE_TYPES`); ``commit_legs``
+    is :class:`SwitchingActions`'s (switching mode only)."""
     try:
         cls = ACTION_MODE_TYPES[name]
     except KeyError:
         raise ValueError(f"unknown action mode {name!r}; known: {sorted(ACTION_MODE_TYPES)}") from None
+    if cls is SwitchingActions:
+        return SwitchingActions(tows, max_speeds, commit_legs=commit_legs)
+    if commit_legs:
+        raise ValueError(f"commit_legs exists only in switching mode, not {name!r}")
     return cls(tows, max_speeds)

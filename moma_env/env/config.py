@@ -104,6 +104,10 @@ class EnvConfig:
         action_masks: in ``switching`` mode, add ``"action_mask"`` to every UGV
             agent's ``infos`` (see :meth:`MomaParallelEnv.action_mask`). Off by
             default: it costs a motion-rules check per UGV and step.
+        commit_legs: in ``switching`` mode, a leg once started runs to its end:
+            ``hold`` from a UGV driving a leg on a localised estimate is ignored
+            and masked (see :class:`moma_env.env.actions.SwitchingActions`). Off
+            by default.
         pad_observations: pad every agent's vector observation with zeros to
             the longest one, and give every agent one observation space (the
             union of their bounds), so that parameter-sharing wrappers (SuperSuit's
@@ -124,6 +128,7 @@ class EnvConfig:
     floor: FloorConfig | None = None
     observer_image: tuple[int, int] | None = None
     action_masks: bool = False
+    commit_legs: bool = False
     pad_observations: bool = False
     localiser: Callable[[Any], Any] | None = None
 
@@ -162,6 +167,9 @@ class EnvConfig:
         check_bool("env.action_masks", self.action_masks)
         if self.action_masks and self.action_mode != "switching":
             raise ConfigError("env.action_masks", "exist only for the discrete actions of action_mode='switching'")
+        check_bool("env.commit_legs", self.commit_legs)
+        if self.commit_legs and self.action_mode != "switching":
+            raise ConfigError("env.commit_legs", "exists only for the legs of action_mode='switching'")
 
     @property
     def observer_is_agent(self) -> bool:

@@ -136,6 +136,7 @@ def configuration_env(
     floor: FloorConfig | Mapping[str, Any] | None = None,
     observer_image: tuple[int, int] | None = None,
     action_masks: bool = False,
+    commit_legs: bool = False,
     pad_observations: bool = False,
     localiser: Any = None,
     **overrides: Any,
@@ -143,7 +144,7 @@ def configuration_env(
     """The PettingZoo parallel env of ``configuration`` (see the module docstring).
 
     ``camera_backend``, ``render``, ``floor``, ``observer_image``,
-    ``action_masks``, ``pad_observations`` and ``localiser`` are the
+    ``action_masks``, ``commit_legs``, ``pad_observations`` and ``localiser`` are the
     :class:`EnvConfig` fields of the same names
     (``render`` and ``floor`` may be mappings of their fields).
     """
@@ -165,6 +166,7 @@ def configuration_env(
         floor=floor,
         observer_image=observer_image,
         action_masks=action_masks,
+        commit_legs=commit_legs,
         pad_observations=pad_observations,
         localiser=localiser,
     )

@@ -194,7 +194,12 @@ class MomaParallelEnv(ParallelEnv):
         cameras = build_cameras(camera_names, scenario.camera, self.config, self._floor)
         localiser = {} if self.config.localiser is None else {"localiser": self.config.localiser}
         self.simulation = Simulation(scenario, cameras, replaces=getattr(self, "simulation", None), **localiser)
-        self._mode: ActionMode = action_mode(self.config.action_mode, self._tows, {u.name: (u.max_speed, u.max_yaw_rate) for u in wc.ugvs})
+        self._mode: ActionMode = action_mode(
+            self.config.action_mode,
+            self._tows,
+            {u.name: (u.max_speed, u.max_yaw_rate) for u in wc.ugvs},
+            commit_legs=self.config.commit_legs,
+        )
         self._reward = TeamReward(scenario, self._ugvs, self.config.rewards)
         self._max_cycles = self._max_cycles_set or self.config.max_cycles or scenario.max_cycles
 

@@ -39,6 +39,9 @@ class Scenario:
         dwell_s: motion rule 3, time every switch keeps two devices static (s).
         goal_tolerance_m, goal_tolerance_rad: a goal counts as reached within these.
         max_cycles: default episode length in control steps.
+        routes: via poses ``(x, y, yaw)`` (m, rad, in W) a UGV passes, in order,
+            on its way to its goal in ``switching`` mode (none: straight to the
+            goal); the yaw of each is the heading the robot drives with towards it.
     """
 
     name: str
@@ -51,6 +54,7 @@ class Scenario:
     goal_tolerance_m: float = 0.05
     goal_tolerance_rad: float = 0.1
     max_cycles: int = 2000
+    routes: Mapping[str, tuple[Pose2D, ...]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -72,6 +76,20 @@ class Scenario:
                 check_finite(f"scenario.goals[{name!r}]", v)
             goals[name] = tuple(float(v) for v in goal)
         object.__setattr__(self, "goals", goals)
+        routes = {}
+        for name, route in dict(self.routes).items():
+            if name not in goals:
+                raise ConfigError(f"scenario.routes[{name!r}]", f"names no UGV with a goal; with goals: {sorted(goals)}")
+            poses = []
+            for k, pose in enumerate(tuple(route)):
+                if len(tuple(pose)) != 3:
+                    raise ConfigError(f"scenario.routes[{name!r}][{k}]", f"must be (x, y, yaw), got {pose!r}")
+                for v in pose:
+                    check_finite(f"scenario.routes[{name!r}][{k}]", v)
+                poses.append(tuple(float(v) for v in pose))
+            if poses:
+                routes[name] = tuple(poses)
+        object.__setattr__(self, "routes", routes)
         check_positive("scenario.leg_length", self.leg_length)
         check_non_negative("scenario.dwell_s", self.dwell_s)
         check_positive("scenario.goal_tolerance_m", self.goal_tolerance_m)

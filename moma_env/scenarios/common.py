@@ -115,6 +115,10 @@ class Layout:
             None means the slowest UGV's ``max_speed``.
         uav: the observer, or None.
         sleds: the towed sleds.
+        routes: UGV name -> via poses it passes on its way to its goal
+            (``Scenario.routes``); their footprints belong in ``disks``.
+        obstacles: boxes the layout itself needs (a wall the team must go
+            around), in addition to the configuration's ``obstacles``.
     """
 
     ugvs: tuple[UGVConfig, ...]
@@ -125,6 +129,8 @@ class Layout:
     speed: float | None = None
     uav: UAVConfig | None = None
     sleds: tuple[SledConfig, ...] = ()
+    routes: Mapping[str, tuple[Pose2D, ...]] = field(default_factory=dict)
+    obstacles: tuple[BoxObstacle, ...] = ()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -265,11 +271,15 @@ class ScenarioConfig(ABC):
 
     def _build(self) -> Scenario:
         layout = self._make_layout()
-        arena = self._arena_config(layout.disks)
+        arena = self._arena_config(layout.disks, self.obstacles + layout.obstacles)
         for k, obstacle in enumerate(self.obstacles):
             for label, x, y, radius in layout.disks:
                 if disk_overlaps_box(x, y, radius, obstacle):
                     raise ConfigError(self._field(f"obstacles[{k}]"), f"covers the {label} at ({x:.3f}, {y:.3f})")
+        for obstacle in layout.obstacles:
+            for label, x, y, radius in layout.disks:
+                if disk_overlaps_box(x, y, radius, obstacle):
+                    raise ConfigError(self._field("layout"), f"its obstacle {obstacle} covers the {label} at ({x:.3f}, {y:.3f})")
         try:
             world = WorldConfig(arena=arena, ugvs=layout.ugvs, uav=layout.uav, sleds=layout.sleds)
         except ConfigError as error:
@@ -286,9 +296,10 @@ class ScenarioConfig(ABC):
             goal_tolerance_m=self.goal_tolerance_m,
             goal_tolerance_rad=self.goal_tolerance_rad,
             max_cycles=self._resolved_max_cycles(layout, world.control_hz),
+            routes=layout.routes,
         )
 
-    def _arena_config(self, disks: Sequence[Disk]) -> ArenaConfig:
+    def _arena_config(self, disks: Sequence[Disk], obstacles: tuple[BoxObstacle, ...]) -> ArenaConfig:
         centres = np.array([(x, y) for _, x, y, _ in disks])
         radii = np.array([[r] for *_, r in disks])
         lo = (centres - radii).min(axis=0)
@@ -302,7 +313,7 @@ class ScenarioConfig(ABC):
             width=float(size[0]),
             height=float(size[1]),
             origin=(float(origin[0]), float(origin[1])),
-            obstacles=self.obstacles,
+            obstacles=obstacles,
         )
         for label, x, y, radius in disks:
             if not disk_inside_rectangle(x, y, radius + WALL_CLEARANCE_M, arena.bounds):

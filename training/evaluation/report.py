@@ -12,11 +12,13 @@ import math
 from pathlib import Path
 
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from moma_env.io import atomic_path, write_csv, write_json
 from moma_env.metrics import position_errors, write_tum
 from training.evaluation.episode import EpisodeResult
 from training.evaluation.harness import EvaluationResult
+from training.figure_layout import legend_below
 
 __all__ = ["write_outputs", "plot_episode", "format_table"]
 
@@ -29,8 +31,8 @@ def plot_episode(episode: EpisodeResult, title: str, path: Path) -> None:
     ax, ax_err = fig.subplots(1, 2, width_ratios=[1.1, 1])
     for k, (name, r) in enumerate(episode.robots.items()):
         colour = _COLOURS[k % len(_COLOURS)]
-        ax.plot(*r.truth.xy.T, "--", color=colour, lw=1.2, alpha=0.8, label=f"{name} truth")
-        ax.plot(*r.moma.xy.T, color=colour, lw=1.0, label=f"{name} MOMA")
+        ax.plot(*r.truth.xy.T, "--", color=colour, lw=1.2, alpha=0.8)
+        ax.plot(*r.moma.xy.T, color=colour, lw=1.0)
         goal = episode.goals.get(name)
         if goal is not None:
             ax.scatter([goal[0]], [goal[1]], marker="*", s=120, color=colour, edgecolor="k", zorder=5)
@@ -41,14 +43,16 @@ def plot_episode(episode: EpisodeResult, title: str, path: Path) -> None:
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(f"{title}: episode {episode.index} (seed {episode.seed}), {'success' if episode.success else 'no success'}")
-    ax.legend(loc="best", fontsize=7)
+    ax.set_title(f"{title}: episode {episode.index} (seed {episode.seed}), {'success' if episode.success else 'no success'}", wrap=True)
     ax.grid(alpha=0.3)
     ax_err.set_xlabel("time [s]")
     ax_err.set_ylabel("position error E(t) [cm]")
-    ax_err.set_title("MOMA error over time (dotted: the robot's switches)")
-    ax_err.legend(loc="best", fontsize=8)
+    ax_err.set_title("MOMA error over time")
     ax_err.grid(alpha=0.3)
+    extra = [(Line2D([], [], color="0.4", ls="--", lw=1.2), "truth (dashed)"), (Line2D([], [], color="0.4", lw=1.0), "MOMA (solid)"),
+             (Line2D([], [], color="0.4", ls=":", lw=0.8), "switch of the robot"),
+             (Line2D([], [], marker="*", ls="", color="0.4", markeredgecolor="k", ms=10), "goal")]
+    legend_below(fig, [ax_err], extra)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=100, format="png")
 

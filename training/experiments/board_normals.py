@@ -1,4 +1,4 @@
-"""How far off the detected board normals are in the environments: ``moma-env experiment flips --envs``.
+"""How far off the detected board normals are in the environments: ``moma-env experiment flips --env-episodes``.
 
 The flip experiment (:mod:`training.experiments.flip_rate`) measures one board at
 3 m; this one measures every detection the environments make while their

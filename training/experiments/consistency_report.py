@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from moma_env.io import write_csv, write_json
 from moma_env.metrics import pose_errors
@@ -19,6 +20,7 @@ from moma_env.metrics.consistency import matched_covariances
 from training.experiments.consistency import CaseResult
 from training.experiments.leapfrog_run import MAIN
 from training.experiments.report_common import config_record, save_figure
+from training.figure_layout import legend_below
 
 __all__ = ["DEFINITION", "format_table", "plot_case", "figure_name", "write_outputs", "results_dict", "steps_rows"]
 
@@ -103,8 +105,7 @@ def plot_case(result: CaseResult, path: Path) -> None:
             ax.axvline(s, color="0.6", lw=0.5, ls=":")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    axes[0].legend(loc="upper left", fontsize=8)
-    axes[0].set_title(f"{result.case.name}: main robot, seed {run.seed} (dotted: its switches)")
+    axes[0].set_title(f"{result.case.name}: main robot, seed {run.seed}")
 
     ax = axes[3]
     for avg, colour, label in ((result.position, "tab:blue", f"position ({result.position.dof} dof)"),
@@ -118,8 +119,9 @@ def plot_case(result: CaseResult, path: Path) -> None:
         ax.set_yscale("log")
     ax.set_ylabel(f"ANEES over {result.case.n_runs} runs")
     ax.set_xlabel("time [s]")
-    ax.legend(loc="upper left", fontsize=8)
     ax.grid(alpha=0.3, which="both")
+    extra = [(Line2D([], [], color="0.3", lw=0.8, ls="--"), "ANEES 95 % bounds"), (Line2D([], [], color="0.6", lw=0.8, ls=":"), "main robot's switch")]
+    legend_below(fig, [axes[0], ax], extra, ncol=3)
     save_figure(fig, path)
 
 

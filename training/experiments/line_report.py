@@ -10,10 +10,12 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from training.experiments.leapfrog_run import MAIN, LeapfrogRun
 from training.experiments.line import LineConfig, line_metrics
 from training.experiments.report_common import COLOURS, LABELS, cm, pct, results_base, save_figure, write_experiment_files
+from training.figure_layout import legend_below
 
 __all__ = ["PAPER_LINE", "format_table", "format_keypoints", "plot_run", "write_outputs", "results_dict"]
 
@@ -84,8 +86,7 @@ def plot_run(run: LeapfrogRun, config: LineConfig, path: Path) -> None:
         ax_x.axvline(t, color="0.5", lw=0.7)
     ax_x.set_xlabel("time [s]")
     ax_x.set_ylabel("x [m]")
-    ax_x.set_title(f"First pass (1/{config.passes}) and its keypoints, seed {run.seed}")
-    ax_x.legend(loc="best", fontsize=8)
+    ax_x.set_title(f"First pass (1/{config.passes}), seed {run.seed}")
     ax_x.grid(alpha=0.3)
 
     n_methods = len(run.methods)
@@ -97,7 +98,7 @@ def plot_run(run: LeapfrogRun, config: LineConfig, path: Path) -> None:
         ax_rel.bar(k, 100.0 * np.asarray(m.relative_errors), width=width, color=COLOURS[method], label=LABELS[method])
     for ax, title, ylabel in (
         (ax_kp, "x error at every keypoint", "estimated - true x [cm]"),
-        (ax_rel, "|error in the distance between keypoints|", "relative error [cm]"),
+        (ax_rel, "error in the distance between keypoints", "|relative error| [cm]"),
     ):
         for p in range(1, config.passes):
             ax.axvline(p * config.switches_per_pass + 0.5, color="0.5", lw=0.7, ls=":")
@@ -106,8 +107,9 @@ def plot_run(run: LeapfrogRun, config: LineConfig, path: Path) -> None:
         ax.set_xlabel("keypoint")
         ax.set_ylabel(ylabel)
         ax.set_title(title)
-        ax.legend(loc="best", fontsize=8)
         ax.grid(alpha=0.3, axis="y")
+    extra = [(Line2D([], [], color="0.5", lw=0.7), "keypoint (a switch)"), (Line2D([], [], color="0.5", lw=0.7, ls=":"), "end of a pass")]
+    legend_below(fig, [ax_x, ax_kp], extra)
     save_figure(fig, path)
 
 

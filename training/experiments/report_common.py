@@ -15,10 +15,12 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from moma_env.io import atomic_path, write_csv, write_json
 from moma_env.metrics import covariance_path_for, write_covariances, write_tum
 from training.experiments.leapfrog_run import MAIN, LeapfrogConfig, LeapfrogRun
+from training.figure_layout import legend_below
 
 __all__ = ["LABELS", "COLOURS", "cm", "pct", "write_run_tums", "run_record", "config_record", "results_base",
            "write_experiment_files", "save_figure", "plot_observer_errors"]
@@ -166,6 +168,6 @@ def plot_observer_errors(runs_by_observer: dict[str, list[LeapfrogRun]], path: P
     ax.set_xlabel("time [s]")
     ax.set_ylabel("MOMA position error E(t) [cm]")
     ax.set_title("Main robot's error: UAV observer vs hand-held camera")
-    ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
+    legend_below(fig, [ax], [(Line2D([], [], color="0.5", lw=0.5), "one run")])
     save_figure(fig, path)

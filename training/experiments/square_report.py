@@ -11,11 +11,13 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from moma_env.metrics import position_errors
 from training.experiments.leapfrog_run import BUDDY, MAIN, LeapfrogRun
 from training.experiments.report_common import COLOURS, LABELS, cm, pct, results_base, save_figure, write_experiment_files
 from training.experiments.square import SquareConfig
+from training.figure_layout import legend_below, zoom_inset
 
 __all__ = ["PAPER_SQUARE", "format_table", "write_outputs", "plot_run", "results_dict"]
 
@@ -64,8 +66,13 @@ def _row(label: str, s: dict, track_loss_rate: float) -> str:
 
 
 def plot_run(run: LeapfrogRun, path: Path) -> None:
-    """The paper's figure (truth, MOMA, the baselines, waypoints) and E(t) with the switches."""
-    fig = Figure(figsize=(12, 5.5), layout="constrained")
+    """The paper's figure (truth, MOMA, the baselines, waypoints) and E(t) with the switches.
+
+    An inset in the middle of the square shows the main robot's final position in mm,
+    MOMA against the truth (and the baselines) at the scale of MOMA's final error; one
+    legend below the panels.
+    """
+    fig = Figure(figsize=(12, 6), layout="constrained")
     ax, ax_err = fig.subplots(1, 2, width_ratios=[1.1, 1])
     main = run.trajectories[MAIN]
     buddy = run.trajectories.get(BUDDY)
@@ -80,23 +87,53 @@ def plot_run(run: LeapfrogRun, path: Path) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title(f"Main robot, seed {run.seed}")
-    ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
+    _final_position_inset(ax, run, wp)
 
     truth = main["truth"]
+    positive = False
     for method in run.methods:
-        ax_err.plot(truth.times, 100.0 * position_errors(main[method], truth), color=COLOURS[method], label=LABELS[method])
+        err = 100.0 * position_errors(main[method], truth)
+        positive |= bool(np.any(err[np.isfinite(err)] > 0.0))
+        ax_err.plot(truth.times, err, color=COLOURS[method], label=LABELS[method])
         if run.lost_at[method] is not None:
             ax_err.axvline(run.lost_at[method], color=COLOURS[method], lw=1.0, ls="--")
     for t in run.switch_times:
         ax_err.axvline(t, color="0.6", lw=0.6, ls=":")
     ax_err.set_xlabel("time [s]")
     ax_err.set_ylabel("position error E(t) [cm]")
-    ax_err.set_yscale("log")
-    ax_err.set_title("Error over time (dotted: main robot's switches, dashed: track lost)")
-    ax_err.legend(loc="best", fontsize=8)
+    if positive:
+        ax_err.set_yscale("log")
+    ax_err.set_title("Main robot's position error over time")
     ax_err.grid(alpha=0.3, which="both")
+    extra = [(Line2D([], [], color="0.6", lw=0.8, ls=":"), "main robot's switch")]
+    if any(run.lost_at[m] is not None for m in run.methods):
+        extra.append((Line2D([], [], color="0.3", lw=1.0, ls="--"), "track lost"))
+    legend_below(fig, [ax, ax_err], extra)
     save_figure(fig, path)
+
+
+def _final_position_inset(ax, run: LeapfrogRun, waypoints: np.ndarray) -> None:
+    """Zoom on the main robot's final position inside the square: truth, MOMA and the
+    baselines in mm around the true final position, the window 2.5 times MOMA's final
+    error (at least 2 mm) on each side."""
+    main = run.trajectories[MAIN]
+    truth_end = main["truth"].xy[-1]
+    moma_end = main["moma"].xy[-1] if "moma" in main else truth_end
+    error = float(np.linalg.norm(moma_end - truth_end)) if np.all(np.isfinite(moma_end)) else 0.0
+    half = max(2.5 * error, 0.002)
+    low, high = waypoints.min(axis=0), waypoints.max(axis=0)
+    side = float(np.min(high - low))
+    if not side > 0.0:
+        return
+    curves = [(main["truth"].xy, {"color": "k", "ls": "--", "lw": 1.2})]
+    curves += [(main[m].xy, {"color": COLOURS[m], "lw": 1.2 if m == "moma" else 0.9}) for m in run.methods]
+    corner = low + 0.2 * (high - low)
+    inset = zoom_inset(ax, curves, truth_end, half, (corner[0], corner[1], 0.6 * side, 0.6 * side),
+                       f"final position: MOMA {100 * error:.2f} cm off")
+    inset.plot([0.0], [0.0], "o", color="k", ms=4)
+    offset = 1000.0 * (moma_end - truth_end)
+    inset.plot([offset[0]], [offset[1]], "x", color=COLOURS["moma"], ms=6, mew=1.5)
 
 
 def _runs_rows(runs: list[LeapfrogRun]) -> list[dict[str, object]]:

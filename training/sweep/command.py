@@ -1,5 +1,8 @@
 """The ``moma-env sweep`` subcommand: :func:`add_sweep_parser` and its handler.
 
+Building the parser imports nothing of the envs (``moma-env --help`` stays light);
+the handler imports the sweep when it runs.
+
 ``moma-env sweep --scenarios top_observer,caterpillar --policies scripted,random
 --seeds 0:100 --out runs/sweep`` runs every cell as a Ray task on a Ray started for
 the command (all cores of this machine), ``--address ADDR`` on an existing cluster,
@@ -16,11 +19,10 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from moma_env.config import ConfigError
-from training.sweep.backends import BACKENDS, LocalBackend, RayBackend
-from training.sweep.spec import SweepSpec, parse_names, parse_seeds
+__all__ = ["add_sweep_parser", "run_sweep_command", "BACKENDS"]
 
-__all__ = ["add_sweep_parser", "run_sweep_command"]
+#: ``--backend`` of ``moma-env sweep`` (:class:`training.sweep.backends.RayBackend`, :class:`~training.sweep.backends.LocalBackend`).
+BACKENDS = ("ray", "local")
 
 
 def _count(minimum: int, what: str):
@@ -36,9 +38,14 @@ def _count(minimum: int, what: str):
     return parse
 
 
-def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
-    """Add ``sweep`` to ``moma-env``'s subparsers; return its parser."""
-    sw = subparsers.add_parser("sweep", help="evaluate every scenario x policy x seed cell, on Ray or a local process pool")
+def add_sweep_parser(subparsers, add_subcommand: Callable[..., argparse.ArgumentParser] | None = None) -> argparse.ArgumentParser:
+    """Add ``sweep`` to ``moma-env``'s subparsers; return its parser. ``add_subcommand(sub, name,
+    help)`` makes the parser the CLI's way (its epilog of exit statuses), if given."""
+    help_text = "evaluate every scenario x policy x seed cell, on Ray or a local process pool (docs/scaling.md)"
+    if add_subcommand is not None:
+        sw = add_subcommand(subparsers, "sweep", help_text)
+    else:
+        sw = subparsers.add_parser("sweep", help=help_text)
     sw.add_argument("--scenarios", required=True, help="comma-separated configurations or tasks, e.g. top_observer,caterpillar")
     sw.add_argument("--policies", required=True, help="comma-separated policy specs of moma-env evaluate --policy, e.g. scripted,random")
     sw.add_argument("--seeds", required=True, help="reset seeds: START:STOP (half-open, e.g. 0:100) or a comma-separated list")
@@ -51,7 +58,7 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
     sw.add_argument("--resume", action="store_true", help="continue the sweep in --out: run only the cells without a result")
     sw.add_argument("--fixed", dest="random_scenarios", action="store_false", help="the configuration's default layout for every seed (default: a random layout per seed)")
     sw.add_argument("--max-cycles", type=_count(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
-    sw.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    sw.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
     sw.add_argument("--json", action="store_true", help="print the report as JSON")
     sw.set_defaults(handler=run_sweep_command)
     return sw
@@ -80,8 +87,12 @@ class _Bar:
 
 def run_sweep_command(args: argparse.Namespace) -> int:
     """Handler of ``moma-env sweep``: exit status 0, or 2 with a one-line message on bad input."""
+    from moma_env.config import ConfigError
+    from moma_env.io import RunFolderError
     from training.evaluation.policies import PolicyLoadError
+    from training.sweep.backends import LocalBackend, RayBackend
     from training.sweep.run import sweep
+    from training.sweep.spec import SweepSpec, parse_names, parse_seeds
 
     try:
         spec = SweepSpec(
@@ -102,10 +113,10 @@ def run_sweep_command(args: argparse.Namespace) -> int:
     except ConfigError as err:
         print(f"moma-env sweep: {err}", file=sys.stderr)
         return 2
-    bar = _Bar() if args.progress else None
+    bar = _Bar() if args.progress_bar else None
     try:
         report = sweep(spec, args.out, backend, resume=args.resume, cells_per_task=args.cells_per_task, progress=bar)
-    except (ConfigError, PolicyLoadError) as err:
+    except (ConfigError, PolicyLoadError, RunFolderError) as err:
         print(f"moma-env sweep: {err}", file=sys.stderr)
         return 2
     except Exception as err:  # a task's own error, re-raised by Ray or the pool

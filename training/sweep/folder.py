@@ -1,6 +1,9 @@
 """A sweep's folder: one sweep, locked while it runs, one result file per finished cell.
 
-Layout of ``OUT/``:
+Like a training run, a sweep writes in place so that it can be resumed: its folder is
+marked as a ``sweep`` run (``.moma-run.json``, :func:`moma_env.io.claim_run_folder`), and a
+folder holding another kind of run, or files that are not a moma-env run, is refused
+(:class:`moma_env.io.RunFolderError`) before anything is written. Layout of ``OUT/``:
 
 * ``sweep.json``: the :class:`~training.sweep.spec.SweepSpec` (written first; a folder
   holding another sweep's spec is refused, the same spec is resumed with ``resume``);
@@ -25,17 +28,21 @@ from pathlib import Path
 from typing import Any
 
 from moma_env.config import ConfigError
-from moma_env.io import atomic_write_text, write_json
+from moma_env.io import atomic_write_text, claim_run_folder, run_kind, write_json
 from training.sweep.spec import Cell, SweepSpec
 
-__all__ = ["SweepFolder", "SPEC_FILE", "LOCK_FILE", "CELLS_DIR", "FORMAT"]
+__all__ = ["SweepFolder", "SPEC_FILE", "LOCK_FILE", "CELLS_DIR", "FORMAT", "RUN_KIND"]
 
 SPEC_FILE = "sweep.json"
 LOCK_FILE = "sweep.lock"
 CELLS_DIR = "cells"
 #: Version of the folder's layout.
 FORMAT = 1
+#: The folder's kind in its run marker (:func:`moma_env.io.claim_run_folder`).
+RUN_KIND = "sweep"
 _CELL_FILE = re.compile(r"^(\d+)_(\d+)_(\d+)\.json$")
+#: A temporary of :func:`moma_env.io.atomic_path` beside a task file (hidden, ``.tmp`` in its name).
+_TEMPORARY = re.compile(r"^\.\d+_\d+_\d+\..*tmp.*$")
 
 
 class SweepFolder:
@@ -48,6 +55,7 @@ class SweepFolder:
             without it a folder that holds a sweep is refused.
 
     Raises (on entering):
+        RunFolderError: ``out`` holds another kind of run or files that are not a run.
         ConfigError: ``out``, when another sweep holds the lock, the folder holds a
             sweep and ``resume`` is False, or ``resume`` and the folder's spec differs
             (naming the differing field) or there is none.
@@ -64,6 +72,8 @@ class SweepFolder:
     def __enter__(self) -> "SweepFolder":
         if self.out.exists() and not self.out.is_dir():
             raise ConfigError("out", f"{str(self.out)!r} is a file, not a folder")
+        if not self.resume or (self.out.is_dir() and run_kind(self.out) not in (None, RUN_KIND)):
+            claim_run_folder(self.out, RUN_KIND)  # RunFolderError: another kind of run, or files that are not a run
         self.out.mkdir(parents=True, exist_ok=True)
         fd = os.open(self.out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
         try:
@@ -78,6 +88,9 @@ class SweepFolder:
             self._release()
             raise
         (self.out / CELLS_DIR).mkdir(exist_ok=True)
+        for path in (self.out / CELLS_DIR).iterdir():  # half-written files of a killed sweep (the lock is ours)
+            if _TEMPORARY.match(path.name):
+                path.unlink(missing_ok=True)
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -94,9 +107,6 @@ class SweepFolder:
         if not path.is_file():
             if self.resume:
                 raise ConfigError("out", f"{str(self.out)!r} holds no sweep to resume (no {SPEC_FILE})")
-            others = sorted(p.name for p in self.out.iterdir() if p.name != LOCK_FILE)
-            if others:
-                raise ConfigError("out", f"{str(self.out)!r} holds other files ({', '.join(others[:3])}) and no sweep: choose an empty or new folder")
             write_json(path, {"format": FORMAT, "spec": self.spec.to_dict()})
             return
         if not self.resume:

@@ -13,10 +13,24 @@ import sys
 from pathlib import Path
 from types import MappingProxyType
 
+from typing import TYPE_CHECKING
+
 from moma_env.config import ConfigError
-from moma_env.env.config import RewardConfig
 from moma_env.tasks import TASKS
+from training.cli_args import ACTION_MODE_NAMES, SCENARIO_NAMES, choice, int_at_least
 from training.train.config import ALGORITHMS, ROUTES, TrainConfig, reward_overrides
+
+if TYPE_CHECKING:
+    from moma_env.env.config import RewardConfig
+
+#: Exit statuses of ``moma-env train`` (its ``--help`` epilog).
+TRAIN_EPILOG = """exit status:
+  0    trained (or resumed) to --timesteps; the manifest names the final checkpoint
+  2    bad input, one line on stderr: an option value, a configuration the algorithm
+       cannot train, --out holding another run (or a training run without --resume),
+       --resume without a loadable checkpoint, the 'train' extra missing
+  130  interrupted (Ctrl-C): --out keeps the last checkpoint; --resume continues from it
+"""
 
 __all__ = ["add_train_parser", "run_train", "config_from_args", "train_command"]
 
@@ -31,43 +45,58 @@ def _layers(text: str) -> tuple[int, ...]:
     return sizes
 
 
-def add_train_parser(sub, int_at_least) -> argparse.ArgumentParser:
-    """Add ``train`` to the subparsers ``sub``; ``int_at_least(minimum, what)`` is the CLI's integer type."""
+def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
+    """Add ``train`` to the subparsers ``sub``; ``int_at_least(minimum, what)`` is the CLI's integer type.
+
+    Light: the parser needs names only (``moma-env train --help`` imports no env, torch or SB3).
+    """
     defaults = {f.name: f.default for f in dataclasses.fields(TrainConfig) if f.default is not dataclasses.MISSING}
-    tr = sub.add_parser("train", help="train a coordination policy with Stable-Baselines3")
-    tr.add_argument("--scenario", required=True, help="configuration (top_observer, caterpillar, caterpillar_sled, caterpillar_multi) or task (top_observer_team4, top_observer_team6) name")
-    tr.add_argument("--algo", choices=sorted(ALGORITHMS), default=defaults["algo"], help="algorithm (default ppo; dqn: switching + shared; maskable_ppo: switching, needs sb3-contrib; sac, td3: velocity)")
-    tr.add_argument("--steps", type=int_at_least(1, "step count"), default=defaults["steps"],
-                    help="total timesteps: env steps (centralised) or agent steps (shared) (default %(default)s)")
-    tr.add_argument("--envs", type=int_at_least(1, "env count"), default=defaults["envs"], help="env copies K (default %(default)s)")
-    tr.add_argument("--subproc", action="store_true", help="run the env copies in worker processes")
-    tr.add_argument("--seed", type=int_at_least(0, "seed"), default=defaults["seed"], help="seed of the model and the envs (default 0)")
-    tr.add_argument("--out", type=Path, required=True, help="output folder: checkpoints, manifest.json, evaluations.json")
-    tr.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint (same settings; --steps is the new total)")
-    tr.add_argument("--action-mode", choices=("switching", "velocity"), default=defaults["action_mode"], help="env action mode (default switching)")
-    tr.add_argument("--route", choices=ROUTES, default=defaults["route"], help="shared policy over the UGV agents, or the centralised team (default shared)")
+    tr = sub.add_parser("train", help="train a coordination policy with Stable-Baselines3",
+                        description="Train a coordination policy with Stable-Baselines3 or sb3-contrib (docs/training.md).",
+                        epilog=TRAIN_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    tr.add_argument("--scenario", required=True, choices=SCENARIO_NAMES, type=choice(SCENARIO_NAMES, "scenario"), metavar="NAME",
+                    help=f"configuration or task: {', '.join(SCENARIO_NAMES)} (required)")
+    algos = sorted(ALGORITHMS)
+    tr.add_argument("--algo", choices=algos, type=choice(algos, "algorithm"), default=defaults["algo"],
+                    help="algorithm (default %(default)s; dqn: switching + shared; maskable_ppo: switching, needs sb3-contrib; sac, td3: velocity)")
+    tr.add_argument("--timesteps", type=int_at_least(1, "timestep count"), default=defaults["steps"], metavar="TIMESTEPS",
+                    help="total training timesteps: env steps (centralised) or agent steps (shared) (default %(default)s)")
+    tr.add_argument("--num-envs", type=int_at_least(1, "env count"), default=defaults["envs"], metavar="K",
+                    help="env copies K stepped together (default %(default)s)")
+    tr.add_argument("--subproc", action="store_true", help="run the env copies in worker processes (default: in this process)")
+    tr.add_argument("--seed", type=int_at_least(0, "seed"), default=defaults["seed"], help="seed of the model and the envs (default %(default)s)")
+    tr.add_argument("--out", type=Path, required=True,
+                    help="output folder, one run: checkpoints, manifest.json, evaluations.json (required; a folder holding another run is refused)")
+    tr.add_argument("--resume", action="store_true",
+                    help="continue the run in --out from its last checkpoint (same settings; --timesteps is the new total) (default: a fresh run)")
+    tr.add_argument("--action-mode", choices=ACTION_MODE_NAMES, type=choice(ACTION_MODE_NAMES, "action mode"), default=defaults["action_mode"],
+                    help="env action mode (default %(default)s)")
+    tr.add_argument("--route", choices=ROUTES, type=choice(ROUTES, "route"), default=defaults["route"],
+                    help="shared policy over the UGV agents, or the centralised team as one agent (default %(default)s)")
     tr.add_argument("--max-cycles", type=int_at_least(1, "step count"), default=None, help="training episode length in steps (default: the scenario's)")
     tr.add_argument("--reward", action="append", default=[], metavar="NAME=VALUE",
-                    help="override a reward weight of RewardConfig (repeatable), e.g. --reward time=-0.01")
-    tr.add_argument("--no-normalize", dest="normalize", action="store_false", help="no VecNormalize of observations and rewards")
-    tr.add_argument("--net", type=_layers, default=defaults["net_arch"], help="hidden layer sizes, e.g. 64,64 (default)")
+                    help="override a reward weight of RewardConfig (repeatable), e.g. --reward time=-0.01 (default: the scenario's weights)")
+    tr.add_argument("--no-normalize", dest="normalize", action="store_false",
+                    help="no VecNormalize of observations and rewards (default: normalise)")
+    tr.add_argument("--net", type=_layers, default=defaults["net_arch"], metavar="SIZES",
+                    help=f"hidden layer sizes, e.g. 64,64 (default {','.join(map(str, defaults['net_arch']))})")
     tr.add_argument("--n-steps", type=int_at_least(1, "step count"), default=defaults["n_steps"], help="rollout length per slot (default %(default)s)")
     tr.add_argument("--batch-size", type=int_at_least(2, "batch size"), default=defaults["batch_size"], help="minibatch size (default %(default)s)")
     tr.add_argument("--learning-rate", type=float, default=defaults["learning_rate"], help="learning rate (default %(default)s)")
     tr.add_argument("--gamma", type=float, default=defaults["gamma"], help="discount factor (default %(default)s)")
     tr.add_argument("--ent-coef", type=float, default=defaults["ent_coef"], help="entropy bonus, PPO and A2C (default %(default)s)")
-    tr.add_argument("--checkpoint-every", type=int_at_least(1, "step count"), default=defaults["checkpoint_every"],
+    tr.add_argument("--checkpoint-every", type=int_at_least(1, "timestep count"), default=defaults["checkpoint_every"],
                     help="timesteps between checkpoints (default %(default)s)")
-    tr.add_argument("--eval-every", type=int_at_least(0, "step count"), default=defaults["eval_every"],
-                    help="timesteps between held-out evaluations, also run at the end (default 0: never)")
+    tr.add_argument("--eval-every", type=int_at_least(0, "timestep count"), default=defaults["eval_every"],
+                    help="timesteps between held-out evaluations, also run at the end (default %(default)s: never)")
     tr.add_argument("--eval-episodes", type=int_at_least(1, "episode count"), default=defaults["eval_episodes"],
                     help="episodes per evaluation (default %(default)s)")
     tr.add_argument("--eval-seed", type=int_at_least(0, "seed"), default=defaults["eval_seed"],
                     help="seed of the first held-out evaluation episode (default %(default)s)")
     tr.add_argument("--eval-sample-actions", action="store_true",
-                    help="the held-out evaluations sample the policy's actions instead of taking the most likely one")
-    tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar")
-    tr.add_argument("--json", action="store_true", help="print the final manifest as JSON")
+                    help="the held-out evaluations sample the policy's actions (default: the most likely one)")
+    tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
+    tr.add_argument("--json", action="store_true", help="print the final manifest as JSON (default: a summary)")
     from training.train.rllib_command import add_rllib_arguments
 
     add_rllib_arguments(tr)
@@ -89,8 +118,8 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
     return TrainConfig(
         scenario=args.scenario,
         algo=args.algo,
-        steps=args.steps,
-        envs=args.envs,
+        steps=args.timesteps,
+        envs=args.num_envs,
         subproc=args.subproc,
         seed=args.seed,
         action_mode=args.action_mode,
@@ -115,7 +144,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
 
 #: TrainConfig fields -> their ``moma-env train`` option (value options; flags are handled apart).
 _VALUE_OPTIONS = MappingProxyType({
-    "algo": "--algo", "steps": "--steps", "envs": "--envs", "seed": "--seed", "action_mode": "--action-mode",
+    "algo": "--algo", "steps": "--timesteps", "envs": "--num-envs", "seed": "--seed", "action_mode": "--action-mode",
     "route": "--route", "max_cycles": "--max-cycles", "n_steps": "--n-steps", "batch_size": "--batch-size",
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
@@ -140,6 +169,8 @@ def train_command(config: TrainConfig, out: str | Path) -> tuple[list[str], list
     if config.net_arch != defaults.net_arch:
         argv += ["--net", ",".join(map(str, config.net_arch))]
     if config.rewards is not None:
+        from moma_env.env.config import RewardConfig
+
         task = TASKS.get(config.scenario)
         base = RewardConfig(**(task.options.get("rewards", {}) if task is not None else {}))
         for f in dataclasses.fields(RewardConfig):

@@ -16,7 +16,9 @@ it in both action modes (``observer_agent=False``), so the learned problem is
 the UGVs' coordination. Every layout is a new random scenario of the
 configuration (``random_scenarios=True``) drawn from the env's seeded generator.
 
-Nothing in this module imports Stable-Baselines3.
+Nothing in this module imports Stable-Baselines3, and the env's modules (the
+camera, the simulator) are imported only when a configuration is checked, so that
+``moma-env train --help`` stays light (``tests/test_cli_light.py``).
 """
 
 from __future__ import annotations
@@ -24,12 +26,14 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from moma_env.config import ConfigError, check_bool, check_choice, check_count, check_non_negative, check_positive, check_range, from_mapping
-from moma_env.env.config import ACTION_MODES, RewardConfig
-from moma_env.scenarios import CONFIGURATIONS
+from moma_env.registration import CONFIGURATION_NAMES
 from moma_env.tasks import TASKS
+
+if TYPE_CHECKING:
+    from moma_env.env.config import RewardConfig
 
 __all__ = ["ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "TrainConfig", "reward_overrides"]
 
@@ -115,7 +119,9 @@ class TrainConfig:
     torch_threads: int = 1
 
     def __post_init__(self) -> None:
-        check_choice("scenario", self.scenario, sorted(CONFIGURATIONS) + sorted(TASKS))
+        from moma_env.env.config import ACTION_MODES, RewardConfig
+
+        check_choice("scenario", self.scenario, sorted(CONFIGURATION_NAMES) + sorted(TASKS))
         check_choice("algo", self.algo, sorted(ALGORITHMS))
         check_count("steps", self.steps, 1)
         check_count("envs", self.envs, 1)
@@ -192,6 +198,8 @@ def reward_overrides(pairs: list[str] | tuple[str, ...], base: Mapping[str, floa
         ConfigError: a pair without ``=``, a value that is not a number, or an
             unknown weight (named ``rewards.<name>``).
     """
+    from moma_env.env.config import RewardConfig
+
     values: dict[str, float] = dict(base or {})
     for pair in pairs:
         name, sep, text = pair.partition("=")

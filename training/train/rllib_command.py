@@ -1,9 +1,9 @@
 """``moma-env train --backend rllib``: the options it adds to ``train`` and its handler.
 
 The other options of ``moma-env train`` keep their meaning where RLlib has one:
-``--steps`` (env steps), ``--envs`` (copies per env runner), ``--seed``,
+``--timesteps`` (env steps), ``--num-envs`` (copies per env runner), ``--seed``,
 ``--action-mode``, ``--max-cycles``, ``--reward``, ``--net``, ``--n-steps`` (rollout
-fragment per copy; an update trains on ``n_steps x envs x max(1, runners)`` env steps),
+fragment per copy; an update trains on ``n_steps x num_envs x max(1, runners)`` env steps),
 ``--batch-size`` (minibatch), ``--learning-rate``, ``--gamma``, ``--ent-coef``,
 ``--checkpoint-every``, ``--eval-*``, ``--resume``, ``--out``, ``--json``. The route is
 always one shared UGV policy; ``--algo`` other than ppo, ``--route centralised`` and
@@ -17,15 +17,17 @@ import json
 import sys
 from pathlib import Path
 
-from moma_env.config import ConfigError
-from moma_env.env.config import RewardConfig
-from moma_env.tasks import TASKS
-from training.train.config import reward_overrides
-from training.train.rllib_config import RLLIB_ROUTES, RllibTrainConfig
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["add_rllib_arguments", "run_rllib_train", "rllib_config_from_args", "BACKENDS"]
+if TYPE_CHECKING:
+    from training.train.rllib_config import RllibTrainConfig
 
+__all__ = ["add_rllib_arguments", "run_rllib_train", "rllib_config_from_args", "BACKENDS", "RLLIB_ENVS"]
+
+#: ``--backend`` of ``moma-env train``.
 BACKENDS = ("sb3", "rllib")
+#: ``--rllib-env`` (:data:`training.train.rllib_config.RLLIB_ROUTES`; the parser imports no env module).
+RLLIB_ENVS = ("pettingzoo", "vector")
 
 
 def add_rllib_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,7 +35,7 @@ def add_rllib_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--backend", choices=BACKENDS, default="sb3", help="sb3 (Stable-Baselines3, default) or rllib (PPO on Ray RLlib's new API stack)")
     parser.add_argument("--num-env-runners", type=_count(0), default=0, help="with --backend rllib: remote env runners (default 0: sample in the driver)")
     parser.add_argument("--address", default=None, help="with --backend rllib: an existing Ray cluster's address (default: a local Ray)")
-    parser.add_argument("--rllib-env", choices=RLLIB_ROUTES, default="pettingzoo",
+    parser.add_argument("--rllib-env", choices=RLLIB_ENVS, default="pettingzoo",
                         help="with --backend rllib: pettingzoo (RLlib's PettingZoo wrapper, default) or vector (the batched env)")
 
 
@@ -50,25 +52,30 @@ def _count(minimum: int):
     return parse
 
 
-def _rewards(scenario: str, pairs: list[str]) -> RewardConfig | None:
-    """None without ``--reward``, else those weights over the task's (or the defaults), as on the SB3 route."""
+def _rewards(scenario: str, pairs: list[str]) -> Any:
+    """None without ``--reward``, else a ``RewardConfig`` of those weights over the task's (or the defaults), as on the SB3 route."""
+    from moma_env.tasks import TASKS
+    from training.train.config import reward_overrides
+
     if not pairs:
         return None
     task = TASKS.get(scenario)
     return reward_overrides(pairs, None if task is None else task.options.get("rewards"))
 
 
-def rllib_config_from_args(args: argparse.Namespace) -> RllibTrainConfig:
+def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
     """The :class:`RllibTrainConfig` of ``moma-env train --backend rllib`` (ConfigError names a bad option)."""
+    from moma_env.config import ConfigError
+    from training.train.rllib_config import RllibTrainConfig
     if args.algo != "ppo":
         raise ConfigError("algo", f"--backend rllib trains PPO only, got {args.algo!r}")
     if args.route != "shared":
         raise ConfigError("route", "--backend rllib trains one shared UGV policy: drop --route centralised")
     if args.subproc:
         raise ConfigError("subproc", "--backend rllib runs its envs in env runners: use --num-env-runners instead of --subproc")
-    train_batch = args.n_steps * args.envs * max(1, args.num_env_runners)
+    train_batch = args.n_steps * args.num_envs * max(1, args.num_env_runners)
     return RllibTrainConfig(
-        scenario=args.scenario, steps=args.steps, num_env_runners=args.num_env_runners, envs=args.envs, env_route=args.rllib_env,
+        scenario=args.scenario, steps=args.timesteps, num_env_runners=args.num_env_runners, envs=args.num_envs, env_route=args.rllib_env,
         seed=args.seed, action_mode=args.action_mode, max_cycles=args.max_cycles, rewards=_rewards(args.scenario, args.reward),
         net_arch=tuple(args.net), n_steps=args.n_steps, batch_size=train_batch, minibatch_size=min(args.batch_size, train_batch),
         learning_rate=args.learning_rate, gamma=args.gamma, ent_coef=args.ent_coef, checkpoint_every=args.checkpoint_every,

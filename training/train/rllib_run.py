@@ -32,7 +32,7 @@ from agents.learned import MANIFEST
 from agents.rllib_policy import BACKEND, RllibPolicy, read_rllib_manifest
 from moma_env import ENV_VERSION
 from moma_env.config import ConfigError
-from moma_env.io import write_json
+from moma_env.io import claim_run_folder, run_kind, write_json
 from training.train.callbacks import write_evaluations
 from training.train.curves import EVALUATIONS, write_curves
 from training.train.evaluation import headline
@@ -134,6 +134,7 @@ def train_rllib(config: RllibTrainConfig, out: str | Path, resume: bool = False,
     """Train (or resume) the RLlib run ``config`` in folder ``out``; return the final manifest.
 
     Raises:
+        moma_env.io.RunFolderError: ``out`` holds another kind of run or files that are not a run.
         ConfigError: ``out`` holds a run and ``resume`` is False; the configuration
             differs from the resumed run's (naming the field).
         agents.learned.TrainingDirError: ``resume`` without a loadable RLlib run in ``out``.
@@ -144,6 +145,8 @@ def train_rllib(config: RllibTrainConfig, out: str | Path, resume: bool = False,
 
     out = Path(out)
     if resume:
+        if out.is_dir() and run_kind(out) not in (None, "train"):
+            claim_run_folder(out, "train")  # RunFolderError: another kind of run
         manifest = read_rllib_manifest(out)
         _check_resumable(RllibTrainConfig.from_dict(manifest["config"]), config)
         wall_before = float(manifest["wall_time_s"])
@@ -154,7 +157,7 @@ def train_rllib(config: RllibTrainConfig, out: str | Path, resume: bool = False,
     else:
         if out.exists() and ((out / MANIFEST).exists() or _checkpoints(out)):
             raise ConfigError("out", f"{str(out)!r} already holds a training run; pass --resume to continue it or choose another folder")
-        out.mkdir(parents=True, exist_ok=True)
+        claim_run_folder(out, "train")  # RunFolderError: another kind of run, or files that are not a run
         manifest, wall_before, records = None, 0.0, []
     for path in out.iterdir():  # temporaries of a killed save
         if _TEMPORARY.match(path.name):

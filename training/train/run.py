@@ -23,6 +23,7 @@ from typing import Any
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 
 from moma_env.config import ConfigError
+from moma_env.io import claim_run_folder, run_kind
 from training.train.callbacks import EVALUATIONS, CheckpointCallback, EvaluationCallback
 from training.train.checkpoint import checkpoint_files, read_manifest, remove_stale_temporaries, save_checkpoint, source_revision
 from agents.learned import torch_threads
@@ -58,13 +59,16 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, callbacks:
 
     Args:
         config: the run.
-        out: its folder (created). A fresh run refuses a folder that already holds one.
+        out: its folder (created, marked as a training run, :func:`moma_env.io.claim_run_folder`).
+            A fresh run refuses a folder that already holds one, or anything else.
         resume: continue the run in ``out`` from its last checkpoint.
         callbacks: more SB3 callbacks (called after the checkpoint and evaluation ones).
 
     Raises:
         ConfigError: ``out`` holds a run and ``resume`` is False, or the
             configuration differs from the resumed run's (naming the field).
+        moma_env.io.RunFolderError: ``out`` holds another kind of run (an evaluation,
+            an experiment) or files that are not a moma-env run.
         agents.learned.TrainingDirError: ``resume`` without a loadable checkpoint in ``out``.
     """
     out = Path(out)
@@ -74,6 +78,8 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, callbacks:
 
 def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[BaseCallback]) -> dict[str, Any]:
     if resume:
+        if out.is_dir() and run_kind(out) not in (None, "train"):
+            claim_run_folder(out, "train")  # RunFolderError: another kind of run
         manifest = read_manifest(out)
         _check_resumable(TrainConfig.from_dict(manifest["config"]), config)
         remove_stale_temporaries(out)
@@ -89,7 +95,8 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
     else:
         if out.exists() and ((out / "manifest.json").exists() or checkpoint_files(out)):
             raise ConfigError("out", f"{str(out)!r} already holds a training run; pass --resume to continue it or choose another folder")
-        out.mkdir(parents=True, exist_ok=True)
+        claim_run_folder(out, "train")  # RunFolderError: another kind of run, or files that are not a run
+        remove_stale_temporaries(out)  # a run killed before its first checkpoint
         venv = wrap_normalisation(make_vec_env(config, config.seed), config)
         model = build_model(config, venv)
         wall_before = 0.0

@@ -1,0 +1,85 @@
+"""Argument types and names of the ``moma-env`` command line, without heavy imports.
+
+The parser of ``moma-env`` is built from this module, :mod:`moma_env.registration`
+and :mod:`moma_env.tasks` only (names, not the envs), so that ``moma-env --help``
+and every subcommand's ``--help`` answer without importing the simulator, OpenCV,
+pymunk, matplotlib, torch or Stable-Baselines3. The names here mirror the real
+registries; ``tests/test_cli_light.py`` checks that they match.
+"""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+from collections.abc import Callable, Sequence
+
+from moma_env.registration import CONFIGURATION_NAMES
+from moma_env.tasks import TASKS
+
+__all__ = [
+    "SCENARIO_NAMES",
+    "CAMERA_BACKEND_NAMES",
+    "PRESET_NAMES",
+    "ACTION_MODE_NAMES",
+    "int_at_least",
+    "positive_float",
+    "choice",
+]
+
+#: What ``--scenario`` accepts: the configurations, then the tasks.
+SCENARIO_NAMES: tuple[str, ...] = CONFIGURATION_NAMES + tuple(sorted(TASKS))
+#: ``moma_env.camera.CAMERA_BACKENDS``.
+CAMERA_BACKEND_NAMES: tuple[str, ...] = ("geometric", "rendered")
+#: ``sorted(training.experiments.presets.PRESETS)``.
+PRESET_NAMES: tuple[str, ...] = ("default", "paper")
+#: ``moma_env.env.config.ACTION_MODES`` in the command line's order (the default first).
+ACTION_MODE_NAMES: tuple[str, ...] = ("switching", "velocity")
+
+
+def int_at_least(minimum: int, what: str) -> Callable[[str], int]:
+    """An argparse type: an integer >= ``minimum``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer {what}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{what} must be >= {minimum}, got {value}")
+        return value
+
+    return parse
+
+
+def positive_float(what: str) -> Callable[[str], float]:
+    """An argparse type: a finite number > 0."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number for the {what}, got {text!r}") from None
+        if not value > 0.0 or value == float("inf"):
+            raise argparse.ArgumentTypeError(f"the {what} must be a finite number > 0, got {text}")
+        return value
+
+    return parse
+
+
+def choice(choices: Sequence[str], what: str) -> Callable[[str], str]:
+    """An argparse type: one of ``choices``; anything else is refused with the closest
+    choice as a hint (``--route centralized``: ``invalid choice: 'centralized' is no route (did you mean
+    'centralised'? choose from centralised, shared)``).
+
+    Pass the same ``choices`` to ``add_argument`` so that ``--help`` lists them.
+    """
+    known = tuple(choices)
+
+    def parse(text: str) -> str:
+        if text in known:
+            return text
+        close = difflib.get_close_matches(text, known, n=1, cutoff=0.6)
+        hint = f"did you mean {close[0]!r}? " if close else ""
+        raise argparse.ArgumentTypeError(f"invalid choice: {text!r} is no {what} ({hint}choose from {', '.join(known)})")
+
+    return parse
