@@ -3,7 +3,8 @@
 #   make test     -> runs the test suite
 # The set-up creates .venv, installs the CPU build of PyTorch first (so that
 # stable-baselines3 does not pull a CUDA build), then the project with its
-# training, development, TorchRL and documentation extras. Override TORCH to use another build.
+# training, development, TorchRL, documentation and Ray (sweeps, RLlib) extras.
+# Override TORCH to use another build.
 
 PYTHON ?= python3
 VENV ?= .venv
