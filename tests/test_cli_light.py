@@ -19,7 +19,7 @@ from training.cli import main
 from training.cli_args import ACTION_MODE_NAMES, CAMERA_BACKEND_NAMES, PRESET_NAMES, SCENARIO_NAMES
 
 HEAVY = ("torch", "stable_baselines3", "sb3_contrib", "cv2", "pymunk", "matplotlib", "moma_env.scenarios", "moma_env.sim")
-HELPS = [[], ["experiment"], *[["experiment", e] for e in ("square", "line", "flips", "consistency")], ["bench"], ["evaluate"], ["train"]]
+HELPS = [[], ["experiment"], *[["experiment", e] for e in ("square", "line", "flips", "consistency")], ["bench"], ["evaluate"], ["train"], ["sweep"]]
 
 
 def test_every_help_imports_none_of_the_heavy_modules():

@@ -76,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
         add(exp_sub)
     for add in (_add_bench, _add_evaluate, _add_train):
         add(sub)
+    from training.sweep.command import add_sweep_parser
+
+    add_sweep_parser(sub, add_subcommand)
     return parser
 
 

@@ -73,6 +73,12 @@ def _load_trained_policy(path: Path, configuration: str, sample_actions: bool = 
     """A policy trained by ``moma-env train`` in folder ``path`` (:class:`agents.learned.LearnedPolicy`),
     sampling its actions if ``sample_actions``."""
     learned = _learned()
+    rllib = importlib.import_module("agents.rllib_policy")  # a run of moma-env train --backend rllib
+    if rllib.is_rllib_run(path):
+        try:
+            return rllib.RllibPolicy.from_dir(path, configuration, deterministic=not sample_actions)
+        except learned.TrainingDirError as err:
+            raise PolicyLoadError(str(err)) from None
     try:
         return learned.LearnedPolicy.from_dir(path, configuration, deterministic=not sample_actions)
     except learned.TrainingDirError as err:

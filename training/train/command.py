@@ -97,6 +97,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
                     help="the held-out evaluations sample the policy's actions (default: the most likely one)")
     tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
     tr.add_argument("--json", action="store_true", help="print the final manifest as JSON (default: a summary)")
+    from training.train.rllib_command import add_rllib_arguments
+
+    add_rllib_arguments(tr)
     tr.set_defaults(handler=run_train)
     return tr
 
@@ -185,6 +188,10 @@ def train_command(config: TrainConfig, out: str | Path) -> tuple[list[str], list
 
 def run_train(args: argparse.Namespace) -> int:
     """Handler of ``moma-env train``: exit status 0, or 2 with a one-line message on bad input."""
+    if getattr(args, "backend", "sb3") == "rllib":
+        from training.train.rllib_command import run_rllib_train
+
+        return run_rllib_train(args)
     config = config_from_args(args)  # ConfigError -> the CLI's exit status 2
     try:
         from training.train.run import train
