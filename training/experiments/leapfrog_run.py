@@ -43,6 +43,7 @@ from moma_env.config import ConfigError, check_bool, check_choice, check_non_neg
 from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
 from moma_env.control.waypoint import WaypointFollower, WaypointFollowerConfig
 from moma_env.estimator import EstimatorConfig, Status
+from moma_env.estimator.registry import check_estimator_name, localiser_factory
 from moma_env.markers import BoardLayout, board_for_robot
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, aggregate, run_metrics
 from moma_env.odometry import WheelOdometry, WheelOdometryConfig
@@ -147,6 +148,9 @@ class LeapfrogConfig:
             ``extent`` and ``textured`` regions are set per run from
             :meth:`textured_regions`.
         camera, estimator, odometry, follower, tracking: the parts' configurations.
+        localiser: the estimator by name (:data:`moma_env.estimator.registry.ESTIMATORS`:
+            ``"moma"``, the paper's, by default; ``"fused"``, ``"ekf"``, ``"graph"``),
+            built from ``estimator``. Its trajectories are the runs' ``"moma"`` method.
     """
 
     #: Prefix of the field names in this experiment's configuration errors.
@@ -170,9 +174,11 @@ class LeapfrogConfig:
     render: RenderConfig = field(default_factory=RenderConfig)
     floor: FloorConfig = field(default_factory=_floor)
     vo: FloorVOSetup = field(default_factory=FloorVOSetup)
+    localiser: str = "moma"
 
     def __post_init__(self) -> None:
         name = self.experiment
+        check_estimator_name(f"{name}.localiser", self.localiser)
         check_positive(f"{name}.separation", self.separation)
         if self.separation < 0.5:
             raise ConfigError(f"{name}.separation", f"robots of 0.45 m need >= 0.5 m between centres, got {self.separation}")
@@ -410,7 +416,14 @@ def run_leapfrog(
     camera = (camera_factory or _observer_camera)(config, uav_cfg.camera_name, floor)
     # The schedule is the authority on switches here (no motion rules), and the first
     # camera frame is the first step's.
-    sim = Simulation(scenario, {uav_cfg.camera_name: camera}, rules=False, planar_ugvs=config.planar_ugvs, measure_at_reset=False)
+    sim = Simulation(
+        scenario,
+        {uav_cfg.camera_name: camera},
+        localiser=localiser_factory(config.localiser),
+        rules=False,
+        planar_ugvs=config.planar_ugvs,
+        measure_at_reset=False,
+    )
     frame = sim.reset(rng_camera)
     world = sim.world
     tracker = BoardTrackingController(
