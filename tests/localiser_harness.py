@@ -4,7 +4,8 @@ Two UGVs (upright, boards on top) leapfrog along x under a downward camera on a
 UAV that follows their midpoint and turns slowly. Every detection's ``T_c_m`` is
 the truth perturbed by a Gaussian error of a fixed covariance (camera frame,
 the convention of :class:`~moma_env.estimator.Detection`), which the detection
-carries; ``exact=True`` leaves the poses exact (the covariance is still given).
+carries; ``exact=True`` leaves the poses exact (the covariance is still given
+unless ``covariances=False``: a filter weighs its prior against it).
 A mover drives ``step_m`` along x in ``frames_per_leg`` frames; a localiser
 that takes odometry (:class:`moma_env.sim.OdometryConsumer`) gets each UGV's
 planar increment per frame, with relative noise of ``ODOMETRY_STD``.
@@ -35,14 +36,15 @@ class SyntheticLeapfrog:
     """Two UGVs leapfrogging under a camera; ``factory(EstimatorConfig)`` builds the localiser."""
 
     def __init__(self, factory, seed: int, *, exact: bool = False, config: EstimatorConfig | None = None,
-                 step_m: float = 0.4, frames_per_leg: int = 10, odometry: bool = True):
+                 step_m: float = 0.4, frames_per_leg: int = 10, odometry: bool = True, covariances: bool = True):
         self.rng = np.random.default_rng(seed)
         self.exact = exact
         self.step_m = step_m
         self.frames_per_leg = frames_per_leg
         self.truth = {"ugv_0": g.se2_to_se3(0.0, 0.0, 0.3), "ugv_1": g.se2_to_se3(0.0, 0.6, 0.3)}
         self.std = np.array(DETECTION_STD)
-        self.covariance = np.diag(self.std**2)
+        self.covariance = np.diag(self.std**2) if covariances else None
+        self.covariance_given = covariances
         self.localiser = factory(config if config is not None else EstimatorConfig(window=10, gate=None))
         self.odometry = odometry and isinstance(self.localiser, OdometryConsumer)
         for i, name in enumerate(NAMES):
@@ -66,6 +68,8 @@ class SyntheticLeapfrog:
                 rel_t, rel_r, floor = ODOMETRY_STD
                 std = np.array([rel_t * abs(dx) + floor, floor, rel_r * abs(dx) + floor])
                 noise = np.zeros(3) if self.exact else self.rng.normal(0.0, std)
+                if self.exact and not self.covariance_given:
+                    std = np.full(3, 1e-6)
                 self.localiser.odometry(name, (dx + noise[0], noise[1], noise[2]), np.diag(std**2), self.time)
         self.uav_truth = self._uav_pose()
         T_w_c = self.uav_truth @ CAM_DOWN

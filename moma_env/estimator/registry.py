@@ -43,6 +43,7 @@ def fused_estimator(config: EstimatorConfig) -> MomaEstimator:
 ESTIMATORS: dict[str, str] = {
     "moma": "moma_env.estimator.moma:MomaEstimator",
     "fused": "moma_env.estimator.registry:fused_estimator",
+    "ekf": "moma_env.estimator.ekf:EkfLocaliser",
 }
 
 

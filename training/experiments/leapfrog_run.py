@@ -49,9 +49,10 @@ from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, aggrega
 from moma_env.odometry import WheelOdometry, WheelOdometryConfig
 from moma_env.odometry.visual import VisualOdometry, VisualOdometryConfig
 from moma_env.scenarios import Scenario
-from moma_env.sim import Frame, Simulation
+from moma_env.sim import Frame, OdometryConsumer, Simulation, measured
 from moma_env.world import ArenaConfig, UAVConfig, UGVConfig, WorldConfig
 from moma_env.world.mounts import board_on_top, camera_down
+from training.experiments.odometry_feed import OdometryFeed
 
 __all__ = [
     "MAIN",
@@ -408,8 +409,9 @@ def run_leapfrog(
             what the camera does with it.
     """
     root = np.random.default_rng(seed)
-    # Children 0-2 do not depend on how many are spawned: geometric runs are unchanged by the VO's.
-    rng_world, rng_camera, rng_odometry, rng_vo_frames, rng_vo = root.spawn(5)
+    # A child does not depend on how many are spawned: geometric runs are unchanged by the VO's,
+    # and every run by the odometry feed's (child 5, drawn only for a localiser that takes odometry).
+    rng_world, rng_camera, rng_odometry, rng_vo_frames, rng_vo, rng_feed = root.spawn(6)
     scenario = experiment_scenario(config, rng_world)
     uav_cfg = scenario.world.uav
     floor = floor_texture(config) if config.camera_backend == "rendered" else None
@@ -431,6 +433,7 @@ def run_leapfrog(
     )
 
     wheel = WheelOdometry(config.odometry, initial_pose=world.ugv_pose(MAIN))
+    feed = OdometryFeed(config.odometry, world, (MAIN, BUDDY), rng_feed) if isinstance(sim.localiser, OdometryConsumer) else None
     schedule = LeapfrogSchedule(
         leapfrog_legs(config), WaypointFollower(config.follower), config.dwell_s, [MAIN, BUDDY], start_after_s=config.start_after_s
     )
@@ -471,7 +474,10 @@ def run_leapfrog(
     uav_command = np.zeros(4)
     ugv_commands = {MAIN: np.zeros(3), BUDDY: np.zeros(3)}
     while not schedule.done and world.time < config.max_time_s:
-        frame = sim.advance(ugv_commands, uav_command)
+        requests = sim.move(ugv_commands, uav_command)
+        if feed is not None:
+            feed.step(world, sim.localiser)
+        frame = sim.localise(measured(requests))
         wheel.update(world.ugv_body_velocity(MAIN), world.dt, rng_odometry)
         if vo is not None:
             vo.update(vo_camera.frame(world.ugv_transform(MAIN), rng_vo_frames, time=world.time))
