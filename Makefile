@@ -3,7 +3,7 @@
 #   make test     -> runs the test suite
 # The set-up creates .venv, installs the CPU build of PyTorch first (so that
 # stable-baselines3 does not pull a CUDA build), then the project with its
-# training, development and TorchRL extras. Override TORCH to use another build.
+# training, development, TorchRL and pose-graph (GTSAM) extras. Override TORCH to use another build.
 
 PYTHON ?= python3
 VENV ?= .venv
@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet "$(TORCH)"
-	$(BIN)/python -m pip install --quiet -e ".[train,dev,torchrl]"
+	$(BIN)/python -m pip install --quiet -e ".[train,dev,torchrl,graph]"
 	touch $(STAMP)
 
 square: $(STAMP)

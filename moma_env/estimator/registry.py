@@ -44,6 +44,7 @@ ESTIMATORS: dict[str, str] = {
     "moma": "moma_env.estimator.moma:MomaEstimator",
     "fused": "moma_env.estimator.registry:fused_estimator",
     "ekf": "moma_env.estimator.ekf:EkfLocaliser",
+    "graph": "moma_env.estimator.graph:GraphLocaliser",
 }
 
 
