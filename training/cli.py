@@ -5,6 +5,7 @@ Subcommands:
     experiment line     the paper's 4.6 m line, forward-back-forward: keypoint table, figures, JSON, CSV.
     experiment flips    how often a nearly face-on board's pose comes out flipped, per pose rule.
     experiment consistency  Monte Carlo NEES of MOMA's covariance (square, line; planar, 6-DoF): table, figures, JSON, CSV.
+    experiment compare  the estimators (moma, fused, ekf, graph) on the same runs: ME_f, ME, % of path, ANEES, time per update.
     bench               environment steps per second against MPE2, memory over a long run.
     evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
     train               train a coordination policy with Stable-Baselines3 (training/train/).
@@ -94,6 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
     cons.add_argument("--out", type=Path, default=Path("runs/consistency"), help="output folder (default runs/consistency)")
     cons.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     cons.set_defaults(handler=_run_consistency)
+    from training.experiments.compare import add_compare_parser
+
+    add_compare_parser(exp_sub)
 
     bench = sub.add_parser("bench", help="steps per second of every environment against MPE2, and memory over a long run")
     bench.add_argument("--steps", type=_int_at_least(100, "step count"), default=5000, help="random-action steps per row (default 5000)")

@@ -25,7 +25,9 @@ Prediction
 * A MOBILE robot that got no odometry since the last update (the observer, or
   every robot in an env without odometry) moves by a random walk of standard
   deviation ``unmodelled_speed_m_s * dt`` (m) and ``unmodelled_turn_rad_s * dt``
-  (rad) per update of ``dt`` seconds. Static robots do not move.
+  (rad) per update of ``dt`` seconds; a robot estimated in 6-DoF (not planar)
+  that got odometry walks so in height, roll and pitch, which wheel odometry
+  does not measure. Static robots do not move.
 
 Update
 ------
@@ -271,12 +273,14 @@ class EkfLocaliser:
         v = (self.ekf.unmodelled_speed_m_s * dt) ** 2
         w = (self.ekf.unmodelled_turn_rad_s * dt) ** 2
         for name, r in self._book.robots.items():
-            if r.phase is not Phase.MOBILE or name in self._odometry_seen or self._pose[name] is None:
+            if r.phase is not Phase.MOBILE or self._pose[name] is None or (r.planar and name in self._odometry_seen):
                 continue
             i = self._slot[name]
             noise = np.array([v, v, v, w, w, w])
             if r.planar:
                 noise[[2, 3, 4]] = 0.0
+            elif name in self._odometry_seen:
+                noise[[0, 1, 5]] = 0.0  # odometry moved it in the plane; height, roll and pitch walk
             self._P[i : i + 6, i : i + 6] += np.diag(noise)
 
     def _insert(self, name: str, pose: np.ndarray, source: str, G: np.ndarray, noise: np.ndarray) -> None:

@@ -48,19 +48,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from moma_env.config import check_positive
+from moma_env.config import check_bool, check_positive
 from moma_env.estimator.bookkeeping import Bookkeeper, RobotRecord
 from moma_env.estimator.config import EstimatorConfig
 from moma_env.estimator.detection import Detection
 from moma_env.estimator.results import Phase, RobotEstimate, SwitchEvent
-from moma_env.geometry import invert, upright_body_from_mount
+from moma_env.geometry import invert, se2_to_se3, upright_body_from_mount
 
 try:
     import gtsam
 except ImportError as err:  # pragma: no cover - depends on the environment
     raise ImportError("the graph estimator needs GTSAM: pip install 'moma_env[graph]' (or pip install gtsam)") from err
 
-__all__ = ["GraphConfig", "GraphLocaliser", "ros_from_gtsam", "gtsam_from_ros"]
+__all__ = ["GraphConfig", "GraphLocaliser", "graph_vision", "ros_from_gtsam", "gtsam_from_ros"]
 
 
 @dataclass(frozen=True)
@@ -75,6 +75,11 @@ class GraphConfig:
         planar_sigma: standard deviation of a planar robot's height (m), roll
             and pitch (rad) about their known values.
         relinearize_threshold: iSAM2's relinearisation threshold.
+        odometry: turn the wheel odometry a driver gives
+            (:meth:`GraphLocaliser.odometry`) into factors between a robot's
+            consecutive variables; False ignores it (detections only).
+        unmeasured_sigma: standard deviation (m, rad) given to the height, roll
+            and pitch of an odometry factor, which wheels do not measure.
     """
 
     detection_floor_m: float = 1e-4
@@ -82,8 +87,12 @@ class GraphConfig:
     anchor_sigma: float = 1e-6
     planar_sigma: float = 1e-5
     relinearize_threshold: float = 0.01
+    odometry: bool = True
+    unmeasured_sigma: float = 1.0
 
     def __post_init__(self) -> None:
+        check_bool("graph.odometry", self.odometry)
+        check_positive("graph.unmeasured_sigma", self.unmeasured_sigma)
         for name in ("detection_floor_m", "detection_floor_rad", "anchor_sigma", "planar_sigma", "relinearize_threshold"):
             check_positive(f"graph.{name}", getattr(self, name))
 
@@ -139,6 +148,8 @@ class GraphLocaliser:
         self._anchor_noise = gtsam.noiseModel.Isotropic.Sigma(6, graph.anchor_sigma)
         self._n_variables = 0
         self._n_factors = 0
+        self._last_key: dict[str, int] = {}  # the robot's latest variable, whatever its kind
+        self._motion: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # odometry since it: (T, GTSAM covariance)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -197,6 +208,29 @@ class GraphLocaliser:
         self._book.set_static(name, static, time)
         if was_mobile != (r.phase is Phase.MOBILE):
             self._key[name] = None
+
+    def odometry(self, name: str, increment: tuple[float, float, float], covariance: np.ndarray, time: float) -> None:
+        """Wheel odometry of robot ``name`` (:class:`moma_env.sim.OdometryConsumer`): the planar
+        ``increment`` (dx, dy, dyaw) in its body frame (m, rad) of 3x3 ``covariance``. Composed
+        until the robot's next variable, to which it becomes a factor from its previous one."""
+        self._book.robot(name)
+        try:
+            dx, dy, dyaw = (float(v) for v in increment)
+        except (TypeError, ValueError):
+            raise ValueError(f"odometry of {name!r}: increment must be three numbers, got {increment!r}") from None
+        Q3 = np.asarray(covariance, dtype=float)
+        if Q3.shape != (3, 3) or not np.isfinite(Q3).all() or not np.isfinite([dx, dy, dyaw]).all():
+            raise ValueError(f"odometry of {name!r}: increment must be finite and covariance a finite 3x3 array")
+        self._book.time = self._book.checked_time(time)
+        if not self.graph.odometry or name not in self._last_key:
+            return
+        delta = se2_to_se3(dx, dy, dyaw)
+        Q = np.zeros((6, 6))
+        Q[np.ix_((0, 1, 5), (0, 1, 5))] = Q3
+        step = gtsam_from_ros(delta, Q)
+        T, C = self._motion.get(name, (np.eye(4), np.zeros((6, 6))))
+        Ad = gtsam.Pose3(invert(delta)).AdjointMap()
+        self._motion[name] = (T @ delta, Ad @ C @ Ad.T + step)
 
     # ------------------------------------------------------------------ update
     def update(self, time: float, detections: Iterable[Detection]) -> None:
@@ -259,8 +293,18 @@ class GraphLocaliser:
     def _new_variable(self, r: RobotRecord, pose: np.ndarray) -> int:
         key = self._next_key
         self._next_key += 1
+        motion = self._motion.pop(r.name, None)
+        previous = self._last_key.get(r.name)
+        if motion is not None and previous is not None:
+            T, C = motion
+            C = C + self._floor
+            C[[0, 1, 5], [0, 1, 5]] += self.graph.unmeasured_sigma**2  # rx, ry, tz in GTSAM's order
+            noise = gtsam.noiseModel.Gaussian.Covariance(0.5 * (C + C.T))
+            self._factors.add(gtsam.BetweenFactorPose3(previous, key, gtsam.Pose3(T), noise))
+            self._n_factors += 1
         self._values.insert(key, gtsam.Pose3(pose))
         self._key[r.name] = key
+        self._last_key[r.name] = key
         self._guess[r.name] = pose
         self._n_variables += 1
         if r.planar:
@@ -300,3 +344,8 @@ class GraphLocaliser:
             self._guess[name] = T
             self._pose[name] = T
             self._cov[name] = cov
+
+
+def graph_vision(config: EstimatorConfig) -> GraphLocaliser:
+    """The pose graph of detections alone (``GraphConfig(odometry=False)``): the ``graph_vision`` estimator."""
+    return GraphLocaliser(config, GraphConfig(odometry=False))

@@ -1,4 +1,4 @@
-"""Estimators by name: ``"moma"`` (the paper's), ``"fused"``, ``"ekf"``, ``"graph"``.
+"""Estimators by name: ``"moma"`` (the paper's), ``"fused"``, ``"ekf"``, ``"graph"``, ``"graph_vision"``.
 
 Each name gives a *localiser factory*, ``factory(EstimatorConfig) -> localiser``,
 as :class:`moma_env.sim.Simulation` and ``EnvConfig.localiser`` take it; the
@@ -11,7 +11,9 @@ simulation builds one localiser per episode from the scenario's
 * ``ekf``: :class:`~moma_env.estimator.ekf.EkfLocaliser`, EKF cooperative
   localisation of the same detections with wheel odometry when it is given.
 * ``graph``: :class:`~moma_env.estimator.graph.GraphLocaliser`, pose-graph MOMA
-  smoothed by GTSAM's iSAM2 (the optional ``graph`` extra: ``pip install gtsam``).
+  smoothed by GTSAM's iSAM2 (the optional ``graph`` extra: ``pip install gtsam``),
+  with wheel-odometry factors when it is given;
+* ``graph_vision``: the same pose graph of the detections alone.
 
 The factories are module-level, so an env holding one stays picklable; the
 modules behind ``ekf`` and ``graph`` are imported on first use, so that
@@ -45,6 +47,7 @@ ESTIMATORS: dict[str, str] = {
     "fused": "moma_env.estimator.registry:fused_estimator",
     "ekf": "moma_env.estimator.ekf:EkfLocaliser",
     "graph": "moma_env.estimator.graph:GraphLocaliser",
+    "graph_vision": "moma_env.estimator.graph:graph_vision",
 }
 
 

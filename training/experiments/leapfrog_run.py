@@ -49,7 +49,7 @@ from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, aggrega
 from moma_env.odometry import WheelOdometry, WheelOdometryConfig
 from moma_env.odometry.visual import VisualOdometry, VisualOdometryConfig
 from moma_env.scenarios import Scenario
-from moma_env.sim import Frame, OdometryConsumer, Simulation, measured
+from moma_env.sim import Frame, LocaliserFactory, OdometryConsumer, Simulation, measured
 from moma_env.world import ArenaConfig, UAVConfig, UGVConfig, WorldConfig
 from moma_env.world.mounts import board_on_top, camera_down
 from training.experiments.odometry_feed import OdometryFeed
@@ -395,6 +395,7 @@ def run_leapfrog(
     seed: int,
     progress: Callable[[float], None] | None = None,
     camera_factory: CameraFactory | None = None,
+    localiser: LocaliserFactory | None = None,
 ) -> LeapfrogRun:
     """Run the experiment once with every random draw seeded by ``seed``.
 
@@ -407,6 +408,9 @@ def run_leapfrog(
             rendered); default: ``config.camera_backend``'s camera. The camera
             draws from the run's camera generator, so a factory changes only
             what the camera does with it.
+        localiser: builds the run's localiser from ``config.estimator``
+            (default: the factory of ``config.localiser``); a wrapper that
+            times the estimator, for instance.
     """
     root = np.random.default_rng(seed)
     # A child does not depend on how many are spawned: geometric runs are unchanged by the VO's,
@@ -421,7 +425,7 @@ def run_leapfrog(
     sim = Simulation(
         scenario,
         {uav_cfg.camera_name: camera},
-        localiser=localiser_factory(config.localiser),
+        localiser=localiser_factory(config.localiser) if localiser is None else localiser,
         rules=False,
         planar_ugvs=config.planar_ugvs,
         measure_at_reset=False,
