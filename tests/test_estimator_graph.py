@@ -102,3 +102,19 @@ def test_status_semantics_follow_moma_and_a_static_phase_keeps_improving():
 def test_bad_settings_name_the_field(field):
     with pytest.raises(ConfigError, match=f"graph.{field}"):
         GraphConfig(**{field: 0.0})
+
+
+def test_wheel_odometry_factors_lower_the_error_of_the_detection_graph():
+    from moma_env.estimator.graph import graph_vision
+
+    errors = {}
+    for name, factory in (("odometry", GraphLocaliser), ("vision", graph_vision)):
+        squared = []
+        for seed in range(12):
+            sim = SyntheticLeapfrog(factory, seed)
+            for k in range(3):
+                sim.switch(k)
+            est = sim.localiser.estimate("ugv_0")
+            squared.append(float(np.sum((est.T_w_b[:2, 3] - sim.truth["ugv_0"][:2, 3]) ** 2)))
+        errors[name] = float(np.sqrt(np.mean(squared)))
+    assert errors["odometry"] < errors["vision"], errors

@@ -58,3 +58,16 @@ def test_the_env_selects_an_estimator_by_name_and_moma_by_name_is_the_default():
         runs[localiser] = (np.array(trace), env.estimator.config.fusion)
     np.testing.assert_array_equal(runs[None][0], runs["moma"][0])
     assert runs[None][1] == "mean" and runs["fused"][1] == "information"
+
+
+@pytest.mark.parametrize("name", ["ekf", "graph"])
+def test_the_env_runs_with_the_baselines_by_name(name):
+    if not available(name):
+        pytest.skip(f"{name} needs an optional extra")
+    env = parallel_env("top_observer", max_cycles=20, localiser=name)
+    env.reset(seed=1)
+    for _ in range(10):
+        env.step({a: env.action_space(a).sample() * 0 for a in env.agents})
+    estimates = env.estimator.estimates()
+    assert set(estimates) >= set(env.simulation.ugvs)
+    assert all(e.T_w_b is not None for name, e in estimates.items() if name in env.simulation.ugvs)
