@@ -9,7 +9,7 @@ import pytest
 from moma_env.config import ConfigError
 from moma_env.estimator import EstimatorConfig
 from moma_env.sim import OdometryConsumer
-from training.cli import main
+from training.cli import build_parser, main
 from training.experiments.compare import TimedFactory, compare_case, compare_config, format_table, run_compare
 
 #: Simulated seconds of a test run: the first legs of the square.
@@ -60,3 +60,13 @@ def test_the_command_names_an_unknown_estimator(capsys):
         main(["experiment", "compare", "--estimators", "moma,kalman"])
     assert exit_info.value.code == 2
     assert "unknown estimator kalman" in capsys.readouterr().err
+
+
+def test_the_square_and_the_line_take_an_estimator_by_name(tmp_path, capsys):
+    code = main(["experiment", "square", "--estimator", "ekf", "--runs", "1", "--max-time", "3", "--out", str(tmp_path / "sq"), "--json"])
+    assert code == 1  # cut short by --max-time
+    assert '"moma"' in capsys.readouterr().out
+    assert build_parser().parse_args(["experiment", "line", "--estimator", "graph"]).estimator == "graph"
+    assert build_parser().parse_args(["experiment", "line"]).estimator == "moma"
+    with pytest.raises(SystemExit):
+        main(["experiment", "line", "--estimator", "kalman"])

@@ -288,6 +288,9 @@ def _add_experiment_arguments(parser: argparse.ArgumentParser, default_runs: int
         "--max-time", type=_positive_float("time limit (s)"), default=None, help="simulated time limit of a run in s; a run stopped by it is flagged (default: the experiment's)"
     )
     parser.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
+    from training.experiments.compare import add_estimator_argument
+
+    add_estimator_argument(parser)
 
 
 def _positive_float(what: str):
@@ -324,7 +327,7 @@ def _experiment_config(args: argparse.Namespace, observer: str):
         config = dataclasses.replace(config, floor=dataclasses.replace(config.floor, grain=None))
     if args.max_time is not None:
         config = dataclasses.replace(config, max_time_s=args.max_time)
-    return config
+    return dataclasses.replace(config, localiser=args.estimator)
 
 
 def _run_experiment(args: argparse.Namespace) -> int:

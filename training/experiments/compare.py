@@ -54,6 +54,7 @@ __all__ = [
     "run_compare",
     "format_table",
     "add_compare_parser",
+    "add_estimator_argument",
 ]
 
 #: The experiments compared, by name.
@@ -253,6 +254,12 @@ def _count(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
     return value
+
+
+def add_estimator_argument(parser: argparse.ArgumentParser) -> None:
+    """``--estimator NAME`` for an experiment's parser (default ``moma``, the paper's estimator)."""
+    parser.add_argument("--estimator", choices=tuple(ESTIMATORS), default="moma",
+                        help="the estimator whose trajectories are the runs' 'moma' method (default moma; see docs/estimators.md)")
 
 
 def add_compare_parser(subparsers) -> argparse.ArgumentParser:
