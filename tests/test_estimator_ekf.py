@@ -116,7 +116,7 @@ def test_a_detection_far_outside_its_covariance_is_gated_out():
     np.testing.assert_allclose(ekf.estimate("ugv_1").T_w_b[:2, 3], [0.0, 0.6], atol=0.02)
 
 
-@pytest.mark.parametrize(("field", "kwargs"), [("ekf.iterations", {"iterations": 0}), ("ekf.gate_probability", {"gate_probability": 1.5}),
+@pytest.mark.parametrize(("field", "kwargs"), [("ekf.iterations", {"iterations": 0}), ("ekf.gate_nis", {"gate_nis": -1.0}),
                                                ("ekf.unmodelled_speed_m_s", {"unmodelled_speed_m_s": -1.0})])
 def test_bad_settings_name_the_field(field, kwargs):
     with pytest.raises(ConfigError, match=field):

@@ -35,8 +35,8 @@ Each detection is the relative pose ``T_c_m = inv(T_w_o T_o_c) T_w_r T_r_m``
 of a board on robot r in a camera on robot o, with the detection's 6x6
 covariance (camera frame) plus a floor of ``detection_floor_m`` /
 ``detection_floor_rad``. The residual ``pose_error(T_c_m measured, predicted)``
-is gated by its normalised innovation squared (chi-square, 6 dof, at
-``gate_probability``), and every accepted detection of the frame is fused in one
+is gated by its normalised innovation squared (``gate_nis``, a chi-square
+quantile of 6 dof), and every accepted detection of the frame is fused in one
 update (Joseph form), relinearised ``iterations`` times (an iterated EKF). Statuses and phases follow
 :mod:`moma_env.estimator.bookkeeping` (the MOMA semantics).
 """
@@ -48,7 +48,6 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
 from moma_env.config import ConfigError, check_count, check_positive
 from moma_env.estimator.bookkeeping import Bookkeeper, RobotRecord
@@ -82,9 +81,9 @@ class EkfConfig:
         detection_floor_m, detection_floor_rad: standard deviations added to
             every detection's covariance (m, rad), so that exact detections
             keep the innovation covariance invertible.
-        gate_probability: a detection whose normalised innovation squared
-            exceeds the chi-square quantile of this probability (6 dof) is
-            left out; 1.0 keeps every detection.
+        gate_nis: a detection whose normalised innovation squared exceeds
+            this is left out (default: the 99.99 % quantile of the chi-square
+            distribution of 6 dof, 27.856); ``math.inf`` keeps every detection.
         iterations: relinearisations of the update (an iterated EKF; 1 is the
             plain EKF). The observer moves between frames by a random walk, so
             its prior is centimetres off; iterating makes the update exact
@@ -95,7 +94,7 @@ class EkfConfig:
     unmodelled_turn_rad_s: float = 0.5
     detection_floor_m: float = 1e-4
     detection_floor_rad: float = 1e-4
-    gate_probability: float = 0.9999
+    gate_nis: float = 27.856341236
     iterations: int = 3
 
     def __post_init__(self) -> None:
@@ -104,9 +103,8 @@ class EkfConfig:
         check_positive("ekf.unmodelled_turn_rad_s", self.unmodelled_turn_rad_s)
         check_positive("ekf.detection_floor_m", self.detection_floor_m)
         check_positive("ekf.detection_floor_rad", self.detection_floor_rad)
-        check_positive("ekf.gate_probability", self.gate_probability)
-        if self.gate_probability > 1.0:
-            raise ConfigError("ekf.gate_probability", f"must be in (0, 1], got {self.gate_probability}")
+        if isinstance(self.gate_nis, bool) or not isinstance(self.gate_nis, (int, float)) or not self.gate_nis > 0.0:
+            raise ConfigError("ekf.gate_nis", f"must be a number > 0 (math.inf: no gate), got {self.gate_nis!r}")
 
 
 class EkfLocaliser:
@@ -127,7 +125,7 @@ class EkfLocaliser:
         self._last_update: float | None = None
         floor = [ekf.detection_floor_m**2] * 3 + [ekf.detection_floor_rad**2] * 3
         self._floor = np.diag(floor)
-        self._gate = math.inf if ekf.gate_probability >= 1.0 else float(chi2.ppf(ekf.gate_probability, 6))
+        self._gate = float(ekf.gate_nis)
 
     # ------------------------------------------------------------------ queries
     @property

@@ -23,7 +23,6 @@ modules behind ``ekf`` and ``graph`` are imported on first use, so that
 from __future__ import annotations
 
 import dataclasses
-import importlib
 from collections.abc import Callable
 from typing import Any
 
@@ -41,13 +40,39 @@ def fused_estimator(config: EstimatorConfig) -> MomaEstimator:
     return MomaEstimator(dataclasses.replace(config, fusion="information"))
 
 
-#: Name -> the factory's entry point ``"module:attribute"`` (loaded on use).
-ESTIMATORS: dict[str, str] = {
-    "moma": "moma_env.estimator.moma:MomaEstimator",
-    "fused": "moma_env.estimator.registry:fused_estimator",
-    "ekf": "moma_env.estimator.ekf:EkfLocaliser",
-    "graph": "moma_env.estimator.graph:GraphLocaliser",
-    "graph_vision": "moma_env.estimator.graph:graph_vision",
+def _moma():
+    return MomaEstimator
+
+
+def _fused():
+    return fused_estimator
+
+
+def _ekf():
+    from moma_env.estimator.ekf import EkfLocaliser
+
+    return EkfLocaliser
+
+
+def _graph():
+    from moma_env.estimator.graph import GraphLocaliser
+
+    return GraphLocaliser
+
+
+def _graph_vision():
+    from moma_env.estimator.graph import graph_vision
+
+    return graph_vision
+
+
+#: Name -> a function returning the factory (its module imported on first use).
+ESTIMATORS: dict[str, Callable[[], Callable[[EstimatorConfig], Any]]] = {
+    "moma": _moma,
+    "fused": _fused,
+    "ekf": _ekf,
+    "graph": _graph,
+    "graph_vision": _graph_vision,
 }
 
 
@@ -61,6 +86,4 @@ def check_estimator_name(field: str, name: Any) -> str:
 def localiser_factory(name: str) -> Callable[[EstimatorConfig], Any]:
     """The localiser factory of estimator ``name`` (ConfigError for an unknown name;
     ImportError naming the extra to install when an optional dependency is missing)."""
-    module_name, attribute = ESTIMATORS[check_estimator_name("estimator", name)].split(":")
-    module = importlib.import_module(module_name)
-    return getattr(module, attribute)
+    return ESTIMATORS[check_estimator_name("estimator", name)]()
