@@ -71,3 +71,19 @@ def test_the_env_runs_with_the_baselines_by_name(name):
     estimates = env.estimator.estimates()
     assert set(estimates) >= set(env.simulation.ugvs)
     assert all(e.T_w_b is not None for name, e in estimates.items() if name in env.simulation.ugvs)
+
+
+def test_an_env_with_the_ekf_copies_mid_episode_and_continues_the_same():
+    import pickle
+
+    env = parallel_env("top_observer", max_cycles=20, localiser="ekf")
+    env.reset(seed=2)
+    actions = {a: env.action_space(a).sample() * 0 for a in env.agents}
+    env.step(actions)
+    twin = pickle.loads(pickle.dumps(env))
+    for _ in range(5):
+        a, *_ = env.step(actions)
+        b, *_ = twin.step(actions)
+    for agent in a:
+        np.testing.assert_array_equal(np.ravel(a[agent]), np.ravel(b[agent]))
+    np.testing.assert_array_equal(env.estimator.covariance, twin.estimator.covariance)
