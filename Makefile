@@ -3,8 +3,8 @@
 #   make test     -> runs the test suite
 # The set-up creates .venv, installs the CPU build of PyTorch first (so that
 # stable-baselines3 does not pull a CUDA build), then the project with its
-# training, development, TorchRL, documentation and Ray (sweeps, RLlib) extras.
-# Override TORCH to use another build.
+# training, development, TorchRL, documentation, Ray (sweeps, RLlib) and pose-graph
+# (GTSAM) extras. Override TORCH to use another build.
 
 PYTHON ?= python3
 VENV ?= .venv
@@ -20,7 +20,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet "$(TORCH)"
-	$(BIN)/python -m pip install --quiet -e ".[train,dev,torchrl,docs,ray]"
+	$(BIN)/python -m pip install --quiet -e ".[train,dev,torchrl,docs,ray,graph]"
 	touch $(STAMP)
 
 square: $(STAMP)

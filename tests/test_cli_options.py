@@ -36,6 +36,7 @@ COMMANDS = dict(_commands(build_parser()))
 def test_every_command_of_the_tree_is_listed():
     assert set(COMMANDS) == {
         ("experiment", "square"), ("experiment", "line"), ("experiment", "flips"), ("experiment", "consistency"),
+        ("experiment", "compare"),
         ("bench",), ("evaluate",), ("train",), ("sweep",),
     }
 

@@ -5,6 +5,7 @@ Subcommands:
     experiment line     the paper's 4.6 m line, forward-back-forward: keypoint table, figures, JSON, CSV.
     experiment flips    how often a nearly face-on board's pose comes out flipped, per pose rule.
     experiment consistency  Monte Carlo NEES of MOMA's covariance (square, line; planar, 6-DoF): table, figures, JSON, CSV.
+    experiment compare  the estimators (moma, fused, ekf, graph, graph_vision) on the same runs: ME_f, ME, % of path, ANEES, time per update.
     bench               environment steps per second against MPE2, memory over a long run; --cli: this command's start-up.
     evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
     train               train a coordination policy with Stable-Baselines3 (training/train/).
@@ -32,10 +33,12 @@ from moma_env.io import RunFolderError
 from training.cli_args import (
     ACTION_MODE_NAMES,
     CAMERA_BACKEND_NAMES,
+    ESTIMATOR_NAMES,
     PRESET_NAMES,
     SCENARIO_NAMES,
     choice,
     int_at_least,
+    name_list,
     positive_float,
 )
 
@@ -72,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     exp = add_subcommand(sub, "experiment", "run one of the paper's experiments or an estimator check")
     exp_sub = exp.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
-    for add in (_add_square, _add_line, _add_flips, _add_consistency):
+    for add in (_add_square, _add_line, _add_flips, _add_consistency, _add_compare):
         add(exp_sub)
     for add in (_add_bench, _add_evaluate, _add_train):
         add(sub)
@@ -149,6 +152,10 @@ def _add_experiment_arguments(parser: argparse.ArgumentParser, default_runs: int
         help="simulated time limit of a run in s; a run stopped by it is flagged and the exit status is 1 (default: the experiment's)",
     )
     parser.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
+    parser.add_argument(
+        "--estimator", choices=ESTIMATOR_NAMES, type=choice(ESTIMATOR_NAMES, "estimator"), default="moma",
+        help="the estimator whose trajectories are the runs' 'moma' method (default moma, the paper's; docs/estimators.md)",
+    )
 
 
 def _add_flips(exp_sub) -> None:
@@ -190,6 +197,41 @@ def _add_consistency(exp_sub) -> None:
     cons.add_argument("--out", type=Path, default=Path("runs/consistency"), help="output folder, one run (default runs/consistency)")
     cons.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     cons.set_defaults(handler=_run_consistency)
+
+
+def _add_compare(exp_sub) -> None:
+    comp = add_subcommand(
+        exp_sub, "compare", "the estimators (moma, fused, ekf, graph, graph_vision) on the same runs of the square and the line (docs/estimators.md)"
+    )
+    comp.add_argument(
+        "--estimators", type=name_list("estimator", ESTIMATOR_NAMES), default=list(ESTIMATOR_NAMES),
+        help=f"comma-separated estimators (default {','.join(ESTIMATOR_NAMES)})",
+    )
+    comp.add_argument("--runs", type=int_at_least(1, "count"), default=5, help="runs per experiment, camera and estimator (default 5)")
+    comp.add_argument("--seed", type=int_at_least(0, "seed"), default=0, help="seed of the first run; run k uses seed+k (default 0)")
+    comp.add_argument(
+        "--experiments", type=name_list("experiment", ("square", "line")), default=["square", "line"],
+        help="comma-separated experiments (default square,line)",
+    )
+    comp.add_argument(
+        "--cameras", type=name_list("camera", CAMERA_BACKEND_NAMES), default=["geometric"],
+        help="comma-separated observer cameras: geometric, rendered (slow) (default geometric)",
+    )
+    comp.add_argument(
+        "--preset", choices=PRESET_NAMES, type=choice(PRESET_NAMES, "preset"), default="paper", help="sensing settings (default paper)"
+    )
+    comp.add_argument(
+        "--max-time", type=positive_float("time limit (s)"), default=None,
+        help="simulated time limit of a run in s; a run stopped by it makes the exit status 1 (default: the experiment's)",
+    )
+    comp.add_argument("--json", action="store_true", help="print the rows as JSON instead of the table")
+    comp.set_defaults(handler=_run_compare)
+
+
+def _run_compare(args: argparse.Namespace) -> int:
+    from training.experiments.compare import run_compare_command
+
+    return run_compare_command(args)
 
 
 def _add_bench(sub) -> None:
@@ -385,7 +427,7 @@ def _experiment_config(args: argparse.Namespace, observer: str):
         config = dataclasses.replace(config, floor=dataclasses.replace(config.floor, grain=None))
     if args.max_time is not None:
         config = dataclasses.replace(config, max_time_s=args.max_time)
-    return config
+    return dataclasses.replace(config, localiser=args.estimator)
 
 
 def _run_experiment(args: argparse.Namespace) -> int:

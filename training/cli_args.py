@@ -21,6 +21,8 @@ __all__ = [
     "CAMERA_BACKEND_NAMES",
     "PRESET_NAMES",
     "ACTION_MODE_NAMES",
+    "ESTIMATOR_NAMES",
+    "name_list",
     "int_at_least",
     "positive_float",
     "choice",
@@ -34,6 +36,8 @@ CAMERA_BACKEND_NAMES: tuple[str, ...] = ("geometric", "rendered")
 PRESET_NAMES: tuple[str, ...] = ("default", "paper")
 #: ``moma_env.env.config.ACTION_MODES`` in the command line's order (the default first).
 ACTION_MODE_NAMES: tuple[str, ...] = ("switching", "velocity")
+#: ``moma_env.estimator.registry.ESTIMATORS`` (the paper's ``moma`` first).
+ESTIMATOR_NAMES: tuple[str, ...] = ("moma", "fused", "ekf", "graph", "graph_vision")
 
 
 def int_at_least(minimum: int, what: str) -> Callable[[str], int]:
@@ -47,6 +51,19 @@ def int_at_least(minimum: int, what: str) -> Callable[[str], int]:
         if value < minimum:
             raise argparse.ArgumentTypeError(f"{what} must be >= {minimum}, got {value}")
         return value
+
+    return parse
+
+
+def name_list(what: str, known: Sequence[str]) -> Callable[[str], list[str]]:
+    """An argparse type: a comma-separated list of names out of ``known`` (duplicates dropped)."""
+
+    def parse(text: str) -> list[str]:
+        names = [n.strip() for n in text.split(",") if n.strip()]
+        bad = [n for n in names if n not in known]
+        if not names or bad:
+            raise argparse.ArgumentTypeError(f"unknown {what} {', '.join(bad) or repr(text)}; known: {', '.join(known)}")
+        return list(dict.fromkeys(names))
 
     return parse
 

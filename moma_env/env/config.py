@@ -25,6 +25,7 @@ from moma_env.config import (
     check_non_negative,
     check_numbers,
 )
+from moma_env.estimator.registry import check_estimator_name, localiser_factory
 
 __all__ = ["ACTION_MODES", "RewardConfig", "EnvConfig", "checked_max_cycles"]
 
@@ -114,8 +115,9 @@ class EnvConfig:
             vector envs) take the observer beside the UGVs in ``velocity`` mode.
             Off by default.
         localiser: builds each episode's localiser from the scenario's
-            ``EstimatorConfig`` (a :class:`moma_env.sim.Localiser`); None: the
-            MOMA estimator. Pass a class or a module-level function so that the
+            ``EstimatorConfig`` (a :class:`moma_env.sim.Localiser`), or the name
+            of one of :data:`moma_env.estimator.registry.ESTIMATORS` (``"moma"``,
+            ``"fused"``, ``"ekf"``, ``"graph"``); None: the MOMA estimator. Pass a class or a module-level function so that the
             env stays picklable.
     """
 
@@ -162,14 +164,25 @@ class EnvConfig:
                 raise ConfigError("env.observer_image", "needs the observer to be an agent (observer_agent=True)")
 
         check_bool("env.pad_observations", self.pad_observations)
-        if self.localiser is not None and not callable(self.localiser):
-            raise ConfigError("env.localiser", f"must be a callable EstimatorConfig -> Localiser or None, got {self.localiser!r}")
+        if isinstance(self.localiser, str):
+            check_estimator_name("env.localiser", self.localiser)
+        elif self.localiser is not None and not callable(self.localiser):
+            raise ConfigError(
+                "env.localiser", f"must be an estimator name, a callable EstimatorConfig -> Localiser or None, got {self.localiser!r}"
+            )
         check_bool("env.action_masks", self.action_masks)
         if self.action_masks and self.action_mode != "switching":
             raise ConfigError("env.action_masks", "exist only for the discrete actions of action_mode='switching'")
         check_bool("env.commit_legs", self.commit_legs)
         if self.commit_legs and self.action_mode != "switching":
             raise ConfigError("env.commit_legs", "exists only for the legs of action_mode='switching'")
+
+    @property
+    def localiser_factory(self) -> Callable[[Any], Any] | None:
+        """The localiser factory :attr:`localiser` names or is (None: the MOMA estimator)."""
+        if isinstance(self.localiser, str):
+            return localiser_factory(self.localiser)
+        return self.localiser
 
     @property
     def observer_is_agent(self) -> bool:

@@ -192,7 +192,7 @@ class MomaParallelEnv(ParallelEnv):
         camera_names = [c.name for u in wc.ugvs for c in u.cameras] + ([wc.uav.camera_name] if self._has_uav else [])
         self._floor = floor_for(self.config, wc.arena.bounds, self._floor)
         cameras = build_cameras(camera_names, scenario.camera, self.config, self._floor)
-        localiser = {} if self.config.localiser is None else {"localiser": self.config.localiser}
+        localiser = {} if self.config.localiser is None else {"localiser": self.config.localiser_factory}
         self.simulation = Simulation(scenario, cameras, replaces=getattr(self, "simulation", None), **localiser)
         self._mode: ActionMode = action_mode(
             self.config.action_mode,

@@ -36,8 +36,9 @@ One update (:meth:`MomaEstimator.update`)
 1. Cameras. A camera on a REFERENCE robot: ``T_w_c = T_w_b @ T_b_c``. Any other
    camera that sees boards of REFERENCE robots (not its own):
    ``T_w_c = T_w_b_ref @ T_b_m @ inv(T_c_m)``, fused by their mean (the average
-   of ``geometry.mean_pose``). Other cameras are not
-   located.
+   of ``geometry.mean_pose``; with ``EstimatorConfig(fusion="information")``
+   weighted by their covariances, :mod:`moma_env.estimator.fusion`). Other
+   cameras are not located.
 2. Samples of non-reference robots: each of their boards seen by a located
    camera gives ``T_w_b = T_w_c @ T_c_m @ inv(T_b_m)``; each located camera they
    carry gives ``T_w_b = T_w_c @ inv(T_b_c)``; a robot's samples are fused by

@@ -11,9 +11,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from moma_env.config import ConfigError, check_bool, check_count, check_non_negative, check_positive
+from moma_env.config import ConfigError, check_bool, check_choice, check_count, check_non_negative, check_positive
 
-__all__ = ["OutlierGateConfig", "EstimatorConfig"]
+__all__ = ["OutlierGateConfig", "EstimatorConfig", "FUSIONS"]
+
+#: How several candidate poses of one camera or one robot in a frame are fused:
+#: ``"mean"`` (the paper: an unweighted mean) or ``"information"`` (weighted by
+#: the inverse of their covariances, :mod:`moma_env.estimator.fusion`).
+FUSIONS = ("mean", "information")
 
 
 @dataclass(frozen=True)
@@ -84,6 +89,11 @@ class EstimatorConfig:
             declaration are left out of its window (s); the authors' caterpillar
             waited 1.5 s after stopping.
         gate: the outlier gate, or None to disable it.
+        fusion: how the candidate poses of a camera (one per reference board it
+            sees) and of a robot (one per located camera) in one frame are
+            fused: ``"mean"``, the paper's unweighted mean (default), or
+            ``"information"``, weighted by their covariances
+            (:func:`moma_env.estimator.fusion.information_fusion`).
     """
 
     window: int = 25
@@ -94,6 +104,7 @@ class EstimatorConfig:
     window_outlier_k: float = 3.0
     window_floor_m: float = 0.002
     window_floor_rad: float = 0.002
+    fusion: str = "mean"
 
     def __post_init__(self) -> None:
         check_count("estimator.window", self.window)
@@ -107,6 +118,7 @@ class EstimatorConfig:
         check_positive("estimator.window_floor_rad", self.window_floor_rad)
         check_positive("estimator.lost_after_s", self.lost_after_s)
         check_non_negative("estimator.settle_delay_s", self.settle_delay_s)
+        check_choice("estimator.fusion", self.fusion, FUSIONS)
         if self.gate is not None and not isinstance(self.gate, OutlierGateConfig):
             raise ConfigError(
                 "estimator.gate", f"must be an OutlierGateConfig or None, got {type(self.gate).__name__}"

@@ -19,6 +19,7 @@ from moma_env.estimator.errors import (
     UnknownCameraError,
     UnknownRobotError,
 )
+from moma_env.estimator.fusion import information_fusion
 from moma_env.estimator.gate import OutlierGate
 from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
 from moma_env.estimator.uncertainty import (
@@ -215,6 +216,7 @@ class MomaEstimator:
         if not isinstance(config, EstimatorConfig):
             raise TypeError(f"config must be an EstimatorConfig, got {type(config).__name__}")
         self._config = config
+        self._information_fusion = config.fusion == "information"
         self._robots: dict[str, _Robot] = {}
         self._board_owner: dict[int, _Robot] = {}
         self._camera_owner: dict[str, _Robot] = {}
@@ -503,7 +505,10 @@ class MomaEstimator:
                     errors.append(LinearError._of(J, Q))
                     located.append(T_w_m @ T_m_c)
             if located:
-                camera_poses[camera_id] = (located[0] if len(located) == 1 else mean_pose(located), LinearError.mean(errors))
+                if len(located) > 1 and self._information_fusion:
+                    camera_poses[camera_id] = information_fusion(located, errors, joint)
+                else:
+                    camera_poses[camera_id] = (located[0] if len(located) == 1 else mean_pose(located), LinearError.mean(errors))
 
         # 2. Samples of the non-reference robots: boards seen by located cameras,
         #    and robots carrying a located camera.
@@ -547,6 +552,8 @@ class MomaEstimator:
         for r, pairs in samples.items():
             if len(pairs) == 1:
                 T, error = pairs[0]
+            elif self._information_fusion:
+                T, error = information_fusion([pose for pose, _ in pairs], [e for _, e in pairs], joint)
             else:
                 T = mean_pose([pose for pose, _ in pairs])
                 error = LinearError.mean([e for _, e in pairs])

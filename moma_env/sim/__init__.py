@@ -13,7 +13,7 @@ nothing from them.
 """
 
 from moma_env.sim.frame import Frame, Pose2D, Switch
-from moma_env.sim.localiser import Localiser, LocaliserFactory
+from moma_env.sim.localiser import Localiser, LocaliserFactory, OdometryConsumer
 from moma_env.sim.rules import REFUSED_DWELL, REFUSED_NO_REFERENCE, REFUSED_WINDOW, MotionRules
 from moma_env.sim.simulation import Commands, Simulation, measured
 
@@ -23,6 +23,7 @@ __all__ = [
     "Localiser",
     "LocaliserFactory",
     "MotionRules",
+    "OdometryConsumer",
     "Pose2D",
     "REFUSED_DWELL",
     "REFUSED_NO_REFERENCE",

@@ -19,7 +19,7 @@ import numpy as np
 
 from moma_env.estimator import Detection, EstimatorConfig, RobotEstimate
 
-__all__ = ["Localiser", "LocaliserFactory"]
+__all__ = ["Localiser", "LocaliserFactory", "OdometryConsumer"]
 
 
 @runtime_checkable
@@ -61,6 +61,21 @@ class Localiser(Protocol):
     def estimate(self, name: str) -> RobotEstimate: ...
 
     def window_ready(self, name: str) -> bool: ...
+
+
+@runtime_checkable
+class OdometryConsumer(Protocol):
+    """A localiser that also takes wheel odometry (an EKF); others get none.
+
+    A driver with odometry (the paper's experiments) calls, before each
+    :meth:`Localiser.update`, ``odometry(name, increment, covariance, time)``
+    per robot: ``increment = (dx, dy, dyaw)``, the planar motion since the
+    previous call in the robot's body frame at the previous pose (m, m, rad),
+    and ``covariance``, its 3x3 covariance (m^2, rad^2). A localiser that is not
+    an ``OdometryConsumer`` (the MOMA estimator) is simply not called.
+    """
+
+    def odometry(self, name: str, increment: tuple[float, float, float], covariance: np.ndarray, time: float) -> None: ...
 
 
 #: Builds a fresh localiser for an episode from the scenario's estimator settings.

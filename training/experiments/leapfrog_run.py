@@ -43,14 +43,16 @@ from moma_env.config import ConfigError, check_bool, check_choice, check_non_neg
 from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
 from moma_env.control.waypoint import WaypointFollower, WaypointFollowerConfig
 from moma_env.estimator import EstimatorConfig, Status
+from moma_env.estimator.registry import check_estimator_name, localiser_factory
 from moma_env.markers import BoardLayout, board_for_robot
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, aggregate, run_metrics
 from moma_env.odometry import WheelOdometry, WheelOdometryConfig
 from moma_env.odometry.visual import VisualOdometry, VisualOdometryConfig
 from moma_env.scenarios import Scenario
-from moma_env.sim import Frame, Simulation
+from moma_env.sim import Frame, LocaliserFactory, OdometryConsumer, Simulation, measured
 from moma_env.world import ArenaConfig, UAVConfig, UGVConfig, WorldConfig
 from moma_env.world.mounts import board_on_top, camera_down
+from training.experiments.odometry_feed import OdometryFeed
 
 __all__ = [
     "MAIN",
@@ -147,6 +149,9 @@ class LeapfrogConfig:
             ``extent`` and ``textured`` regions are set per run from
             :meth:`textured_regions`.
         camera, estimator, odometry, follower, tracking: the parts' configurations.
+        localiser: the estimator by name (:data:`moma_env.estimator.registry.ESTIMATORS`:
+            ``"moma"``, the paper's, by default; ``"fused"``, ``"ekf"``, ``"graph"``),
+            built from ``estimator``. Its trajectories are the runs' ``"moma"`` method.
     """
 
     #: Prefix of the field names in this experiment's configuration errors.
@@ -170,9 +175,11 @@ class LeapfrogConfig:
     render: RenderConfig = field(default_factory=RenderConfig)
     floor: FloorConfig = field(default_factory=_floor)
     vo: FloorVOSetup = field(default_factory=FloorVOSetup)
+    localiser: str = "moma"
 
     def __post_init__(self) -> None:
         name = self.experiment
+        check_estimator_name(f"{name}.localiser", self.localiser)
         check_positive(f"{name}.separation", self.separation)
         if self.separation < 0.5:
             raise ConfigError(f"{name}.separation", f"robots of 0.45 m need >= 0.5 m between centres, got {self.separation}")
@@ -388,6 +395,7 @@ def run_leapfrog(
     seed: int,
     progress: Callable[[float], None] | None = None,
     camera_factory: CameraFactory | None = None,
+    localiser: LocaliserFactory | None = None,
 ) -> LeapfrogRun:
     """Run the experiment once with every random draw seeded by ``seed``.
 
@@ -400,17 +408,28 @@ def run_leapfrog(
             rendered); default: ``config.camera_backend``'s camera. The camera
             draws from the run's camera generator, so a factory changes only
             what the camera does with it.
+        localiser: builds the run's localiser from ``config.estimator``
+            (default: the factory of ``config.localiser``); a wrapper that
+            times the estimator, for instance.
     """
     root = np.random.default_rng(seed)
-    # Children 0-2 do not depend on how many are spawned: geometric runs are unchanged by the VO's.
-    rng_world, rng_camera, rng_odometry, rng_vo_frames, rng_vo = root.spawn(5)
+    # A child does not depend on how many are spawned: geometric runs are unchanged by the VO's,
+    # and every run by the odometry feed's (child 5, drawn only for a localiser that takes odometry).
+    rng_world, rng_camera, rng_odometry, rng_vo_frames, rng_vo, rng_feed = root.spawn(6)
     scenario = experiment_scenario(config, rng_world)
     uav_cfg = scenario.world.uav
     floor = floor_texture(config) if config.camera_backend == "rendered" else None
     camera = (camera_factory or _observer_camera)(config, uav_cfg.camera_name, floor)
     # The schedule is the authority on switches here (no motion rules), and the first
     # camera frame is the first step's.
-    sim = Simulation(scenario, {uav_cfg.camera_name: camera}, rules=False, planar_ugvs=config.planar_ugvs, measure_at_reset=False)
+    sim = Simulation(
+        scenario,
+        {uav_cfg.camera_name: camera},
+        localiser=localiser_factory(config.localiser) if localiser is None else localiser,
+        rules=False,
+        planar_ugvs=config.planar_ugvs,
+        measure_at_reset=False,
+    )
     frame = sim.reset(rng_camera)
     world = sim.world
     tracker = BoardTrackingController(
@@ -418,6 +437,7 @@ def run_leapfrog(
     )
 
     wheel = WheelOdometry(config.odometry, initial_pose=world.ugv_pose(MAIN))
+    feed = OdometryFeed(config.odometry, world, (MAIN, BUDDY), rng_feed) if isinstance(sim.localiser, OdometryConsumer) else None
     schedule = LeapfrogSchedule(
         leapfrog_legs(config), WaypointFollower(config.follower), config.dwell_s, [MAIN, BUDDY], start_after_s=config.start_after_s
     )
@@ -458,7 +478,10 @@ def run_leapfrog(
     uav_command = np.zeros(4)
     ugv_commands = {MAIN: np.zeros(3), BUDDY: np.zeros(3)}
     while not schedule.done and world.time < config.max_time_s:
-        frame = sim.advance(ugv_commands, uav_command)
+        requests = sim.move(ugv_commands, uav_command)
+        if feed is not None:
+            feed.step(world, sim.localiser)
+        frame = sim.localise(measured(requests))
         wheel.update(world.ugv_body_velocity(MAIN), world.dt, rng_odometry)
         if vo is not None:
             vo.update(vo_camera.frame(world.ugv_transform(MAIN), rng_vo_frames, time=world.time))
