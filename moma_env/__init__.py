@@ -17,6 +17,6 @@ __version__ = "0.1.0"
 #: Version of what a learned policy depends on: the observations, actions and rewards of
 #: the envs. Bump it (a new string) with any change to them; training manifests and
 #: published policies (``policies/``) record it, and a policy of another version is refused.
-ENV_VERSION = "1"
+ENV_VERSION = "2"  # 2: the tasks commit legs (EnvConfig.commit_legs)
 
 register_envs()

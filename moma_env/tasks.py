@@ -9,6 +9,10 @@ evaluate --scenario``, ``moma-env train --scenario``); keywords given there over
 the task's. Each task also has a Gymnasium id (``gymnasium.make("moma_env/TopObserverTeam4-v0")``
 and ``gymnasium.make_vec``), registered with the configurations' ids.
 
+Every task runs in switching mode with the action masks and ``commit_legs`` (a leg
+once started runs to its end: a learner decides when to start a robot, not when to
+interrupt it).
+
 Tasks where coordination matters (with two robots one must always stay behind as
 the reference, so there is little to coordinate):
 
@@ -79,6 +83,7 @@ _TASK_LIST = (
             "random_scenarios": True,
             "action_mode": "switching",
             "action_masks": True,
+            "commit_legs": True,
             "rewards": dict(TEAM_REWARDS),
         },
         "4 UGVs to spread goals under one UAV: time, goals, localisation error on the way and at the end, refusals",
@@ -93,6 +98,7 @@ _TASK_LIST = (
             "random_scenarios": True,
             "action_mode": "switching",
             "action_masks": True,
+            "commit_legs": True,
             "rewards": dict(TEAM_REWARDS),
         },
         "6 UGVs to spread goals under one UAV: time, goals, localisation error on the way and at the end, refusals",
@@ -108,6 +114,7 @@ _TASK_LIST = (
             "random_scenarios": True,
             "action_mode": "switching",
             "action_masks": True,
+            "commit_legs": True,
             "rewards": dict(TEAM_REWARDS),
         },
         "a file of 4 robots around a wall: time, goals, localisation error on the way and at the end, refusals",
