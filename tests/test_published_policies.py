@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 import moma_env
+from moma_env import ENV_VERSION
 from agents.learned import MANIFEST, POLICIES_ENV, LearnedPolicy, TrainingDirError, load_published, policies_root
 from policy_guard import episode_actions
 from training.cli import main
@@ -111,18 +112,19 @@ def test_another_env_version_is_refused(run_dir, policies, capsys, monkeypatch, 
     path = policies / "tiny_ppo" / MANIFEST
     manifest = json.loads(path.read_text())
     path.write_text(json.dumps(manifest | {"env_version": "0"}))
-    with pytest.raises(TrainingDirError, match=r"trained on env version '0', this code's is '1'"):
+    with pytest.raises(TrainingDirError, match=rf"trained on env version '0', this code's is '{ENV_VERSION}'"):
         load_published("tiny_ppo")
     assert main(["evaluate", "--scenario", "top_observer", "--policy", "tiny_ppo", "--episodes", "1",
                  "--out", str(tmp_path / "eval")]) == 2
     assert "env version '0'" in _one_error_line(capsys, "moma-env evaluate: ")
     assert not (tmp_path / "eval").exists()  # refused, not run
     # the same holds when the code's version moves on: the run itself is refused, and cannot be published
-    monkeypatch.setattr("agents.learned.ENV_VERSION", "2")
-    with pytest.raises(TrainingDirError, match=r"trained on env version '1', this code's is '2'"):
+    later = ENV_VERSION + "-next"
+    monkeypatch.setattr("agents.learned.ENV_VERSION", later)
+    with pytest.raises(TrainingDirError, match=rf"trained on env version '{ENV_VERSION}', this code's is '{later}'"):
         LearnedPolicy.from_dir(run_dir)
     assert publish_module.main([str(run_dir), "other"]) == 2
-    assert "env version '1'" in _one_error_line(capsys, "publish: ")
+    assert f"env version '{ENV_VERSION}'" in _one_error_line(capsys, "publish: ")
 
 
 def test_a_truncated_model_zip_gives_one_line_and_exit_2(run_dir, policies, tmp_path, capsys):

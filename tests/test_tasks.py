@@ -27,7 +27,7 @@ def test_every_task_builds_with_its_team_and_options(name):
 
 
 def test_task_keywords_override_the_task_options():
-    env = parallel_env("top_observer_team4", action_mode="velocity", action_masks=False)
+    env = parallel_env("top_observer_team4", action_mode="velocity", action_masks=False, commit_legs=False)
     assert env.config.action_mode == "velocity"
     configuration, options = task_options("top_observer_team4", n_ugvs=5)
     assert configuration == "top_observer" and options["n_ugvs"] == 5 and options["goal_spread"] == 2.0
