@@ -25,12 +25,12 @@ radians, seconds; mounts ``T_b_m`` / ``T_b_c`` (4x4) in the body frame B.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping
 
 import numpy as np
 
 from moma_env.config import ConfigError, check_rigid_transform
+from moma_env.estimator.checks import checked_time, mapping_field
 from moma_env.estimator.config import EstimatorConfig
 from moma_env.estimator.detection import Detection
 from moma_env.estimator.errors import UnknownBoardError, UnknownCameraError, UnknownRobotError
@@ -121,14 +121,14 @@ class Bookkeeper:
                 raise ConfigError(f"robots[{name!r}].{what}", f"must be a bool, got {value!r}")
         t = self.checked_time(0.0 if time is None and self.time is None else self.time if time is None else time)
         board_mounts: dict[int, np.ndarray] = {}
-        for board_id, mount in self._mapping(f"robots[{name!r}].boards", boards).items():
+        for board_id, mount in mapping_field(f"robots[{name!r}].boards", boards).items():
             if isinstance(board_id, bool) or not isinstance(board_id, (int, np.integer)):
                 raise ConfigError(f"robots[{name!r}].boards", f"board ids must be integers, got {board_id!r}")
             if int(board_id) in self.board_owner:
                 raise ConfigError(f"robots[{name!r}].boards", f"duplicate board id {int(board_id)}")
             board_mounts[int(board_id)] = check_rigid_transform(f"robots[{name!r}].boards[{board_id}]", mount)
         camera_mounts: dict[str, np.ndarray] = {}
-        for camera_id, mount in self._mapping(f"robots[{name!r}].cameras", cameras).items():
+        for camera_id, mount in mapping_field(f"robots[{name!r}].cameras", cameras).items():
             if not isinstance(camera_id, str) or not camera_id:
                 raise ConfigError(f"robots[{name!r}].cameras", f"camera ids must be non-empty strings, got {camera_id!r}")
             if camera_id in self.camera_owner:
@@ -266,24 +266,6 @@ class Bookkeeper:
                              None if covariance is None else np.array(covariance))
 
     # ------------------------------------------------------------------ checks
-    @staticmethod
-    def _mapping(field: str, value: Mapping | None) -> Mapping:
-        if value is None:
-            return {}
-        if not isinstance(value, Mapping):
-            raise ConfigError(field, f"must be a mapping, got {type(value).__name__}")
-        return value
-
     def checked_time(self, time: float) -> float:
-        """``time`` as a float if finite and not before the last time, else ValueError."""
-        if isinstance(time, (str, bytes, bool)) or time is None:
-            raise ValueError(f"time must be a number (s), got {time!r}")
-        try:
-            t = float(time)
-        except (TypeError, ValueError):
-            raise ValueError(f"time must be a number (s), got {time!r}") from None
-        if not math.isfinite(t):
-            raise ValueError(f"time must be finite, got {time!r}")
-        if self.time is not None and t < self.time:
-            raise ValueError(f"time goes backwards: {t} s after {self.time} s")
-        return t
+        """``time`` as a float if a finite real number not before the last time, else ValueError."""
+        return checked_time(time, self.time)

@@ -12,6 +12,7 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 
 from moma_env.config import ConfigError, all_finite, check_rigid_transform
+from moma_env.estimator.checks import checked_time, mapping_field
 from moma_env.estimator.config import EstimatorConfig
 from moma_env.estimator.detection import Detection
 from moma_env.estimator.errors import (
@@ -353,7 +354,7 @@ class MomaEstimator:
         t = self._checked_time(time)
 
         board_mounts: dict[int, np.ndarray] = {}
-        for board_id, mount in self._mapping(f"robots[{name!r}].boards", boards).items():
+        for board_id, mount in mapping_field(f"robots[{name!r}].boards", boards).items():
             if isinstance(board_id, bool) or not isinstance(board_id, (int, np.integer)):
                 raise ConfigError(f"robots[{name!r}].boards", f"board ids must be integers, got {board_id!r}")
             board_id = int(board_id)
@@ -365,7 +366,7 @@ class MomaEstimator:
             board_mounts[board_id] = check_rigid_transform(f"robots[{name!r}].boards[{board_id}]", mount)
 
         camera_mounts: dict[str, np.ndarray] = {}
-        for camera_id, mount in self._mapping(f"robots[{name!r}].cameras", cameras).items():
+        for camera_id, mount in mapping_field(f"robots[{name!r}].cameras", cameras).items():
             if not isinstance(camera_id, str) or not camera_id:
                 raise ConfigError(
                     f"robots[{name!r}].cameras", f"camera ids must be non-empty strings, got {camera_id!r}"
@@ -629,27 +630,9 @@ class MomaEstimator:
             raise UnknownRobotError(name, self._robots)
         return r
 
-    @staticmethod
-    def _mapping(field: str, value: Mapping | None) -> Mapping:
-        if value is None:
-            return {}
-        if not isinstance(value, Mapping):
-            raise ConfigError(field, f"must be a mapping, got {type(value).__name__}")
-        return value
-
     def _checked_time(self, time: float) -> float:
         """``time`` as a float if a finite real number not before the last time, else ValueError."""
-        if isinstance(time, (str, bytes, bool)) or time is None:
-            raise ValueError(f"time must be a number (s), got {time!r}")
-        try:
-            t = float(time)
-        except (TypeError, ValueError):
-            raise ValueError(f"time must be a number (s), got {time!r}") from None
-        if not math.isfinite(t):
-            raise ValueError(f"time must be finite, got {time!r}")
-        if self._time is not None and t < self._time:
-            raise ValueError(f"time goes backwards: {t} s after {self._time} s")
-        return t
+        return checked_time(time, self._time)
 
     def _mark_fresh(self, r: _Robot, t: float) -> None:
         r.last_fresh_time = t

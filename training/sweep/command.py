@@ -19,23 +19,12 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from training.cli_args import int_at_least
+
 __all__ = ["add_sweep_parser", "run_sweep_command", "BACKENDS"]
 
 #: ``--backend`` of ``moma-env sweep`` (:class:`training.sweep.backends.RayBackend`, :class:`~training.sweep.backends.LocalBackend`).
 BACKENDS = ("ray", "local")
-
-
-def _count(minimum: int, what: str):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer {what}, got {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"{what} must be >= {minimum}, got {value}")
-        return value
-
-    return parse
 
 
 def add_sweep_parser(subparsers, add_subcommand: Callable[..., argparse.ArgumentParser] | None = None) -> argparse.ArgumentParser:
@@ -52,12 +41,12 @@ def add_sweep_parser(subparsers, add_subcommand: Callable[..., argparse.Argument
     sw.add_argument("--out", type=Path, required=True, help="output folder (one sweep per folder)")
     sw.add_argument("--backend", choices=BACKENDS, default="ray", help="ray (default: Ray tasks) or local (a process pool, no Ray)")
     sw.add_argument("--address", default=None, help="with --backend ray: an existing Ray cluster's address (default: start Ray here on all cores)")
-    sw.add_argument("--jobs", type=_count(1, "job count"), default=None, help="with --backend local: worker processes (default: every core)")
-    sw.add_argument("--cells-per-task", type=_count(1, "cell count"), default=2, help="episodes per task (default 2)")
-    sw.add_argument("--retries", type=_count(0, "retry count"), default=3, help="with --backend ray: reruns of a task whose worker died (default 3)")
+    sw.add_argument("--jobs", type=int_at_least(1, "job count"), default=None, help="with --backend local: worker processes (default: every core)")
+    sw.add_argument("--cells-per-task", type=int_at_least(1, "cell count"), default=2, help="episodes per task (default 2)")
+    sw.add_argument("--retries", type=int_at_least(0, "retry count"), default=3, help="with --backend ray: reruns of a task whose worker died (default 3)")
     sw.add_argument("--resume", action="store_true", help="continue the sweep in --out: run only the cells without a result")
     sw.add_argument("--fixed", dest="random_scenarios", action="store_false", help="the configuration's default layout for every seed (default: a random layout per seed)")
-    sw.add_argument("--max-cycles", type=_count(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
+    sw.add_argument("--max-cycles", type=int_at_least(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
     sw.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
     sw.add_argument("--json", action="store_true", help="print the report as JSON")
     sw.set_defaults(handler=run_sweep_command)

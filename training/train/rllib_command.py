@@ -17,6 +17,8 @@ import json
 import sys
 from pathlib import Path
 
+from training.cli_args import int_at_least
+
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -33,23 +35,10 @@ RLLIB_ENVS = ("pettingzoo", "vector")
 def add_rllib_arguments(parser: argparse.ArgumentParser) -> None:
     """``--backend``, ``--num-env-runners``, ``--address``, ``--rllib-env`` on ``moma-env train``'s parser."""
     parser.add_argument("--backend", choices=BACKENDS, default="sb3", help="sb3 (Stable-Baselines3, default) or rllib (PPO on Ray RLlib's new API stack)")
-    parser.add_argument("--num-env-runners", type=_count(0), default=0, help="with --backend rllib: remote env runners (default 0: sample in the driver)")
+    parser.add_argument("--num-env-runners", type=int_at_least(0, "runner count"), default=0, help="with --backend rllib: remote env runners (default 0: sample in the driver)")
     parser.add_argument("--address", default=None, help="with --backend rllib: an existing Ray cluster's address (default: a local Ray)")
     parser.add_argument("--rllib-env", choices=RLLIB_ENVS, default="pettingzoo",
                         help="with --backend rllib: pettingzoo (RLlib's PettingZoo wrapper, default) or vector (the batched env)")
-
-
-def _count(minimum: int):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be >= {minimum}, got {value}")
-        return value
-
-    return parse
 
 
 def _rewards(scenario: str, pairs: list[str]) -> Any:
