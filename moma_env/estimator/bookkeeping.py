@@ -269,3 +269,43 @@ class Bookkeeper:
     def checked_time(self, time: float) -> float:
         """``time`` as a float if a finite real number not before the last time, else ValueError."""
         return checked_time(time, self.time)
+
+
+class BookkeptLocaliser:
+    """What a localiser built on a :class:`Bookkeeper` answers alike: its settings, robots,
+    events, estimates and window readiness. A subclass sets ``self._book`` and gives
+    :meth:`estimate_of` (its own pose and covariance of a robot)."""
+
+    _book: Bookkeeper
+
+    @property
+    def config(self) -> EstimatorConfig:
+        """The shared estimator settings (window, lost_after_s)."""
+        return self._book.config
+
+    @property
+    def robots(self) -> tuple[str, ...]:
+        """Names of the robots, in the order they were added."""
+        return tuple(self._book.robots)
+
+    @property
+    def events(self) -> tuple[SwitchEvent, ...]:
+        """Every switch event so far."""
+        return tuple(self._book.events)
+
+    def estimate_of(self, name: str) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Robot ``name``'s pose ``T_w_b`` and 6x6 covariance in W (None where unknown)."""
+        raise NotImplementedError
+
+    def estimate(self, name: str) -> RobotEstimate:
+        """Snapshot of robot ``name``'s estimate."""
+        r = self._book.robot(name)
+        return self._book.snapshot(r, *self.estimate_of(name))
+
+    def estimates(self) -> dict[str, RobotEstimate]:
+        """Snapshots of every robot, by name."""
+        return {name: self.estimate(name) for name in self._book.robots}
+
+    def window_ready(self, name: str) -> bool:
+        """See :meth:`Bookkeeper.window_ready`."""
+        return self._book.window_ready(name)

@@ -50,10 +50,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from moma_env.config import ConfigError, check_count, check_positive
-from moma_env.estimator.bookkeeping import Bookkeeper, RobotRecord
+from moma_env.estimator.bookkeeping import BookkeptLocaliser, Bookkeeper, RobotRecord
 from moma_env.estimator.config import EstimatorConfig
 from moma_env.estimator.detection import Detection
-from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
+from moma_env.estimator.results import Phase, Status
 from moma_env.estimator.uncertainty import (
     apply_error,
     compose_jacobian_first,
@@ -107,7 +107,7 @@ class EkfConfig:
             raise ConfigError("ekf.gate_nis", f"must be a number > 0 (math.inf: no gate), got {self.gate_nis!r}")
 
 
-class EkfLocaliser:
+class EkfLocaliser(BookkeptLocaliser):
     """EKF cooperative localisation behind the :class:`moma_env.sim.Localiser` protocol
     (and :class:`moma_env.sim.OdometryConsumer`); see the module docstring."""
 
@@ -129,38 +129,14 @@ class EkfLocaliser:
 
     # ------------------------------------------------------------------ queries
     @property
-    def config(self) -> EstimatorConfig:
-        """The shared estimator settings (window, lost_after_s)."""
-        return self._book.config
-
-    @property
-    def robots(self) -> tuple[str, ...]:
-        """Names of the robots, in the order they were added."""
-        return tuple(self._book.robots)
-
-    @property
-    def events(self) -> tuple[SwitchEvent, ...]:
-        """Every switch event so far."""
-        return tuple(self._book.events)
-
-    @property
     def covariance(self) -> np.ndarray:
         """The joint covariance (6 per robot, in :attr:`robots` order), a copy."""
         return self._P.copy()
 
-    def estimate(self, name: str) -> RobotEstimate:
-        """Snapshot of robot ``name``'s estimate."""
-        r = self._book.robot(name)
+    def estimate_of(self, name: str) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Robot ``name``'s pose and its block of the joint covariance."""
         i = self._slot[name]
-        return self._book.snapshot(r, self._pose[name], self._P[i : i + 6, i : i + 6])
-
-    def estimates(self) -> dict[str, RobotEstimate]:
-        """Snapshots of every robot, by name."""
-        return {name: self.estimate(name) for name in self._book.robots}
-
-    def window_ready(self, name: str) -> bool:
-        """See :meth:`moma_env.estimator.bookkeeping.Bookkeeper.window_ready`."""
-        return self._book.window_ready(name)
+        return self._pose[name], self._P[i : i + 6, i : i + 6]
 
     # ------------------------------------------------------------ declarations
     def add_robot(self, name: str, *, boards: Mapping[int, np.ndarray] | None = None,

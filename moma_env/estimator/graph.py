@@ -49,10 +49,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from moma_env.config import check_bool, check_positive
-from moma_env.estimator.bookkeeping import Bookkeeper, RobotRecord
+from moma_env.estimator.bookkeeping import BookkeptLocaliser, Bookkeeper, RobotRecord
 from moma_env.estimator.config import EstimatorConfig
 from moma_env.estimator.detection import Detection
-from moma_env.estimator.results import Phase, RobotEstimate, SwitchEvent
+from moma_env.estimator.results import Phase
 from moma_env.geometry import invert, se2_to_se3, upright_body_from_mount
 
 try:
@@ -118,7 +118,7 @@ def gtsam_from_ros(T: np.ndarray, covariance: np.ndarray) -> np.ndarray:
     return B @ covariance @ B.T
 
 
-class GraphLocaliser:
+class GraphLocaliser(BookkeptLocaliser):
     """Pose-graph MOMA behind the :class:`moma_env.sim.Localiser` protocol; see the module docstring."""
 
     def __init__(self, config: EstimatorConfig | None = None, graph: GraphConfig | None = None):
@@ -153,37 +153,13 @@ class GraphLocaliser:
 
     # ------------------------------------------------------------------ queries
     @property
-    def config(self) -> EstimatorConfig:
-        """The shared estimator settings (window, lost_after_s)."""
-        return self._book.config
-
-    @property
-    def robots(self) -> tuple[str, ...]:
-        """Names of the robots, in the order they were added."""
-        return tuple(self._book.robots)
-
-    @property
-    def events(self) -> tuple[SwitchEvent, ...]:
-        """Every switch event so far."""
-        return tuple(self._book.events)
-
-    @property
     def size(self) -> tuple[int, int]:
         """``(variables, factors)`` in the graph so far."""
         return self._n_variables, self._n_factors
 
-    def estimate(self, name: str) -> RobotEstimate:
-        """Snapshot of robot ``name``'s estimate."""
-        r = self._book.robot(name)
-        return self._book.snapshot(r, self._pose[name], self._cov[name])
-
-    def estimates(self) -> dict[str, RobotEstimate]:
-        """Snapshots of every robot, by name."""
-        return {name: self.estimate(name) for name in self._book.robots}
-
-    def window_ready(self, name: str) -> bool:
-        """See :meth:`moma_env.estimator.bookkeeping.Bookkeeper.window_ready`."""
-        return self._book.window_ready(name)
+    def estimate_of(self, name: str) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Robot ``name``'s pose and covariance from the latest smoothing."""
+        return self._pose[name], self._cov[name]
 
     # ------------------------------------------------------------ declarations
     def add_robot(self, name: str, *, boards: Mapping[int, np.ndarray] | None = None,
