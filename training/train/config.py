@@ -35,7 +35,10 @@ from moma_env.tasks import TASKS
 if TYPE_CHECKING:
     from moma_env.env.config import RewardConfig
 
-__all__ = ["ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "TrainConfig", "reward_overrides"]
+__all__ = [
+    "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "TrainConfig", "reward_overrides",
+    "run_env_options", "config_to_dict", "config_from_dict",
+]
 
 #: Algorithms by CLI name -> Stable-Baselines3 (or sb3-contrib) class name.
 ALGORITHMS = {"ppo": "PPO", "a2c": "A2C", "dqn": "DQN", "sac": "SAC", "td3": "TD3", "maskable_ppo": "MaskablePPO"}
@@ -165,29 +168,40 @@ class TrainConfig:
     def env_options(self) -> dict[str, Any]:
         """Keyword options of :func:`moma_env.env.factory.parallel_env` for this run (a
         task's own options apply beneath them)."""
-        options: dict[str, Any] = {
-            "action_mode": self.action_mode,
-            "observer_agent": False,
-            "max_cycles": self.max_cycles,
-            "random_scenarios": True,
-        }
-        if self.rewards is not None:
-            options["rewards"] = dataclasses.asdict(self.rewards)
-        return options
+        return run_env_options(self.action_mode, self.max_cycles, self.rewards)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for the manifest (tuples as lists)."""
-        out = dataclasses.asdict(self)
-        out["net_arch"] = list(self.net_arch)
-        return out
+        return config_to_dict(self)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "TrainConfig":
         """Inverse of :meth:`to_dict`; unknown keys raise ConfigError."""
-        data = dict(data)
-        if "net_arch" in data and isinstance(data["net_arch"], list):
-            data["net_arch"] = tuple(data["net_arch"])
-        return from_mapping(cls, data, name="train")
+        return config_from_dict(cls, data)
+
+
+def run_env_options(action_mode: str, max_cycles: int | None, rewards: RewardConfig | None) -> dict[str, Any]:
+    """Keyword options of ``parallel_env`` for a training run's envs: random layouts, the
+    observer flown by its controller, ``rewards`` (None: the scenario's)."""
+    options: dict[str, Any] = {"action_mode": action_mode, "observer_agent": False, "max_cycles": max_cycles, "random_scenarios": True}
+    if rewards is not None:
+        options["rewards"] = dataclasses.asdict(rewards)
+    return options
+
+
+def config_to_dict(config: Any) -> dict[str, Any]:
+    """A run configuration (a dataclass with ``net_arch``) as plain data for its manifest."""
+    out = dataclasses.asdict(config)
+    out["net_arch"] = list(config.net_arch)
+    return out
+
+
+def config_from_dict(cls: type, data: Mapping[str, Any]) -> Any:
+    """Inverse of :func:`config_to_dict` for ``cls``; unknown keys raise ConfigError."""
+    data = dict(data)
+    if isinstance(data.get("net_arch"), list):
+        data["net_arch"] = tuple(data["net_arch"])
+    return from_mapping(cls, data, name="train")
 
 
 def reward_overrides(pairs: list[str] | tuple[str, ...], base: Mapping[str, float] | None = None) -> RewardConfig:

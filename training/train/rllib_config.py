@@ -9,15 +9,15 @@ team), as RLlib samples them.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from moma_env.config import ConfigError, check_bool, check_choice, check_count, check_non_negative, check_positive, check_range, from_mapping
+from moma_env.config import ConfigError, check_bool, check_choice, check_count, check_non_negative, check_positive, check_range
 from moma_env.env.config import ACTION_MODES, RewardConfig
 from moma_env.scenarios import CONFIGURATIONS
 from moma_env.tasks import TASKS
+from training.train.config import config_from_dict, config_to_dict, run_env_options
 
 __all__ = ["RllibTrainConfig", "RLLIB_ROUTES"]
 
@@ -113,22 +113,13 @@ class RllibTrainConfig:
     @property
     def env_options(self) -> dict[str, Any]:
         """The registered creator's ``env_config`` (options of ``parallel_env``)."""
-        options: dict[str, Any] = {"action_mode": self.action_mode, "observer_agent": False, "max_cycles": self.max_cycles,
-                                   "random_scenarios": True}
-        if self.rewards is not None:
-            options["rewards"] = dataclasses.asdict(self.rewards)
-        return options
+        return run_env_options(self.action_mode, self.max_cycles, self.rewards)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for the manifest (tuples as lists)."""
-        out = dataclasses.asdict(self)
-        out["net_arch"] = list(self.net_arch)
-        return out
+        return config_to_dict(self)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "RllibTrainConfig":
         """Inverse of :meth:`to_dict`; unknown keys raise ConfigError."""
-        data = dict(data)
-        if isinstance(data.get("net_arch"), list):
-            data["net_arch"] = tuple(data["net_arch"])
-        return from_mapping(cls, data, name="train")
+        return config_from_dict(cls, data)
