@@ -131,5 +131,8 @@ class TeamVectorEnv(VectorEnv):
         return tuple(self.vector.render(i) for i in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Close the copies."""
-        self.vector.close()
+        """Close the copies (none if construction failed before they were made: Gymnasium's
+        ``__del__`` closes a half-built env too)."""
+        vector = self.__dict__.get("vector")
+        if vector is not None:
+            vector.close()
