@@ -9,19 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from training.cli import EXIT_STATUSES, build_parser, main
+from training.cli import EXIT_STATUSES, build_parser, leaf_commands, main
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "cli.md"
-
-
-def _commands(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()):
-    """``(command path, parser)`` of every command that runs (the leaves of the tree)."""
-    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
-    if not subs:
-        yield path, parser
-        return
-    for name, child in subs[0].choices.items():
-        yield from _commands(child, (*path, name))
 
 
 def _options(parser: argparse.ArgumentParser):
@@ -30,7 +20,8 @@ def _options(parser: argparse.ArgumentParser):
             yield action
 
 
-COMMANDS = dict(_commands(build_parser()))
+# (command path, parser) of every command that runs (the leaves of the tree)
+COMMANDS = {tuple(line.split()[1:]): parser for line, _, parser in leaf_commands(build_parser(), "moma-env")}
 
 
 def test_every_command_of_the_tree_is_listed():

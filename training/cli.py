@@ -27,6 +27,7 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from moma_env.config import ConfigError
 from moma_env.io import RunFolderError
@@ -42,7 +43,7 @@ from training.cli_args import (
     positive_float,
 )
 
-__all__ = ["main", "build_parser", "EXIT_STATUSES"]
+__all__ = ["main", "build_parser", "CommandParser", "leaf_commands", "EXIT_STATUSES"]
 
 #: The exit statuses of ``moma-env`` (the epilog of every ``--help``; docs/cli.md).
 EXIT_STATUSES = """exit status:
@@ -60,13 +61,44 @@ EXIT_STATUSES = """exit status:
 """
 
 
-def build_parser() -> argparse.ArgumentParser:
+class CommandParser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` that answers which sub-commands it has (argparse keeps them
+    only inside its actions): :attr:`subcommands`, name -> parser, and
+    :func:`leaf_commands` for the whole tree."""
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        super().__init__(*args, **kwargs)
+        self._subparsers_action: Any = None
+
+    def add_subparsers(self, **kwargs: Any) -> Any:
+        """As ``ArgumentParser.add_subparsers``; the sub-parsers are ``CommandParser`` too."""
+        kwargs.setdefault("parser_class", CommandParser)
+        self._subparsers_action = super().add_subparsers(**kwargs)
+        return self._subparsers_action
+
+    @property
+    def subcommands(self) -> dict[str, "CommandParser"]:
+        """Sub-command name -> its parser, in the order they were added (empty for a leaf)."""
+        return {} if self._subparsers_action is None else dict(self._subparsers_action.choices)
+
+
+def leaf_commands(parser: CommandParser, prefix: str) -> list[tuple[str, str, CommandParser]]:
+    """``(command line, description, parser)`` of every leaf command under ``parser``,
+    depth first, each command line starting with ``prefix``."""
+    leaves: list[tuple[str, str, CommandParser]] = []
+    for name, sub in parser.subcommands.items():
+        command = f"{prefix} {name}"
+        leaves += leaf_commands(sub, command) or [(command, sub.description or "", sub)]
+    return leaves
+
+
+def build_parser() -> CommandParser:
     """The argument parser of ``moma-env``: one ``_add_<command>`` function per subcommand.
 
     Building it (and ``--help``) imports no env, camera, pymunk, OpenCV, matplotlib,
     torch or Stable-Baselines3: each subcommand imports what it needs when it runs.
     """
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog="moma-env",
         description="MOMA visual mobile marker odometry environment (docs/cli.md).",
         epilog=EXIT_STATUSES,

@@ -505,26 +505,12 @@ def configurations_index() -> str:
 # ---------------------------------------------------------------------------- command line
 
 
-def _subcommands(parser: argparse.ArgumentParser, prefix: str) -> list[tuple[str, str, argparse.ArgumentParser]]:
-    """``(command, help, parser)`` of every leaf command under ``parser`` (argparse keeps
-    sub-parsers in its ``_actions``; there is no public accessor)."""
-    leaves = []
-    for action in parser._actions:  # noqa: SLF001 - argparse's own structure
-        if isinstance(action, argparse._SubParsersAction):  # noqa: SLF001
-            helps = {choice.dest: choice.help or "" for choice in action._choices_actions}  # noqa: SLF001
-            for name, sub in action.choices.items():
-                command = f"{prefix} {name}"
-                deeper = _subcommands(sub, command)
-                leaves += deeper or [(command, helps.get(name, ""), sub)]
-    return leaves
-
-
 def cli_page() -> str:
     """The ``moma-env`` page: a table of the commands, then each command's ``--help``."""
-    from training.cli import build_parser
+    from training.cli import build_parser, leaf_commands
 
     parser = build_parser()
-    commands = _subcommands(parser, parser.prog)
+    commands = leaf_commands(parser, parser.prog)
     if not commands:
         raise DocsError("training.cli.build_parser has no sub-commands")
     out = ["# Command-line reference: `moma-env`\n"]
