@@ -27,7 +27,7 @@ import numpy as np
 
 from agents.learned import MANIFEST, TrainingDirError
 from moma_env import ENV_VERSION
-from moma_env.env.parallel import OBSERVER, MomaParallelEnv
+from moma_env.env.parallel import MomaParallelEnv
 from moma_env.io import read_json_in
 
 __all__ = ["RllibPolicy", "is_rllib_run", "read_rllib_manifest", "BACKEND", "UGV_MODULE_PATH"]
@@ -129,7 +129,7 @@ class RllibPolicy:
         self._sampler = np.random.default_rng(0 if seed is None else seed)
         if env.config.action_mode != self.action_mode:
             raise ValueError(f"the policy was trained in {self.action_mode!r} mode; the env is in {env.config.action_mode!r} mode")
-        if OBSERVER in env.possible_agents:
+        if env.observer_agents:
             raise ValueError("the policy was trained with the observer flown by its tracking controller: build the env with observer_agent=False")
         self._env = env
         self._agents = list(env.possible_agents)

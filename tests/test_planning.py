@@ -312,7 +312,7 @@ def test_top_observer_switch_points_keep_the_team_away_from_the_image_border(n_u
     if max_altitude is not None:
         # A lower ceiling: without the preference, 3 robots' legs would reach 75 % of the coverage.
         uav = dataclasses.replace(scenario.world.uav, max_altitude=max_altitude)
-        scenario = dataclasses.replace(scenario, world=dataclasses.replace(scenario.world, uav=uav))
+        scenario = dataclasses.replace(scenario, world=dataclasses.replace(scenario.world, uavs=(uav,)))
     result = plan(scenario)
     assert validate(scenario, result) == []
     checker = RuleChecker(scenario)

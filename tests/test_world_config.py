@@ -44,7 +44,7 @@ def test_defaults_are_valid_and_follow_the_paper():
     assert ugv.board_height == 0.40
     uav = UAVConfig()
     assert uav.kind == "quadcopter" and uav.altitude == 1.6
-    config = WorldConfig(ugvs=(ugv,), uav=uav)
+    config = WorldConfig(ugvs=(ugv,), uavs=(uav,))
     assert config.dt == pytest.approx(0.04)
     assert config.arena.bounds == (-1.5, -1.5, 4.5, 4.5)
 
@@ -88,7 +88,7 @@ def test_mapping_builds_the_same_config_as_python():
             UGVConfig("a", static=False),
             UGVConfig("b", (1.0, 0.0, 0.0), board=board_for_robot(1), cameras=(CameraMount("b/front", camera_forward()),)),
         ),
-        uav=UAVConfig.handheld(altitude=1.2),
+        uavs=(UAVConfig.handheld(altitude=1.2),),
         control_hz=30.0,
     )
     assert world_config_from_mapping(mapping) == expected
@@ -128,8 +128,8 @@ def test_duplicate_names_are_rejected():
         two_robots(name="a")
     assert field_of(excinfo) == "ugvs[1].name"
     with pytest.raises(ConfigError) as excinfo:
-        WorldConfig(ugvs=(UGVConfig("uav"),), uav=UAVConfig())
-    assert field_of(excinfo) == "uav.name"
+        WorldConfig(ugvs=(UGVConfig("uav"),), uavs=(UAVConfig(),))
+    assert field_of(excinfo) == "uavs[0].name"
     cam = CameraMount("cam", camera_forward())
     with pytest.raises(ConfigError) as excinfo:
         WorldConfig(
@@ -137,8 +137,8 @@ def test_duplicate_names_are_rejected():
         )
     assert field_of(excinfo) == "ugvs[1].cameras[0].name"
     with pytest.raises(ConfigError) as excinfo:
-        WorldConfig(ugvs=(UGVConfig("a", cameras=(CameraMount("uav/camera", camera_forward()),)),), uav=UAVConfig())
-    assert field_of(excinfo) == "uav.camera_name"
+        WorldConfig(ugvs=(UGVConfig("a", cameras=(CameraMount("uav/camera", camera_forward()),)),), uavs=(UAVConfig(),))
+    assert field_of(excinfo) == "uavs[0].camera_name"
 
 
 def test_colliding_marker_ids_are_rejected():

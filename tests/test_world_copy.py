@@ -32,7 +32,7 @@ CONFIG = WorldConfig(
         UGVConfig("c", (0.0, 0.6, 1.2), static=False, board=board_for_robot(3)),
     ),
     sleds=(SledConfig("s", "a", initial_pose=(-0.65, 0.0, 0.0), static=False),),
-    uav=UAVConfig(),
+    uavs=(UAVConfig(),),
 )
 
 COPIES: dict[str, Callable[[World], World]] = {

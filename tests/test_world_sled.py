@@ -450,7 +450,7 @@ def one_sled(**sled) -> WorldConfig:
         (lambda: WorldConfig(ugvs=(UGVConfig("a"),), sleds=(UGVConfig("b", (1, 1, 0)),)), "sleds[0]"),
         (lambda: WorldConfig(sleds=3), "sleds"),
         (lambda: WorldConfig(ugvs=(UGVConfig("a"),), sleds=(SledConfig(robot="a", initial_pose=(-1, 0, 0)),),
-                             uav=UAVConfig(name="sled")), "uav.name"),
+                             uavs=(UAVConfig(name="sled"),)), "uavs[0].name"),
     ],
 )
 def test_bad_sled_values_name_their_field(make, field):

@@ -69,7 +69,7 @@ def test_robot_camera_follows_the_robot():
 def test_camera_names_list_robot_cameras_then_the_uav_camera():
     config = WorldConfig(
         ugvs=(UGVConfig("a", cameras=(CameraMount("a/front", camera_forward()),)),),
-        uav=UAVConfig(camera_name="drone"),
+        uavs=(UAVConfig(camera_name="drone"),),
     )
     assert World(config).camera_names == ("a/front", "drone")
 

@@ -15,7 +15,7 @@ from moma_env.world import UAVConfig, UGVConfig, World, WorldConfig, uav_body_tr
 
 
 def uav_world(uav: UAVConfig | None = None) -> World:
-    return World(WorldConfig(uav=uav or UAVConfig()))
+    return World(WorldConfig(uavs=(uav or UAVConfig(),)))
 
 
 def fly(world: World, command, steps: int) -> list:
@@ -126,7 +126,7 @@ def test_body_transform_matches_the_rotation_product(yaw, pitch, roll):
 
 
 def test_level_uav_camera_looks_straight_down_from_below_the_body():
-    world = World(WorldConfig(uav=UAVConfig(initial=(1.0, 2.0, 0.3), altitude=1.6)))
+    world = World(WorldConfig(uavs=(UAVConfig(initial=(1.0, 2.0, 0.3), altitude=1.6),)))
     T_w_c = world.camera_transform("uav/camera")
     np.testing.assert_allclose(T_w_c[:3, 2], [0.0, 0.0, -1.0], atol=1e-15)
     np.testing.assert_allclose(T_w_c[:3, 3], [1.0, 2.0, 1.55], atol=1e-15)

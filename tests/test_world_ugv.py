@@ -248,7 +248,7 @@ def scripted_run(world: World, steps: int = 120) -> np.ndarray:
 def test_determinism_same_commands_give_identical_states():
     config = WorldConfig(
         ugvs=(robot("a", (0.0, 0.0, 0.0), 0), robot("b", (0.8, 0.3, 1.0), 1, static=True)),
-        uav=UAVConfig(initial=(0.5, 0.5, 0.0)),
+        uavs=(UAVConfig(initial=(0.5, 0.5, 0.0)),),
     )
     first, second = World(config), World(config)
     run_a, run_b = scripted_run(first), scripted_run(second)

@@ -108,7 +108,7 @@ def world_config(name: str, options: dict[str, Any] | None = None) -> WorldConfi
     config = make_scenario(name, **(options or {})).world
     return dataclasses.replace(
         config,
-        uav=None,
+        uavs=(),
         ugvs=tuple(dataclasses.replace(u, static=False) for u in config.ugvs),
         sleds=tuple(dataclasses.replace(s, static=False) for s in config.sleds),
     )

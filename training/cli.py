@@ -256,6 +256,11 @@ def _add_compare(exp_sub) -> None:
         "--max-time", type=positive_float("time limit (s)"), default=None,
         help="simulated time limit of a run in s; a run stopped by it makes the exit status 1 (default: the experiment's)",
     )
+    comp.add_argument(
+        "--observers", type=name_list("observer", ("quadcopter", "handheld"), repeats=True), default=None,
+        help="comma-separated observer kinds (quadcopter, handheld) watching the pair at once, e.g. quadcopter,quadcopter: "
+        "each alone, then all together (default: the experiment's one observer)",
+    )
     comp.add_argument("--json", action="store_true", help="print the rows as JSON instead of the table")
     comp.set_defaults(handler=_run_compare)
 

@@ -55,15 +55,16 @@ def int_at_least(minimum: int, what: str) -> Callable[[str], int]:
     return parse
 
 
-def name_list(what: str, known: Sequence[str]) -> Callable[[str], list[str]]:
-    """An argparse type: a comma-separated list of names out of ``known`` (duplicates dropped)."""
+def name_list(what: str, known: Sequence[str], *, repeats: bool = False) -> Callable[[str], list[str]]:
+    """An argparse type: a comma-separated list of names out of ``known`` (duplicates dropped
+    unless ``repeats``: a list of kinds, e.g. two quadcopters)."""
 
     def parse(text: str) -> list[str]:
         names = [n.strip() for n in text.split(",") if n.strip()]
         bad = [n for n in names if n not in known]
         if not names or bad:
             raise argparse.ArgumentTypeError(f"unknown {what} {', '.join(bad) or repr(text)}; known: {', '.join(known)}")
-        return list(dict.fromkeys(names))
+        return names if repeats else list(dict.fromkeys(names))
 
     return parse
 

@@ -248,8 +248,8 @@ def _envs(name: str) -> dict[str, Any]:
 
 
 def _agent_role(env: Any, agent: str) -> str:
-    if agent == "observer":
-        return "the observer (UAV or hand-held camera)"
+    if agent in env.observer_agents:
+        return "an observer (UAV or hand-held camera)" if len(env.observer_agents) > 1 else "the observer (UAV or hand-held camera)"
     sled = {robot: sled for robot, sled in ((s.robot, s.name) for s in env.scenario.world.sleds)}.get(agent)
     return f"UGV towing `{sled}`" if sled else "UGV"
 
@@ -361,7 +361,7 @@ def configuration_page(name: str) -> str:
     out.append(f"| episode length with the defaults | {scenario.max_cycles} steps (`max_cycles`) |\n")
 
     out.append("## Agents and spaces\n")
-    has_observer = scenario.world.uav is not None
+    has_observer = bool(scenario.world.uavs)
     observer_note = (
         " In `switching` mode the observer flies itself (its tracking controller, on the detections) unless "
         "`observer_agent=True`; in `velocity` mode it is an agent unless `observer_agent=False`."

@@ -58,9 +58,9 @@ class GreedyParallelPolicy:
         """Read the agents, goals and normalisations; forget the last episode."""
         if not env.config.action_masks:
             raise ValueError("GreedyParallelPolicy reads the action masks: make the env with action_masks=True")
-        self.ugvs = tuple(a for a in env.possible_agents if a != "observer")
+        self.ugvs = tuple(a for a in env.possible_agents if a not in env.observer_agents)
         for agent in env.possible_agents:
-            if agent == "observer":
+            if agent in env.observer_agents:
                 raise ValueError("GreedyParallelPolicy cannot fly a learning observer agent; use observer_agent=False")
             space = env.action_space(agent)
             if not isinstance(space, spaces.Discrete):

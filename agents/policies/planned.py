@@ -36,7 +36,7 @@ from gymnasium import spaces
 
 from agents.policies.base import MOVE, REQUEST, STOP, WAIT, FeatureIndex, read_info
 from moma_env.control import BoardTrackingController, WaypointFollower, WaypointFollowerConfig
-from moma_env.env.parallel import OBSERVER, MomaParallelEnv
+from moma_env.env.parallel import MomaParallelEnv
 from moma_env.planning import Plan, plan
 
 __all__ = ["PlannedPolicy"]
@@ -80,7 +80,7 @@ class PlannedPolicy:
         scenario = env.scenario
         world = scenario.world
         self.plan: Plan = plan(scenario)
-        self.ugvs: tuple[str, ...] = tuple(a for a in env.possible_agents if a != OBSERVER)
+        self.ugvs: tuple[str, ...] = tuple(a for a in env.possible_agents if a not in env.observer_agents)
         self.tows: dict[str, str] = dict(env.layout.tows)
         self._robot_of: dict[str, str] = {sled: robot for robot, sled in self.tows.items()}
         for turn in self.plan.turns:
@@ -97,12 +97,16 @@ class PlannedPolicy:
         self._rope_target = {s.name: s.rope_length for s in getattr(world, "sleds", ())}
         self._max_rope = {s.name: s.max_rope for s in getattr(world, "sleds", ())}
         self._dt = 1.0 / world.control_hz
-        self._tracker: BoardTrackingController | None = None
-        if OBSERVER in env.possible_agents:
-            uav = world.uav
-            self._tracker = BoardTrackingController(uav.camera_mount[:3, :3], scenario.camera.fx, (scenario.camera.width, scenario.camera.height))
-            self._uav_scale = np.array([uav.max_speed, uav.max_speed, uav.max_yaw_rate, uav.max_climb])
-            self._observer_devices = tuple(env.layout.devices)
+        # Observer agent -> (its tracking controller, its command -> action scale); the agents follow world.uavs.
+        image_size = (scenario.camera.width, scenario.camera.height)
+        self._trackers = {
+            agent: (
+                BoardTrackingController(uav.camera_mount[:3, :3], scenario.camera.fx, image_size),
+                np.array([uav.max_speed, uav.max_speed, uav.max_yaw_rate, uav.max_climb]),
+            )
+            for agent, uav in zip(env.observer_agents, world.uavs)
+        }
+        self._observer_devices = tuple(env.layout.devices)
         self.turn_index = 0
         self.device_order: list[str] = []  # devices in the order their mobile requests were granted
         self._phase = WAIT
@@ -129,9 +133,10 @@ class PlannedPolicy:
         """Actions of every agent in ``observations``: the turn's device moves, the others hold."""
         if not self._ready:
             raise RuntimeError("call reset(env) before act()")
-        actions = {a: self._hold(a) for a in observations if a != OBSERVER}
-        if OBSERVER in observations:
-            actions[OBSERVER] = self._observer_action(observations[OBSERVER])
+        actions = {a: self._hold(a) for a in observations if a not in self._trackers}
+        for agent in self._trackers:
+            if agent in observations:
+                actions[agent] = self._observer_action(agent, observations[agent])
         current = self._current_turn(observations)
         if current is None:
             return actions
@@ -212,15 +217,15 @@ class PlannedPolicy:
         action[4] = 1.0
         action[5] = 1.0
 
-    def _observer_action(self, observation: np.ndarray) -> np.ndarray:
-        """Tracking command from the board positions in the camera frame, scaled to [-1, 1]."""
-        assert self._tracker is not None
-        features = self._features[OBSERVER]
+    def _observer_action(self, agent: str, observation: np.ndarray) -> np.ndarray:
+        """Observer ``agent``'s tracking command from the board positions in its camera frame, scaled to [-1, 1]."""
+        tracker, scale = self._trackers[agent]
+        features = self._features[agent]
         positions = []
         for device in self._observer_devices:
             if observation[features[f"{device}.seen"]] < 0.5:
                 continue
             z = float(observation[features[f"{device}.depth"]]) * _DEPTH_SCALE_M
             positions.append((float(observation[features[f"{device}.x_over_z"]]) * z, float(observation[features[f"{device}.y_over_z"]]) * z, z))
-        command = self._tracker.command(positions)
-        return np.clip(command / self._uav_scale, -1.0, 1.0).astype(np.float32)
+        command = tracker.command(positions)
+        return np.clip(command / scale, -1.0, 1.0).astype(np.float32)

@@ -63,7 +63,7 @@ class TurnTakingPolicy:
     # ------------------------------------------------------------------ episode facts
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
         """Read agents, layouts, goals and switching parameters; forget the last episode."""
-        self.ugvs: tuple[str, ...] = tuple(a for a in env.possible_agents if a in env.layout.features and a != "observer")
+        self.ugvs: tuple[str, ...] = tuple(a for a in env.possible_agents if a in env.layout.features and a not in env.observer_agents)
         for agent in env.possible_agents:
             if agent in self.ugvs and not isinstance(env.action_space(agent), spaces.Discrete):
                 raise ValueError(f"{type(self).__name__} needs action_mode='switching'; {agent} has {env.action_space(agent)}")

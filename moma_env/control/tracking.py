@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from moma_env.config import ConfigError, check_positive, check_range
+from moma_env.config import ConfigError, check_numbers, check_positive, check_range
 
 __all__ = ["TrackingControllerConfig", "BoardTrackingController"]
 
@@ -36,6 +36,10 @@ class TrackingControllerConfig:
         board_radius: half-diagonal of a board (m), kept inside the image too.
         min_depth, max_depth: limits of the target distance camera->boards (m).
         search_climb: climb rate when no board is visible (m/s).
+        target_offset: where the boards' centroid is held, ``(forward, left)`` (m)
+            in the UAV's body frame from below the camera (default: centred); an
+            observer beside another holds the team off its axis, and its view
+            widens by the offset's length to keep every board in the image.
     """
 
     gain: float = 0.8
@@ -47,8 +51,10 @@ class TrackingControllerConfig:
     min_depth: float = 0.9
     max_depth: float = 3.0
     search_climb: float = 0.2
+    target_offset: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "target_offset", check_numbers("tracking.target_offset", self.target_offset, ("forward", "left")))
         for name in ("gain", "altitude_gain", "max_speed", "max_climb", "board_radius", "min_depth", "max_depth", "search_climb"):
             check_positive(f"tracking.{name}", getattr(self, name))
         check_range("tracking.fill", self.fill, 0.05, 1.0)
@@ -71,11 +77,17 @@ class BoardTrackingController:
         self.config = config or TrackingControllerConfig()
         self._R_b_c_rows = np.asarray(R_b_c, dtype=float)[:3, :3].tolist()
         self._half_fov_tan = min(image_size) / 2.0 / focal_px
+        ox, oy = self.config.target_offset
+        self._offset = None if ox == 0.0 and oy == 0.0 else (ox, oy, math.hypot(ox, oy))
 
     def target_depth(self, spread: float) -> float:
-        """Distance (m) at which boards ``spread`` metres apart fill the image fraction."""
+        """Distance (m) at which boards ``spread`` metres apart (held :attr:`TrackingControllerConfig.target_offset`
+        off the axis) fill the image fraction."""
         c = self.config
-        needed = (spread / 2.0 + c.board_radius) / (c.fill * self._half_fov_tan)
+        reach = spread / 2.0 + c.board_radius
+        if self._offset is not None:
+            reach += self._offset[2]
+        needed = reach / (c.fill * self._half_fov_tan)
         return min(c.max_depth, max(c.min_depth, needed))
 
     def command(self, board_positions_c: Sequence[np.ndarray]) -> np.ndarray:
@@ -94,6 +106,9 @@ class BoardTrackingController:
         R = self._R_b_c_rows
         vx = c.gain * (R[0][0] * cx + R[0][1] * cy)
         vy = c.gain * (R[1][0] * cx + R[1][1] * cy)
+        if self._offset is not None:
+            vx -= c.gain * self._offset[0]
+            vy -= c.gain * self._offset[1]
         speed = math.hypot(vx, vy)
         if speed > c.max_speed:
             vx *= c.max_speed / speed

@@ -33,8 +33,6 @@ from moma_env.sim import Frame, Simulation, Switch
 
 __all__ = ["ACTION_MODE_TYPES", "ActionMode", "EventLog", "SwitchingActions", "VelocityActions", "action_mode"]
 
-#: Name of the observer agent.
-OBSERVER = "observer"
 #: A reeled sled whose rope has not shortened for this long (s) is declared static.
 _REEL_STALL_S = 1.0
 #: A leg of the switching mode whose robot has come no closer to the leg's end for this

@@ -32,7 +32,7 @@ others (each)       dx, dy in its body frame, cos(dyaw), sin(dyaw), valid,
 sled (towing only)  rope length / max rope
 ==================  ==========================================================
 
-Observer ``observer``: own pose (x, y, cos, sin, valid), altitude estimate / 4 m,
+Each observer (``observer``, or ``observer_<k>`` with several): own pose (x, y, cos, sin, valid), altitude estimate / 4 m,
 status one-hot, position and heading standard deviations (scaled as a UGV's), then per device: seen, x/z and y/z of its board in the camera
 frame (clipped to [-2, 2]), depth z / 4 m (clipped to [0, 2]); then timing.
 """
@@ -214,7 +214,7 @@ class ObservationLayout:
         devices: UGVs then sleds, in a fixed order.
         ugv_agents: the UGV agents.
         tows: UGV -> the sled it tows (if any).
-        has_observer: whether an observer agent exists.
+        observer_agents: the observer agents (none, one or several), each with the observer's features.
         centre: arena centre (x, y) in W (m).
         half_diagonal: arena half-diagonal (m).
         dwell_s: the rules' dwell time (s).
@@ -225,7 +225,7 @@ class ObservationLayout:
         devices: Sequence[str],
         ugv_agents: Sequence[str],
         tows: Mapping[str, str],
-        has_observer: bool,
+        observer_agents: Sequence[str],
         centre: tuple[float, float],
         half_diagonal: float,
         dwell_s: float,
@@ -233,8 +233,8 @@ class ObservationLayout:
         self.devices = tuple(devices)
         self.tows = dict(tows)
         self.features = {a: ugv_features(self.devices, a, a in self.tows) for a in ugv_agents}
-        if has_observer:
-            self.features["observer"] = observer_features(self.devices)
+        for agent in observer_agents:
+            self.features[agent] = observer_features(self.devices)
         self.spaces = {a: _box(f) for a, f in self.features.items()}
         self._bounds = {a: (space.low, space.high) for a, space in self.spaces.items()}
         self._others = {a: tuple(d for d in self.devices if d != a) for a in ugv_agents}
@@ -307,6 +307,7 @@ class ObservationLayout:
 
     def observer(
         self,
+        agent: str,
         pose: tuple[float, float, float] | None,
         altitude: float | None,
         status: Status,
@@ -315,7 +316,7 @@ class ObservationLayout:
         since_switch: float,
         dwell_remaining: float,
     ) -> np.ndarray:
-        """Observation vector of the observer; ``std``: its position and heading standard
+        """Observation vector of observer ``agent``; ``std``: its position and heading standard
         deviations (m, rad; NaN without an estimate); ``board_in_camera``: device -> board
         position in C (m)."""
         out: list[float] = []
@@ -330,4 +331,4 @@ class ObservationLayout:
             else:
                 out += [1.0, p[0] / p[2], p[1] / p[2], p[2] / _ALTITUDE_SCALE_M]
         self._timing(out, since_switch, dwell_remaining)
-        return self._finish("observer", out)
+        return self._finish(agent, out)

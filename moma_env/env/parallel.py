@@ -8,8 +8,9 @@ localiser updates; the reward (:mod:`moma_env.env.rewards`) and the
 observations (:mod:`moma_env.env.observations`) are built from the step's
 :class:`~moma_env.sim.Frame`, observations from the estimates only.
 
-Agents: the UGVs (``ugv_0``, ``ugv_1``, ...) and, when it is a learning agent,
-the UAV ``observer``. A sled is a device without an agent: the robot that tows it
+Agents: the UGVs (``ugv_0``, ``ugv_1``, ...) and, when they are learning agents,
+the observers: the UAV ``observer``, or ``observer_0``, ``observer_1``, ... when
+several watch the team (:mod:`moma_env.env.agent_names`). A sled is a device without an agent: the robot that tows it
 commands its state and its reel.
 
 Actions (chosen by ``EnvConfig.action_mode``; see :mod:`moma_env.env.actions`):
@@ -18,7 +19,7 @@ Actions (chosen by ``EnvConfig.action_mode``; see :mod:`moma_env.env.actions`):
   its max speed), yaw rate (times its max yaw rate), and a mobile request (> 0:
   be mobile, <= 0: be static). A robot towing a sled sends two more values: the
   reel rate (> 0 reels in) and the sled's mobile request: ``Box(-1, 1, (6,))``.
-  The observer sends ``Box(-1, 1, (4,))``: vx, vy, yaw rate, climb rate (times
+  An observer sends ``Box(-1, 1, (4,))``: vx, vy, yaw rate, climb rate (times
   its limits).
 * ``switching``: a UGV sends ``Discrete(2)``: 0 hold (be static), 1 advance (be
   mobile and drive the next leg towards its goal with the built-in controller;
@@ -27,8 +28,8 @@ Actions (chosen by ``EnvConfig.action_mode``; see :mod:`moma_env.env.actions`):
   blocked by a static robot, an obstacle or a wall, stops there and is declared
   static, event ``leg_blocked:<robot>``). A robot towing a
   sled has ``Discrete(3)``: 2 holds the robot and reels the sled in (sled
-  mobile until the rope is at its minimum or the sled is stuck, then static). The observer, if an agent, keeps the velocity
-  Box; otherwise its tracking controller flies it. With ``EnvConfig.action_masks``
+  mobile until the rope is at its minimum or the sled is stuck, then static). An observer, if an agent, keeps the velocity
+  Box; otherwise its own tracking controller flies it. With ``EnvConfig.action_masks``
   every UGV's ``infos`` carry ``"action_mask"`` (:meth:`MomaParallelEnv.action_mask`).
 
 Seeds follow Gymnasium: ``reset(seed=None)`` or a non-negative integer.
@@ -47,7 +48,8 @@ from pettingzoo import ParallelEnv
 
 from moma_env.camera import BoardView
 from moma_env.control import BoardTrackingController
-from moma_env.env.actions import OBSERVER, ActionMode, SwitchingActions, action_mode, parse_box
+from moma_env.env.actions import ActionMode, SwitchingActions, action_mode, parse_box
+from moma_env.env.agent_names import OBSERVER, observer_agent_names
 from moma_env.env.cameras import build_cameras, floor_for
 from moma_env.env.config import EnvConfig, checked_max_cycles
 from moma_env.env.observations import ObservationLayout, device_snapshots, padded
@@ -170,7 +172,7 @@ class MomaParallelEnv(ParallelEnv):
     @staticmethod
     def _robots_signature(s: Scenario) -> tuple:
         sleds = tuple((sled.name, sled.robot) for sled in s.world.sleds)
-        return (s.world.ugv_names, sleds, s.world.uav is not None, tuple(sorted(s.goals)))
+        return (s.world.ugv_names, sleds, s.world.uav_names, tuple(sorted(s.goals)))
 
     def _setup(self, scenario: Scenario) -> None:
         """Build the episode's simulation, action mode, observation layout and spaces."""
@@ -181,15 +183,16 @@ class MomaParallelEnv(ParallelEnv):
         self._towed_by: dict[str, str] = {}  # sled -> the robot towing it (the first, if several)
         for robot, sled in self._tows.items():
             self._towed_by.setdefault(sled, robot)
-        self._has_uav = wc.uav is not None
+        self._uavs = wc.uavs
         agents = list(self._ugvs)
-        self._observer_agent = self._has_uav and self.config.observer_is_agent
-        if self._observer_agent:
-            agents.append(OBSERVER)
+        # Observer agent -> its UAV, and the UAV's name -> its agent (empty when the trackers fly them).
+        self._observers = dict(zip(observer_agent_names(len(wc.uavs)), wc.uavs)) if self.config.observer_is_agent else {}
+        self._observer_of = {uav.name: agent for agent, uav in self._observers.items()}
+        agents += self._observers
         self.possible_agents = agents
         self.agents = []
 
-        camera_names = [c.name for u in wc.ugvs for c in u.cameras] + ([wc.uav.camera_name] if self._has_uav else [])
+        camera_names = [c.name for u in wc.ugvs for c in u.cameras] + [uav.camera_name for uav in wc.uavs]
         self._floor = floor_for(self.config, wc.arena.bounds, self._floor)
         cameras = build_cameras(camera_names, scenario.camera, self.config, self._floor)
         localiser = {} if self.config.localiser is None else {"localiser": self.config.localiser_factory}
@@ -207,7 +210,7 @@ class MomaParallelEnv(ParallelEnv):
         centre = ((xmin + xmax) / 2.0, (ymin + ymax) / 2.0)
         half_diag = 0.5 * math.hypot(xmax - xmin, ymax - ymin)
         devices = self.simulation.devices
-        self.layout = ObservationLayout(devices, self._ugvs, self._tows, self._observer_agent, centre, half_diag, scenario.dwell_s)
+        self.layout = ObservationLayout(devices, self._ugvs, self._tows, tuple(self._observers), centre, half_diag, scenario.dwell_s)
         if not hasattr(self, "_action_spaces"):
             # The spaces are made once: every scenario of the env has the same robots, and a
             # space object (with its sampling generator) stays the same across resets.
@@ -220,16 +223,15 @@ class MomaParallelEnv(ParallelEnv):
                 low = np.minimum.reduce([space.low for space in grown])
                 high = np.maximum.reduce([space.high for space in grown])
                 vector_spaces = {a: spaces.Box(low=low, high=high, dtype=np.float32) for a in vector_spaces}
-            self._observation_spaces = observation_spaces(vector_spaces, OBSERVER, self.config.observer_image)
+            self._observation_spaces = observation_spaces(vector_spaces, tuple(self._observers), self.config.observer_image)
             self._action_spaces = {a: self._make_action_space(a) for a in self.possible_agents}
-        if self._has_uav:
-            uav = wc.uav
-            self._tracker = BoardTrackingController(uav.camera_mount[:3, :3], scenario.camera.fx, (scenario.camera.width, scenario.camera.height))
-        n_state = 5 * len(devices) + (7 if self._has_uav else 0) + 4 * len(self._ugvs)
+        image_size = (scenario.camera.width, scenario.camera.height)
+        self._trackers = {uav.name: BoardTrackingController(uav.camera_mount[:3, :3], scenario.camera.fx, image_size) for uav in wc.uavs}
+        n_state = 5 * len(devices) + 7 * len(wc.uavs) + 4 * len(self._ugvs)
         self.state_space = spaces.Box(-np.inf, np.inf, shape=(n_state,), dtype=np.float32)
 
     def _make_action_space(self, agent: str) -> spaces.Space:
-        if agent == OBSERVER:
+        if agent in self._observers:
             return spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         return self._mode.space(agent)
 
@@ -263,6 +265,11 @@ class MomaParallelEnv(ParallelEnv):
     def action_mode(self) -> ActionMode:
         """The action mode object (``EnvConfig.action_mode``)."""
         return self._mode
+
+    @property
+    def observer_agents(self) -> tuple[str, ...]:
+        """The observers among ``possible_agents`` (none when their trackers fly them)."""
+        return tuple(self._observers)
 
     @property
     def devices(self) -> tuple[str, ...]:
@@ -387,10 +394,13 @@ class MomaParallelEnv(ParallelEnv):
                 raise KeyError(f"action for unknown agent {agent!r}; agents are {self.agents}")
         mode = self._mode
         sim = self.simulation
-        parsed = {a: mode.parse(a, actions.get(a), self._action_spaces[a]) for a in self.agents if a != OBSERVER}
-        observer_action = None
-        if OBSERVER in self.agents:
-            observer_action = parse_box(OBSERVER, actions[OBSERVER], self._action_spaces[OBSERVER]) if actions.get(OBSERVER) is not None else [0.0] * 4
+        observers = self._observers
+        parsed = {a: mode.parse(a, actions.get(a), self._action_spaces[a]) for a in self.agents if a not in observers}
+        observer_actions = {
+            a: [0.0] * 4 if actions.get(a) is None else parse_box(a, actions[a], self._action_spaces[a])
+            for a in self.agents
+            if a in observers
+        }
         events: dict[str, list[str]] = {a: [] for a in self.agents}
 
         def note(device: str, event: str) -> None:
@@ -412,7 +422,7 @@ class MomaParallelEnv(ParallelEnv):
 
         # 2. Commands, 3. physics, cameras, localiser.
         velocities = mode.commands(parsed, sim, note)
-        detections = yield sim.move(velocities, self._uav_command(observer_action))
+        detections = yield sim.move(velocities, self._uav_command(observer_actions))
         frame = sim.localise(detections)
         if mode.after_step(sim, note):
             frame = sim.refresh()
@@ -436,15 +446,24 @@ class MomaParallelEnv(ParallelEnv):
             self.render()
         return observations, rewards, terminations, truncations, infos
 
-    def _uav_command(self, observer_action: list[float] | None) -> np.ndarray | None:
-        if not self._has_uav:
+    def _uav_command(self, observer_actions: Mapping[str, list[float]]) -> np.ndarray | dict[str, np.ndarray] | None:
+        """The UAVs' commands: an agent's action scaled to its limits, else its tracker's
+        command from its camera's last detections. One UAV: its command; several: UAV name ->
+        command; none: None."""
+        if not self._uavs:
             return None
-        uav = self.scenario.world.uav
-        if observer_action is not None:
-            a = observer_action
-            return np.array([a[0] * uav.max_speed, a[1] * uav.max_speed, a[2] * uav.max_yaw_rate, a[3] * uav.max_climb])
-        positions = [d.T_c_m[:3, 3].tolist() for d in self.simulation.frame.detections if d.camera_id == uav.camera_name]
-        return self._tracker.command(positions)
+        commands = {}
+        for uav in self._uavs:
+            agent = self._observer_of.get(uav.name)
+            a = None if agent is None else observer_actions.get(agent)
+            if a is not None:
+                commands[uav.name] = np.array([a[0] * uav.max_speed, a[1] * uav.max_speed, a[2] * uav.max_yaw_rate, a[3] * uav.max_climb])
+            else:
+                positions = [d.T_c_m[:3, 3].tolist() for d in self.simulation.frame.detections if d.camera_id == uav.camera_name]
+                commands[uav.name] = self._trackers[uav.name].command(positions)
+        if len(commands) == 1:
+            return commands[self._uavs[0].name]
+        return commands
 
     # ------------------------------------------------------------------ observations
     def _observations(self, frame: Frame) -> dict[str, np.ndarray]:
@@ -455,33 +474,36 @@ class MomaParallelEnv(ParallelEnv):
         since = frame.time - frame.last_switch_time
         dwell_left = frame.dwell_remaining
         obs = {}
+        observers = self._observers
         for agent in self.agents:
-            if agent == OBSERVER:
+            if agent in observers:
                 continue
             rope = None
             sled = self._tows.get(agent)
             if sled is not None:
                 rope = frame.ropes[sled] / self.scenario.world.sled(sled).max_rope
             obs[agent] = self.layout.ugv(agent, snaps, self.scenario.goals.get(agent), since, dwell_left, rope)
-        if self._observer_agent and OBSERVER in self.agents:
-            uav = self.scenario.world.uav
-            e = frame.estimates[uav.name]
-            pose = None if e.T_w_b is None or e.status is Status.LOST else se3_to_se2(e.T_w_b)
-            altitude = None if pose is None else float(e.T_w_b[2, 3])
-            in_cam = {sim.board_device(d.board_id): d.T_c_m[:3, 3] for d in frame.detections if d.camera_id == uav.camera_name}
-            std = (e.position_std_m, e.heading_std_rad)
-            obs[OBSERVER] = self.layout.observer(pose, altitude, e.status, std, in_cam, since, dwell_left)
+        for agent, uav in observers.items():
+            if agent in self.agents:
+                e = frame.estimates[uav.name]
+                pose = None if e.T_w_b is None or e.status is Status.LOST else se3_to_se2(e.T_w_b)
+                altitude = None if pose is None else float(e.T_w_b[2, 3])
+                in_cam = {sim.board_device(d.board_id): d.T_c_m[:3, 3] for d in frame.detections if d.camera_id == uav.camera_name}
+                std = (e.position_std_m, e.heading_std_rad)
+                obs[agent] = self.layout.observer(agent, pose, altitude, e.status, std, in_cam, since, dwell_left)
         if self._pad is not None:
             obs = {a: padded(o, self._pad) for a, o in obs.items()}
-        if OBSERVER in obs and self.config.observer_image is not None:
-            image = sim.cameras[self.scenario.world.uav.camera_name].last_image
-            obs[OBSERVER] = observer_observation(obs[OBSERVER], image, self.config.observer_image)
+        if self.config.observer_image is not None:
+            for agent, uav in observers.items():
+                if agent in obs:
+                    image = sim.cameras[uav.camera_name].last_image
+                    obs[agent] = observer_observation(obs[agent], image, self.config.observer_image)
         return obs
 
     def _info(self, frame: Frame, agent: str, events: list[str], terms: Mapping[str, float], collisions: int) -> dict:
-        if agent == OBSERVER:
-            uav = self.scenario.world.uav
-            s = frame.uav
+        uav = self._observers.get(agent)
+        if uav is not None:
+            s = frame.uavs[uav.name]
             e = frame.estimates[uav.name]
             if e.T_w_b is None:
                 err = None
@@ -525,7 +547,7 @@ class MomaParallelEnv(ParallelEnv):
         if self.config.action_masks:
             masks = self.action_masks()
             for agent in self.agents:
-                if agent != OBSERVER:
+                if agent not in self._observers:
                     infos[agent]["action_mask"] = masks[agent]
         return infos
 
@@ -561,20 +583,19 @@ class MomaParallelEnv(ParallelEnv):
         and reported in ``infos`` as usual.
         """
         space = self._action_spaces[self._checked_agent(agent)]
-        if not isinstance(space, spaces.Discrete) or agent == OBSERVER:
+        if not isinstance(space, spaces.Discrete) or agent in self._observers:
             raise ValueError(f"action masks are for the UGVs' switching actions; {agent!r} has {space}")
         return self._switching().mask(agent, self.simulation)
 
     # ------------------------------------------------------------------ state, render
     def state(self) -> np.ndarray:
-        """Global truth for centralised critics: device poses, UAV pose, goals."""
+        """Global truth for centralised critics: device poses, the UAVs' poses, goals."""
         frame = self._require_reset()
         out: list[float] = []
         for device in self.simulation.devices:
             x, y, yaw = frame.truth[device]
             out += [x, y, math.cos(yaw), math.sin(yaw), 0.0 if device in frame.mobile else 1.0]
-        if self._has_uav:
-            s = frame.uav
+        for s in frame.uavs.values():
             out += [s.x, s.y, s.z, math.cos(s.yaw), math.sin(s.yaw), s.roll, s.pitch]
         for ugv in self._ugvs:
             goal = self.scenario.goals.get(ugv)

@@ -9,7 +9,7 @@ channel-last layout image policies (e.g. SB3's ``MultiInputPolicy``) expect.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import cv2
 import numpy as np
@@ -25,12 +25,13 @@ def image_space(size: tuple[int, int]) -> spaces.Box:
 
 
 def observation_spaces(
-    vector_spaces: Mapping[str, spaces.Space], observer: str, size: tuple[int, int] | None
+    vector_spaces: Mapping[str, spaces.Space], observers: Sequence[str], size: tuple[int, int] | None
 ) -> dict[str, spaces.Space]:
-    """Every agent's observation space: the vector spaces, the observer's in a Dict with its image if ``size``."""
+    """Every agent's observation space: the vector spaces, each observer's in a Dict with its image if ``size``."""
     out = dict(vector_spaces)
-    if size is not None and observer in out:
-        out[observer] = spaces.Dict({"features": out[observer], "image": image_space(size)})
+    if size is not None:
+        for observer in observers:
+            out[observer] = spaces.Dict({"features": out[observer], "image": image_space(size)})
     return out
 
 

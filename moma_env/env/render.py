@@ -218,6 +218,8 @@ class SceneView:
         goals: robot name -> goal ``(x, y, yaw)``.
         observer_true: the observer's true ``(x, y, yaw, altitude)``, or None.
         observer_est: the observer's estimated ``(x, y, yaw)``, or None.
+        more_observers: further observers (a team watched by several), each
+            ``(true (x, y, yaw, altitude), estimated (x, y, yaw) or None)``, drawn alike.
         footprints: what each camera sees of the floor, ``(k, 2)`` world-xy polygons
             (a downward camera's footprint, a forward camera's field of view up to
             its range); NaN rows (rays above the horizon) are dropped and a polygon
@@ -233,6 +235,7 @@ class SceneView:
     goals: Mapping[str, tuple[float, float, float]] = field(default_factory=dict)
     observer_true: tuple[float, float, float, float] | None = None
     observer_est: tuple[float, float, float] | None = None
+    more_observers: tuple[tuple[tuple[float, float, float, float], tuple[float, float, float] | None], ...] = ()
     footprints: tuple[np.ndarray, ...] = ()
     ropes: tuple[tuple[tuple[float, float], tuple[float, float]], ...] = ()
     time: float = 0.0
@@ -260,6 +263,17 @@ class SceneView:
             object.__setattr__(self, "observer_true", _floats("scene.observer_true", self.observer_true, 4))
         if self.observer_est is not None:
             object.__setattr__(self, "observer_est", _floats("scene.observer_est", self.observer_est, 3))
+        object.__setattr__(
+            self,
+            "more_observers",
+            tuple(
+                (
+                    _floats(f"scene.more_observers[{k}][0]", true, 4),
+                    None if est is None else _floats(f"scene.more_observers[{k}][1]", est, 3),
+                )
+                for k, (true, est) in enumerate(self.more_observers)
+            ),
+        )
         object.__setattr__(
             self,
             "footprints",
@@ -621,6 +635,8 @@ def render_top_down(scene: SceneView, size: tuple[int, int] = (640, 640), *, leg
     for r in scene.robots:
         _draw_robot_estimate(c, r)
     _draw_observer(c, scene.observer_true, scene.observer_est, font_scale)
+    for true, est in scene.more_observers:
+        _draw_observer(c, true, est, font_scale)
 
     _draw_text_block(img, (f"t = {scene.time:.2f} s", *scene.info_lines), font_scale, line_h, bottom=False)
     if legend:

@@ -56,18 +56,19 @@ def scene_of(sim: Simulation, info_lines: Sequence[str] = ()) -> SceneView:
         else:
             cfg = wc.ugv(device)
             robots.append(RobotView(device, world.ugv_pose(device), est, cfg.radius, world.is_static(device), e.status, board_corners_w=outline))
-    observer_true = observer_est = None
+    observers = []
     footprints = []
     camera = PinholeCamera(scenario.camera)
-    if wc.uav is not None:
-        s = frame.uav
-        observer_true = (s.x, s.y, s.yaw, s.z)
-        e = frame.estimates[wc.uav.name]
-        if e.T_w_b is not None and e.status is not Status.LOST:
-            observer_est = se3_to_se2(e.T_w_b)
-        footprints.append(camera.ground_footprint(world.camera_transform(wc.uav.camera_name)))
+    for uav in wc.uavs:
+        s = frame.uavs[uav.name]
+        e = frame.estimates[uav.name]
+        est = se3_to_se2(e.T_w_b) if e.T_w_b is not None and e.status is not Status.LOST else None
+        observers.append(((s.x, s.y, s.yaw, s.z), est))
+        footprints.append(camera.ground_footprint(world.camera_transform(uav.camera_name)))
+    uav_cameras = {uav.camera_name for uav in wc.uavs}
+    observer_true, observer_est = observers[0] if observers else (None, None)
     for name in world.camera_names:
-        if wc.uav is None or name != wc.uav.camera_name:  # a robot's forward camera: its view up to its range
+        if name not in uav_cameras:  # a robot's forward camera: its view up to its range
             wedge = camera.view_wedge(world.camera_transform(name), scenario.camera.max_range_m)
             footprints.append(_inside(wedge, wc.arena.bounds))
     ropes = []
@@ -82,6 +83,7 @@ def scene_of(sim: Simulation, info_lines: Sequence[str] = ()) -> SceneView:
         goals=dict(scenario.goals),
         observer_true=observer_true,
         observer_est=observer_est,
+        more_observers=tuple(observers[1:]),
         footprints=tuple(footprints),
         ropes=tuple(ropes),
         time=frame.time,

@@ -37,7 +37,7 @@ from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
 from ray.tune.registry import register_env
 
 from moma_env.config import ConfigError, check_count
-from moma_env.env.parallel import OBSERVER
+from moma_env.env.agent_names import is_observer_agent
 from moma_env.integrations.rllib_env import MaskedObservations, masked_parallel_env
 from moma_env.integrations.rllib_masking import MaskedPPOTorchRLModule
 from moma_env.scenarios import CONFIGURATIONS
@@ -95,8 +95,8 @@ def register_envs() -> list[str]:
 
 
 def policy_mapping_fn(agent_id: str, episode: Any = None, **kwargs: Any) -> str:
-    """The UAV observer to :data:`OBSERVER_POLICY`, every UGV to the shared :data:`UGV_POLICY`."""
-    return OBSERVER_POLICY if agent_id == OBSERVER else UGV_POLICY
+    """The UAV observers to :data:`OBSERVER_POLICY`, every UGV to the shared :data:`UGV_POLICY`."""
+    return OBSERVER_POLICY if is_observer_agent(agent_id) else UGV_POLICY
 
 
 def policies_of(agents: list[str]) -> set[str]:

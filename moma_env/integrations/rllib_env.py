@@ -17,7 +17,8 @@ from gymnasium import spaces
 
 from moma_env.config import ConfigError
 from moma_env.env.factory import parallel_env
-from moma_env.env.parallel import OBSERVER, MomaParallelEnv
+from moma_env.env.agent_names import is_observer_agent
+from moma_env.env.parallel import MomaParallelEnv
 
 __all__ = ["MaskedObservations", "masked_parallel_env", "MASK_KEY", "OBS_KEY"]
 
@@ -44,7 +45,7 @@ class MaskedObservations:
         self.possible_agents = list(env.possible_agents)
         self.metadata = env.metadata
         self.render_mode = env.render_mode
-        self._masked = [a for a in self.possible_agents if a != OBSERVER]
+        self._masked = [a for a in self.possible_agents if not is_observer_agent(a)]
         self._spaces = {}
         for agent in self.possible_agents:
             inner = env.observation_space(agent)

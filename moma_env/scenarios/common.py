@@ -113,7 +113,7 @@ class Layout:
         path_m: distance each mover travels to its goal (m).
         speed: speed of the slowest mover (m/s), for the derived ``max_cycles``;
             None means the slowest UGV's ``max_speed``.
-        uav: the observer, or None.
+        uavs: the observers (none, one or several).
         sleds: the towed sleds.
         routes: UGV name -> via poses it passes on its way to its goal
             (``Scenario.routes``); their footprints belong in ``disks``.
@@ -127,7 +127,7 @@ class Layout:
     movers: int
     path_m: float
     speed: float | None = None
-    uav: UAVConfig | None = None
+    uavs: tuple[UAVConfig, ...] = ()
     sleds: tuple[SledConfig, ...] = ()
     routes: Mapping[str, tuple[Pose2D, ...]] = field(default_factory=dict)
     obstacles: tuple[BoxObstacle, ...] = ()
@@ -281,7 +281,7 @@ class ScenarioConfig(ABC):
                 if disk_overlaps_box(x, y, radius, obstacle):
                     raise ConfigError(self._field("layout"), f"its obstacle {obstacle} covers the {label} at ({x:.3f}, {y:.3f})")
         try:
-            world = WorldConfig(arena=arena, ugvs=layout.ugvs, uav=layout.uav, sleds=layout.sleds)
+            world = WorldConfig(arena=arena, ugvs=layout.ugvs, uavs=layout.uavs, sleds=layout.sleds)
         except ConfigError as error:
             message = str(error)[len(error.field) + 2 :]
             raise ConfigError(self._field(f"world.{error.field}"), message) from None

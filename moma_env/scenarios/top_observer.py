@@ -21,7 +21,11 @@ their left), ``spacing`` between neighbours, centred on ``start``:
   square), so that more robots fit in the camera's view.
 
 The observer starts above ``start`` with the robots' heading: its image's long
-side (720 px) spans the row.
+side (720 px) spans the row. Several observers (``observer`` a tuple of kinds,
+e.g. ``("quadcopter", "handheld")``) watch the same team at once: the k-th of n
+starts ``(k - (n - 1) / 2) * observer_spacing`` to the left of ``start``, all at
+``altitude``; they are named ``uav_0``, ``uav_1``, ... (cameras ``uav_k/camera``),
+a single observer ``uav`` (camera ``uav/camera``).
 """
 
 from __future__ import annotations
@@ -59,7 +63,16 @@ from moma_env.scenarios.sampling import (
 from moma_env.scenarios.spec import ScenarioSpec
 from moma_env.world import UAV_KINDS, UAVConfig, UGVConfig
 
-__all__ = ["TopObserverConfig", "FORMATIONS", "formation_offsets", "MAX_RANDOM_UGVS", "MAX_KEPT_UGVS", "MAX_GOAL_SPREAD", "SPEC"]
+__all__ = [
+    "TopObserverConfig",
+    "FORMATIONS",
+    "formation_offsets",
+    "MAX_RANDOM_UGVS",
+    "MAX_KEPT_UGVS",
+    "MAX_GOAL_SPREAD",
+    "MAX_OBSERVERS",
+    "SPEC",
+]
 
 #: Formations the robots may start in.
 FORMATIONS = ("compact", "row")
@@ -71,6 +84,8 @@ MAX_RANDOM_UGVS = 4
 MAX_KEPT_UGVS = 12
 #: Largest ``goal_spread``: the team arrives at most this many times as spread out as it starts.
 MAX_GOAL_SPREAD = 3.0
+#: Largest number of observers watching the team at once.
+MAX_OBSERVERS = 4
 #: Largest turn (rad) of a random goal relative to the start.
 _MAX_RANDOM_GOAL_TURN = math.pi / 2
 
@@ -101,8 +116,12 @@ class TopObserverConfig(ScenarioConfig):
         start: ``(x, y, yaw)`` of the formation centre and the robots' common heading.
         goal_offset: ``(dx, dy, dyaw)`` in W from every robot's start to its goal
             (default: 2 m along +x).
-        observer: ``"quadcopter"`` (Ar.Drone) or ``"handheld"``.
-        altitude: height of the observer's body above the floor at the start (m).
+        observer: ``"quadcopter"`` (Ar.Drone) or ``"handheld"``; or a tuple of
+            those kinds, one per observer, for several observers (up to
+            :data:`MAX_OBSERVERS`) watching the team at once.
+        observer_spacing: distance (m) between neighbouring observers at the
+            start, across the robots' heading (several observers only).
+        altitude: height of the observers' bodies above the floor at the start (m).
         goal_spread: how spread out the team arrives, in [1, :data:`MAX_GOAL_SPREAD`]:
             each goal is the start shifted by ``goal_offset`` plus
             ``(goal_spread - 1)`` times the robot's offset from the formation's centre
@@ -119,7 +138,8 @@ class TopObserverConfig(ScenarioConfig):
     formation: str = "compact"
     start: Pose2D = (0.0, 0.0, 0.0)
     goal_offset: Pose2D = (2.0, 0.0, 0.0)
-    observer: str = "quadcopter"
+    observer: str | tuple[str, ...] = "quadcopter"
+    observer_spacing: float = 0.5
     altitude: float = 1.6
     goal_spread: float = 1.0
 
@@ -135,7 +155,21 @@ class TopObserverConfig(ScenarioConfig):
         check_choice(self._field("formation"), self.formation, FORMATIONS)
         object.__setattr__(self, "start", planar_pose(self._field("start"), self.start))
         object.__setattr__(self, "goal_offset", planar_pose(self._field("goal_offset"), self.goal_offset))
-        check_choice(self._field("observer"), self.observer, UAV_KINDS)
+        if isinstance(self.observer, str):
+            check_choice(self._field("observer"), self.observer, UAV_KINDS)
+        else:
+            try:
+                kinds = tuple(self.observer)
+            except TypeError:
+                raise ConfigError(
+                    self._field("observer"), f"must be an observer kind or a tuple of them, got {self.observer!r}"
+                ) from None
+            if not 1 <= len(kinds) <= MAX_OBSERVERS:
+                raise ConfigError(self._field("observer"), f"must name 1 to {MAX_OBSERVERS} observers, got {len(kinds)}")
+            for k, kind in enumerate(kinds):
+                check_choice(f"{self._field('observer')}[{k}]", kind, UAV_KINDS)
+            object.__setattr__(self, "observer", kinds[0] if len(kinds) == 1 else kinds)
+        check_positive(self._field("observer_spacing"), self.observer_spacing)
         low, high = field_default(UAVConfig, "min_altitude"), field_default(UAVConfig, "max_altitude")
         check_range(self._field("altitude"), self.altitude, low, high)
         check_range(self._field("goal_spread"), self.goal_spread, 1.0, MAX_GOAL_SPREAD)
@@ -157,16 +191,24 @@ class TopObserverConfig(ScenarioConfig):
             ugvs.append(UGVConfig(name=name, initial_pose=start, board=board_for_robot(i, dictionary=dictionary)))
             goals[name] = goal
             disks += [(f"{name} start", start[0], start[1], radius), (f"{name} goal", goal[0], goal[1], radius)]
-        x, y, yaw = self.start
-        placement = {"initial": (x, y, float(wrap_angle(yaw))), "altitude": float(self.altitude)}
-        uav = UAVConfig.handheld(**placement) if self.observer == "handheld" else UAVConfig(**placement)
+        kinds = self.observer_kinds
+        uavs = []
+        for k, kind in enumerate(kinds):
+            if len(kinds) == 1:
+                x, y, yaw = self.start
+            else:
+                x, y, yaw = in_body_frame(self.start, 0.0, (k - (len(kinds) - 1) / 2.0) * self.observer_spacing)
+            placement = {"initial": (x, y, float(wrap_angle(yaw))), "altitude": float(self.altitude)}
+            if len(kinds) > 1:
+                placement |= {"name": f"uav_{k}", "camera_name": f"uav_{k}/camera"}
+            uavs.append(UAVConfig.handheld(**placement) if kind == "handheld" else UAVConfig(**placement))
         return Layout(
             ugvs=tuple(ugvs),
             goals=goals,
             disks=tuple(disks),
             movers=self.n_ugvs,
             path_m=self._longest_path(ugvs, goals),
-            uav=uav,
+            uavs=tuple(uavs),
         )
 
     def _longest_path(self, ugvs: list[UGVConfig], goals: Mapping[str, Pose2D]) -> float:
@@ -176,11 +218,15 @@ class TopObserverConfig(ScenarioConfig):
             return math.hypot(self.goal_offset[0], self.goal_offset[1])
         return max(math.hypot(goals[u.name][0] - u.initial_pose[0], goals[u.name][1] - u.initial_pose[1]) for u in ugvs)
 
+    @property
+    def observer_kinds(self) -> tuple[str, ...]:
+        """The observers' kinds, one per observer."""
+        return (self.observer,) if isinstance(self.observer, str) else tuple(self.observer)
+
     def required_views(self) -> Mapping[str, tuple[str, ...]]:
-        """The observer's camera sees every robot's board."""
-        uav = self._make_layout().uav
-        assert uav is not None
-        return {uav.camera_name: tuple(ugv_name(i) for i in range(self.n_ugvs))}
+        """Every observer's camera sees every robot's board."""
+        team = tuple(ugv_name(i) for i in range(self.n_ugvs))
+        return {uav.camera_name: team for uav in self._make_layout().uavs}
 
     @classmethod
     def random(cls, rng: np.random.Generator, **team: float) -> TopObserverConfig:

@@ -30,14 +30,13 @@ __all__ = ["start_camera_poses", "start_boards", "visible_marker_counts", "missi
 
 
 def start_camera_poses(world: WorldConfig) -> dict[str, np.ndarray]:
-    """Camera name -> 4x4 ``T_w_c`` at the start (m), robots' cameras then the UAV's."""
+    """Camera name -> 4x4 ``T_w_c`` at the start (m), robots' cameras then the UAVs'."""
     poses: dict[str, np.ndarray] = {}
     for ugv in world.ugvs:
         T_w_b = se2_to_se3(*ugv.initial_pose)
         for camera in ugv.cameras:
             poses[camera.name] = T_w_b @ camera.T_b_c
-    if world.uav is not None:
-        uav = world.uav
+    for uav in world.uavs:
         x, y, yaw = uav.initial
         poses[uav.camera_name] = uav_body_transform(x, y, uav.altitude, yaw, 0.0, 0.0) @ uav.camera_mount
     return poses

@@ -50,7 +50,8 @@ class Frame:
         time: simulated time (s).
         steps: control steps since the reset.
         truth: true planar pose of every device (UGVs, then sleds) (m, rad).
-        uav: the observer's true state, None without one.
+        uavs: every observer's true state, by UAV name (empty without one);
+            :attr:`uav` is the only one's.
         estimates: every robot's estimate (devices and the UAV) as the
             localiser reports it after this frame's update.
         estimated: planar pose of every device's estimate, None without one
@@ -71,7 +72,7 @@ class Frame:
     time: float
     steps: int
     truth: Mapping[str, Pose2D]
-    uav: UAVState | None
+    uavs: Mapping[str, UAVState]
     estimates: Mapping[str, RobotEstimate]
     estimated: Mapping[str, Pose2D | None]
     errors: Mapping[str, float]
@@ -90,6 +91,15 @@ class Frame:
     def __setstate__(self, state: dict) -> None:
         for k, v in state.items():
             object.__setattr__(self, k, MappingProxyType(v) if isinstance(v, dict) else v)
+
+    @property
+    def uav(self) -> UAVState | None:
+        """The true state of the only observer, None without one (ValueError with several: read :attr:`uavs`)."""
+        if len(self.uavs) > 1:
+            raise ValueError(f"this frame has {len(self.uavs)} observers ({', '.join(self.uavs)}); read Frame.uavs")
+        for state in self.uavs.values():
+            return state
+        return None
 
     def usable_pose(self, device: str) -> Pose2D | None:
         """The planar estimate of ``device`` a controller may act on: None if LOST or absent."""

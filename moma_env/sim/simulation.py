@@ -53,7 +53,8 @@ class Commands:
             rad/s); UGVs left out are commanded to stop.
         reels: sled -> reel rate in [-1, 1] (> 0 reels in), set before the physics.
         uav: the observer's command ``(vx, vy, yaw rate, climb rate)`` (m/s,
-            rad/s), None to hover (or without an observer).
+            rad/s), or UAV name -> such a command with several observers
+            (:meth:`moma_env.world.World.step`); None hovers (or without an observer).
     """
 
     requests: Mapping[str, bool] = field(default_factory=dict)
@@ -137,17 +138,17 @@ class Simulation:
         for ugv in wc.ugvs:
             for cam in ugv.cameras:
                 camera_owner[cam.name] = ugv.name
-        if wc.uav is not None:
-            camera_owner[wc.uav.camera_name] = wc.uav.name
+        for uav in wc.uavs:
+            camera_owner[uav.camera_name] = uav.name
         self._camera_owner = camera_owner
         missing = sorted(set(camera_owner) - set(cameras))
         if missing:
             raise ValueError(f"no camera backend for the world's camera(s) {missing}; given {sorted(cameras)}")
         self._cameras = {name: cameras[name] for name in camera_owner}
         # Ground cameras look across the floor: robots and obstacles can hide boards.
-        # The UAV looks down over everything.
-        uav_camera = wc.uav.camera_name if wc.uav is not None else None
-        self._occlusions = {name: _LineOfSight(self, owner) for name, owner in camera_owner.items() if name != uav_camera}
+        # The UAVs look down over everything.
+        uav_cameras = {uav.camera_name for uav in wc.uavs}
+        self._occlusions = {name: _LineOfSight(self, owner) for name, owner in camera_owner.items() if name not in uav_cameras}
         self.rules = MotionRules(self._board_owner, camera_owner, scenario.dwell_s) if rules else None
         self._localiser_factory = localiser
         self._planar_ugvs = bool(planar_ugvs)
@@ -180,7 +181,7 @@ class Simulation:
 
     @property
     def camera_owner(self) -> Mapping[str, str]:
-        """Camera name -> the robot carrying it (the UAV's name for the observer's camera)."""
+        """Camera name -> the robot carrying it (a UAV's name for an observer's camera)."""
         return MappingProxyType(self._camera_owner)
 
     @property
@@ -303,8 +304,8 @@ class Simulation:
             localiser.add_robot(
                 sled, boards=boards_of.get(sled, {}), static=True, initial_pose=self.world.sled_transform(sled), time=t, planar=self._planar_ugvs
             )
-        if wc.uav is not None:
-            localiser.add_robot(wc.uav.name, cameras={wc.uav.camera_name: wc.uav.camera_mount}, static=False, time=t)
+        for uav in wc.uavs:
+            localiser.add_robot(uav.name, cameras={uav.camera_name: uav.camera_mount}, static=False, time=t)
         return localiser
 
     # ------------------------------------------------------------------ state changes
@@ -412,7 +413,8 @@ class Simulation:
 
         Args:
             velocities: UGV -> ``(vx, vy, yaw rate)`` body velocity command (m/s, rad/s).
-            uav: the observer's ``(vx, vy, yaw rate, climb rate)`` command, or None.
+            uav: the observer's ``(vx, vy, yaw rate, climb rate)`` command, UAV name ->
+                such a command with several observers, or None.
         """
         return self.localise(measured(self.move(velocities, uav)))
 
@@ -493,7 +495,7 @@ class Simulation:
             time=t,
             steps=self._steps,
             truth=MappingProxyType(truth),
-            uav=world.uav_state if world.has_uav else None,
+            uavs=MappingProxyType(dict(zip(world.uav_names, world.uav_states))),
             estimates=MappingProxyType(estimates),
             estimated=MappingProxyType(estimated),
             errors=MappingProxyType(errors),

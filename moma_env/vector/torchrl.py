@@ -65,7 +65,7 @@ except ImportError as err:  # pragma: no cover - depends on the installed extras
 if multiprocessing.get_start_method(allow_none=True) != _START_METHOD_BEFORE:
     multiprocessing.set_start_method(_START_METHOD_BEFORE, force=True)
 
-from moma_env.env.parallel import OBSERVER
+from moma_env.env.agent_names import is_observer_agent
 from moma_env.vector.env import MomaVectorEnv
 
 __all__ = ["MomaTorchRLEnv", "UGV_GROUP", "OBSERVER_GROUP"]
@@ -138,9 +138,10 @@ class MomaTorchRLEnv(EnvBase):
         self.vector = MomaVectorEnv(configuration, num_envs, **options)
         super().__init__(device=device, batch_size=torch.Size([self.vector.num_envs]))
         agents = self.vector.possible_agents
-        self.group_map: dict[str, list[str]] = {UGV_GROUP: [a for a in agents if a != OBSERVER]}
-        if OBSERVER in agents:
-            self.group_map[OBSERVER_GROUP] = [OBSERVER]
+        self.group_map: dict[str, list[str]] = {UGV_GROUP: [a for a in agents if not is_observer_agent(a)]}
+        observers = [a for a in agents if is_observer_agent(a)]
+        if observers:
+            self.group_map[OBSERVER_GROUP] = observers
         batch = self.batch_size
         observation_spec = Composite(shape=batch)
         action_spec = Composite(shape=batch)

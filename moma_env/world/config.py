@@ -476,12 +476,14 @@ class SledConfig:
 
 @dataclass(frozen=True)
 class WorldConfig:
-    """The whole world: arena, ground robots, sleds, optional UAV, and the step rate.
+    """The whole world: arena, ground robots, sleds, the observers (UAVs), and the step rate.
 
     Attributes:
         arena: walls and obstacles.
         ugvs: ground robots, in the order the world reports them.
-        uav: the flying (or hand-held) observer, or None.
+        uavs: the flying (or hand-held) observers, none, one or several; each
+            flies on its own and carries its own camera (:attr:`uav` is the only
+            one of a world with at most one).
         control_hz: control steps per second (Hz); one ``World.step`` is 1/control_hz s.
         substeps: physics substeps per control step.
         sleds: sleds towed by the robots (at most one per robot). Stored with
@@ -497,7 +499,7 @@ class WorldConfig:
 
     arena: ArenaConfig = field(default_factory=ArenaConfig)
     ugvs: tuple[UGVConfig, ...] = ()
-    uav: UAVConfig | None = None
+    uavs: tuple[UAVConfig, ...] = ()
     control_hz: float = 25.0
     substeps: int = 4
     sleds: tuple[SledConfig, ...] = ()
@@ -512,8 +514,13 @@ class WorldConfig:
         for i, ugv in enumerate(ugvs):
             if not isinstance(ugv, UGVConfig):
                 raise ConfigError(f"ugvs[{i}]", f"must be a UGVConfig, got {type(ugv).__name__}")
-        if self.uav is not None and not isinstance(self.uav, UAVConfig):
-            raise ConfigError("uav", f"must be a UAVConfig or None, got {type(self.uav).__name__}")
+        if isinstance(self.uavs, UAVConfig) or not isinstance(self.uavs, (tuple, list)):
+            raise ConfigError("uavs", f"must be a sequence of UAVConfig, got {type(self.uavs).__name__}")
+        uavs = tuple(self.uavs)
+        object.__setattr__(self, "uavs", uavs)
+        for k, uav in enumerate(uavs):
+            if not isinstance(uav, UAVConfig):
+                raise ConfigError(f"uavs[{k}]", f"must be a UAVConfig, got {type(uav).__name__}")
         check_positive("control_hz", self.control_hz)
         if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1:
             raise ConfigError("substeps", f"must be an int >= 1, got {self.substeps!r}")
@@ -561,8 +568,10 @@ class WorldConfig:
             if sled.name in owner:
                 raise ConfigError(f"sleds[{k}].name", f"duplicate name {sled.name!r} (also {owner[sled.name]})")
             owner[sled.name] = f"sleds[{k}]"
-        if self.uav is not None and self.uav.name in owner:
-            raise ConfigError("uav.name", f"duplicate name {self.uav.name!r} (also {owner[self.uav.name]})")
+        for k, uav in enumerate(self.uavs):
+            if uav.name in owner:
+                raise ConfigError(f"uavs[{k}].name", f"duplicate name {uav.name!r} (also {owner[uav.name]})")
+            owner[uav.name] = f"uavs[{k}]"
         camera_owner: dict[str, str] = {}
         for i, ugv in enumerate(self.ugvs):
             for j, camera in enumerate(ugv.cameras):
@@ -572,11 +581,11 @@ class WorldConfig:
                         f"{path}.name", f"duplicate camera name {camera.name!r} (also {camera_owner[camera.name]})"
                     )
                 camera_owner[camera.name] = path
-        if self.uav is not None and self.uav.camera_name in camera_owner:
-            name = self.uav.camera_name
-            raise ConfigError("uav.camera_name", f"duplicate camera name {name!r} (also {camera_owner[name]})")
-        if self.uav is not None:
-            camera_owner[self.uav.camera_name] = "uav.camera_name"
+        for k, uav in enumerate(self.uavs):
+            name = uav.camera_name
+            if name in camera_owner:
+                raise ConfigError(f"uavs[{k}].camera_name", f"duplicate camera name {name!r} (also {camera_owner[name]})")
+            camera_owner[name] = f"uavs[{k}].camera_name"
         for k, sled in enumerate(self.sleds):
             if sled.name in camera_owner:
                 raise ConfigError(
@@ -650,6 +659,20 @@ class WorldConfig:
         return 1.0 / self.control_hz
 
     @property
+    def uav(self) -> UAVConfig | None:
+        """The observer of a world with at most one (None without): ValueError naming
+        ``uavs`` in a world of several, whose readers must take :attr:`uavs`."""
+        if len(self.uavs) > 1:
+            names = ", ".join(u.name for u in self.uavs)
+            raise ValueError(f"uavs: this world has {len(self.uavs)} observers ({names}); read WorldConfig.uavs")
+        return self.uavs[0] if self.uavs else None
+
+    @property
+    def uav_names(self) -> tuple[str, ...]:
+        """The observers' names, in configuration order."""
+        return tuple(u.name for u in self.uavs)
+
+    @property
     def ugv_names(self) -> tuple[str, ...]:
         """Names of the ground robots, in order."""
         return tuple(ugv.name for ugv in self.ugvs)
@@ -714,13 +737,13 @@ def world_config_from_mapping(mapping: Mapping[str, Any]) -> WorldConfig:
 
     ``arena.obstacles`` and ``ugvs`` are lists of mappings, ``ugvs[i].cameras`` a
     list of ``{name, T_b_c}``, ``ugvs[i].board`` a BoardLayout mapping or None,
-    ``uav`` a mapping or None (``kind: handheld`` starts from the hand-held
-    defaults), ``sleds`` a list of mappings (``board`` a BoardLayout mapping).
+    ``uav`` a mapping or None (one observer; ``kind: handheld`` starts from the
+    hand-held defaults) or ``uavs`` a list of such mappings, ``sleds`` a list of mappings (``board`` a BoardLayout mapping).
     Errors name the full path, e.g. ``ugvs[1].radius``.
     """
     if not isinstance(mapping, Mapping):
         raise ConfigError("world", f"expected a mapping, got {type(mapping).__name__}")
-    known = {f.name for f in dataclasses.fields(WorldConfig) if f.init}
+    known = {f.name for f in dataclasses.fields(WorldConfig) if f.init} | {"uav"}
     unknown = sorted(set(mapping) - known)
     if unknown:
         raise ConfigError(unknown[0], f"unknown field; known fields are {sorted(known)}")
@@ -757,9 +780,18 @@ def world_config_from_mapping(mapping: Mapping[str, Any]) -> WorldConfig:
                 item = {**item, "board": _build(BoardLayout, item["board"], "board", f"{path}.board")}
             sleds.append(_build(SledConfig, item, "sled", path))
         kwargs["sleds"] = tuple(sleds)
-    uav = kwargs.get("uav")
-    if isinstance(uav, Mapping):
-        if uav.get("kind") == "handheld":
-            uav = {**_HANDHELD_DEFAULTS, **uav}
-        kwargs["uav"] = _build(UAVConfig, uav, "uav", "uav")
+    if "uav" in kwargs:
+        if "uavs" in kwargs:
+            raise ConfigError("uav", "give either uav (one observer) or uavs (a list), not both")
+        uav = kwargs.pop("uav")
+        kwargs["uavs"] = () if uav is None else (_uav_from(uav, "uav"),)
+    elif "uavs" in kwargs:
+        kwargs["uavs"] = tuple(_uav_from(item, f"uavs[{k}]") for k, item in enumerate(_build_list(kwargs["uavs"], "uavs")))
     return WorldConfig(**kwargs)
+
+
+def _uav_from(item: object, path: str) -> UAVConfig:
+    """A UAV's mapping built into a :class:`UAVConfig` (``kind: handheld`` starts from its defaults)."""
+    if isinstance(item, Mapping) and item.get("kind") == "handheld":
+        item = {**_HANDHELD_DEFAULTS, **item}
+    return _build(UAVConfig, item, "uav", path)

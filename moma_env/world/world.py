@@ -1,4 +1,4 @@
-"""The simulated world: ground robots, sleds and walls in pymunk, the UAV's 2.5D state.
+"""The simulated world: ground robots, sleds and walls in pymunk, the UAVs' 2.5D states.
 
 This is the ground truth. The camera model and the estimator sit on top of it and
 are not imported here. Frames follow ``moma_env.geometry``: world W (z up),
@@ -69,12 +69,15 @@ from moma_env.world.sled import SledBody
 from moma_env.world.uav import UAVDynamics, UAVState
 from moma_env.world.ugv import UGVBody
 
-__all__ = ["World", "COLLISION_SLOP", "UAV_OWNER", "RETIRED_SPACE_LIMIT"]
+__all__ = ["World", "COLLISION_SLOP", "RETIRED_SPACE_LIMIT"]
 
 #: Overlap (m) pymunk tolerates between touching shapes before pushing them apart.
 COLLISION_SLOP = 1e-3
-#: Owner index of the UAV's camera in the camera table (UGV cameras use the robot index).
-UAV_OWNER = -1
+
+
+def _uav_owner(k: int) -> int:
+    """Owner index of the ``k``-th UAV's camera in the camera table (UGV cameras use the robot index >= 0)."""
+    return -1 - k
 
 #: Replaced pymunk spaces (about 280 KiB each) that may wait in memory for Python's
 #: cyclic garbage collector before :meth:`World.reset` runs a full collection.
@@ -228,11 +231,13 @@ class World:
         for i, ugv in enumerate(config.ugvs):
             for camera in ugv.cameras:
                 cameras[camera.name] = (i, camera.T_b_c)
-        if config.uav is not None:
-            cameras[config.uav.camera_name] = (UAV_OWNER, config.uav.camera_mount)
+        for k, uav in enumerate(config.uavs):
+            cameras[uav.camera_name] = (_uav_owner(k), uav.camera_mount)
         self._cameras = cameras
         self._camera_names = tuple(cameras)
-        self._uav = UAVDynamics(config.uav, self.dt) if config.uav is not None else None
+        self._uav_names = config.uav_names
+        self._uav_index = {name: k for k, name in enumerate(self._uav_names)}
+        self._uavs = tuple(UAVDynamics(uav, self.dt) for uav in config.uavs)
         # (kind, index or name) -> (packed planar pose, pose @ mount): see _mounted.
         self._mounted_cache: dict[tuple, tuple[bytes, np.ndarray]] = {}
         self._space: pymunk.Space | None = None
@@ -287,16 +292,16 @@ class World:
         self._read_poses()
         self._previous_rows = self._rows
         self._steps = 0
-        if self._uav is not None:
-            self._uav.reset()
-        self._uav_state: UAVState | None = None
+        for uav in self._uavs:
+            uav.reset()
+        self._uav_states: tuple[UAVState, ...] | None = None
         if retired is not None:
             self._retired.add(retired)
 
     def step(
         self,
         ugv_commands: Mapping[str, Sequence[float] | np.ndarray] | None = None,
-        uav_command: Sequence[float] | np.ndarray | None = None,
+        uav_command: Sequence[float] | np.ndarray | Mapping[str, Sequence[float] | np.ndarray | None] | None = None,
     ) -> None:
         """Advance one control step of ``dt`` s.
 
@@ -306,13 +311,16 @@ class World:
                 get a zero command (they brake); static robots ignore theirs.
                 Sleds follow their reel rate (:meth:`set_reel`).
             uav_command: (vx forward m/s, vy left m/s, yaw rate rad/s, climb m/s)
-                in the UAV's yaw frame; None hovers.
+                in the UAV's yaw frame, for a world of one UAV; or UAV name -> such
+                a command (any number of UAVs; UAVs left out or None hover);
+                None hovers every UAV.
 
         Raises:
-            KeyError: an unknown robot name.
+            KeyError: an unknown robot or UAV name.
             TypeError: ``ugv_commands`` is not a mapping.
             ValueError: a command of the wrong shape or not finite (naming its
-                owner), or a UAV command in a world without a UAV.
+                owner), a UAV command in a world without a UAV, or a single
+                command in a world of several UAVs.
         """
         commands = ugv_commands if ugv_commands is not None else {}
         if not isinstance(commands, Mapping):
@@ -332,21 +340,40 @@ class World:
             for name in commands:
                 if name not in self._ugv_index:
                     raise unknown_name("ugv", name, self._ugv_names)
-        if uav_command is not None:
-            if self._uav is None:
-                raise ValueError("uav_command given but the world has no UAV (WorldConfig.uav is None)")
-            uav = _command(self._uav.config.name, uav_command, 4, "(vx, vy, yaw_rate, climb)")
-        else:
-            uav = None
-        self._advance(given, uav)
+        self._advance(given, self._uav_commands(uav_command))
 
-    def _advance(self, given: Sequence[Sequence[float] | None], uav: Sequence[float] | None) -> None:
+    def _uav_commands(self, uav_command: object) -> list[list[float] | None]:
+        """The UAVs' checked commands, in configuration order (None: hover)."""
+        flying: list[list[float] | None] = [None] * len(self._uavs)
+        if uav_command is None:
+            return flying
+        if not self._uavs:
+            raise ValueError("uav_command given but the world has no UAV (WorldConfig.uavs is empty)")
+        if isinstance(uav_command, Mapping):
+            for name, value in uav_command.items():
+                k = self._uav_index.get(name)
+                if k is None:
+                    raise unknown_name("uav", name, self._uav_names)
+                if value is not None:
+                    flying[k] = _command(name, value, 4, "(vx, vy, yaw_rate, climb)")
+            return flying
+        if len(self._uavs) > 1:
+            raise ValueError(
+                f"uav_command: this world has {len(self._uavs)} UAVs ({', '.join(self._uav_names)}); "
+                "give a mapping UAV name -> (vx, vy, yaw_rate, climb)"
+            )
+        flying[0] = _command(self._uav_names[0], uav_command, 4, "(vx, vy, yaw_rate, climb)")
+        return flying
+
+    def _advance(self, given: Sequence[Sequence[float] | None], flying: Sequence[Sequence[float] | None]) -> None:
         """One control step under checked commands, recorded in the journal.
 
         Args:
             given: per robot, in configuration order, its body-frame command
                 (vx, vy, omega; unclipped), or None for a zero command.
-            uav: the UAV command (vx, vy, yaw rate, climb), or None to hover.
+            flying: per UAV, in configuration order, its command (vx, vy, yaw
+                rate, climb), or None to hover (one None entry in a world
+                without a UAV).
         """
         values = self._journal_values
         for value in given:
@@ -355,11 +382,12 @@ class World:
             else:
                 values.append(1.0)
                 values.extend(value)
-        if uav is None:
-            values.append(0.0)
-        else:
-            values.append(1.0)
-            values.extend(uav)
+        for uav in flying or (None,):
+            if uav is None:
+                values.append(0.0)
+            else:
+                values.append(1.0)
+                values.extend(uav)
         self._journal_ops.append(_OP_STEP)
 
         ugvs = self._ugvs
@@ -389,12 +417,13 @@ class World:
                 space.step(h)
         self._previous_rows = self._rows
         self._read_poses()
-        if self._uav is not None:
-            if uav is None:
-                self._uav.step(0.0, 0.0, 0.0, 0.0)
-            else:
-                self._uav.step(*uav)
-            self._uav_state = None
+        if self._uavs:
+            for dynamics, uav in zip(self._uavs, flying):
+                if uav is None:
+                    dynamics.step(0.0, 0.0, 0.0, 0.0)
+                else:
+                    dynamics.step(*uav)
+            self._uav_states = None
         self._steps += 1
 
     def _read_poses(self) -> None:
@@ -635,7 +664,7 @@ class World:
 
     @property
     def camera_names(self) -> tuple[str, ...]:
-        """Names of every camera: the robots' cameras, then the UAV's."""
+        """Names of every camera: the robots' cameras, then the UAVs'."""
         return self._camera_names
 
     def camera_transform(self, camera_name: str) -> np.ndarray:
@@ -644,33 +673,53 @@ class World:
             owner, T_b_c = self._cameras[camera_name]
         except (KeyError, TypeError):
             raise unknown_name("camera", camera_name, self._camera_names) from None
-        if owner == UAV_OWNER:
-            return self._uav.body_transform() @ T_b_c  # type: ignore[union-attr]
+        if owner < 0:
+            return self._uavs[-1 - owner].body_transform() @ T_b_c
         return self._mounted(("camera", camera_name), self._rows[owner], T_b_c)
 
     # -- UAV -------------------------------------------------------------------------------
 
     @property
     def has_uav(self) -> bool:
-        """Whether the world has a UAV (or hand-held observer)."""
-        return self._uav is not None
+        """Whether the world has a UAV (or hand-held observer), one or several."""
+        return bool(self._uavs)
 
-    def _require_uav(self) -> UAVDynamics:
-        if self._uav is None:
-            raise LookupError("the world has no UAV (WorldConfig.uav is None)")
-        return self._uav
+    @property
+    def uav_names(self) -> tuple[str, ...]:
+        """The UAVs' names, in configuration order."""
+        return self._uav_names
+
+    def _uav(self, name: str | None) -> UAVDynamics:
+        """The UAV ``name``; None: the only one (LookupError without a UAV, ValueError with several)."""
+        if name is None:
+            if not self._uavs:
+                raise LookupError("the world has no UAV (WorldConfig.uavs is empty)")
+            if len(self._uavs) > 1:
+                raise ValueError(f"this world has {len(self._uavs)} UAVs ({', '.join(self._uav_names)}); name one")
+            return self._uavs[0]
+        k = self._uav_index.get(name)
+        if k is None:
+            raise unknown_name("uav", name, self._uav_names)
+        return self._uavs[k]
+
+    @property
+    def uav_states(self) -> tuple[UAVState, ...]:
+        """Current state of every UAV, in configuration order (empty without one)."""
+        if self._uav_states is None:
+            self._uav_states = tuple(uav.state() for uav in self._uavs)
+        return self._uav_states
 
     @property
     def uav_state(self) -> UAVState:
-        """Current state of the UAV (LookupError without a UAV)."""
-        uav = self._require_uav()
-        if self._uav_state is None:
-            self._uav_state = uav.state()
-        return self._uav_state
+        """Current state of the only UAV (LookupError without a UAV, ValueError with several:
+        read :attr:`uav_states`)."""
+        self._uav(None)
+        return self.uav_states[0]
 
-    def uav_transform(self) -> np.ndarray:
-        """4x4 ``T_w_b`` of the UAV body (LookupError without a UAV)."""
-        return self._require_uav().body_transform()
+    def uav_transform(self, name: str | None = None) -> np.ndarray:
+        """4x4 ``T_w_b`` of UAV ``name``'s body (None: the only UAV; LookupError without
+        a UAV, ValueError naming them with several, KeyError for an unknown name)."""
+        return self._uav(name).body_transform()
 
     # -- whole state -------------------------------------------------------------------
 
@@ -678,8 +727,8 @@ class World:
         """Flat float array of the full simulated state, for comparisons and logs.
 
         Per robot ``x, y, angle (unwrapped), vx, vy (W), omega``; then per sled
-        the same six values and its rope length; then the UAV's
-        ``UAVState.as_array()`` if there is one.
+        the same six values and its rope length; then every UAV's
+        ``UAVState.as_array()``, in configuration order.
         """
         parts: list[float] = []
         for ugv in self._ugvs:
@@ -693,8 +742,8 @@ class World:
             vx, vy = body.velocity
             parts += (x, y, body.angle, vx, vy, body.angular_velocity, sled.rope_length)
         state = np.array(parts, dtype=float)
-        if self._uav is not None:
-            state = np.concatenate([state, self.uav_state.as_array()])
+        if self._uavs:
+            state = np.concatenate([state, *(s.as_array() for s in self.uav_states)])
         return state
 
     # -- copies ------------------------------------------------------------------------
@@ -761,15 +810,17 @@ class World:
                         else:
                             given.append((values[i + 1], values[i + 2], values[i + 3]))
                             i += 4
-                    if values[i] == 0.0:
-                        uav = None
-                        i += 1
-                    else:
-                        if self._uav is None:
-                            raise ValueError("the world's journal flies a UAV the world does not have")
-                        uav = [values[i + 1], values[i + 2], values[i + 3], values[i + 4]]
-                        i += 5
-                    self._advance(given, uav)
+                    flying: list[list[float] | None] = []
+                    for _ in range(max(1, len(self._uavs))):
+                        if values[i] == 0.0:
+                            flying.append(None)
+                            i += 1
+                        else:
+                            if not self._uavs:
+                                raise ValueError("the world's journal flies a UAV the world does not have")
+                            flying.append([values[i + 1], values[i + 2], values[i + 3], values[i + 4]])
+                            i += 5
+                    self._advance(given, flying if self._uavs else [])
                 elif op == _OP_STATIC:
                     self.set_static(devices[_journal_index(values[i], len(devices))], values[i + 1] != 0.0)
                     i += 2

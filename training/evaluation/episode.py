@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from moma_env.env.parallel import OBSERVER
+from moma_env.env.agent_names import is_observer_agent
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, run_metrics
 from training.evaluation.policies import Policy
 
@@ -119,8 +119,8 @@ class EpisodeResult:
 
 
 def robot_agents(env: Any) -> list[str]:
-    """The scored robots of ``env``: its agents except the observer."""
-    return [a for a in env.possible_agents if a != OBSERVER]
+    """The scored robots of ``env``: its agents except the observers."""
+    return [a for a in env.possible_agents if not is_observer_agent(a)]
 
 
 class _RobotLog:

@@ -1,6 +1,6 @@
 """The estimators side by side on the same runs of the paper's square and line.
 
-``moma-env experiment compare --estimators moma,fused,graph,ekf [--runs N]``
+``moma-env experiment compare --estimators moma,fused,graph,ekf [--runs N] [--observers KINDS]``
 
 For every experiment (square, line), camera (geometric; rendered with
 ``--cameras geometric,rendered``) and estimator (``moma_env.estimator.registry``
@@ -19,6 +19,13 @@ estimates do). Per estimator the table gives, for the main robot:
   chi-square bounds (95 %) and the fraction of steps inside them;
 * time per update (ms): wall time of the estimator's ``update`` (and its
   ``odometry`` calls for the EKF) per camera frame, measured around the calls.
+
+With ``--observers quadcopter,handheld`` (two or more observer kinds) every
+case is run once per observer set: each observer alone, hovering where it
+hovers in the team (``LeapfrogConfig.observer_offsets``' default: 0.5 m apart,
+centred on the pair), then all of them at once; the ``observers`` column names
+the set (``quadcopter@-0.25``, ..., ``quadcopter@-0.25+handheld@+0.25``).
+Without it, the experiment's own single observer (``observers`` is its kind).
 """
 
 from __future__ import annotations
@@ -49,6 +56,8 @@ __all__ = [
     "CAMERAS",
     "TimedFactory",
     "CompareRow",
+    "ObserverSet",
+    "observer_sets",
     "compare_config",
     "compare_case",
     "run_compare",
@@ -115,6 +124,33 @@ class TimedFactory:
 
 
 @dataclass(frozen=True)
+class ObserverSet:
+    """Observers of a case: their kinds and lateral offsets (m, ``LeapfrogConfig.observer_offsets``);
+    no kinds: the experiment's own observer."""
+
+    kinds: tuple[str, ...] = ()
+    offsets: tuple[float, ...] = ()
+
+    @property
+    def label(self) -> str:
+        """``kind@offset`` joined by ``+`` (the experiment's kind when there are none)."""
+        return "+".join(f"{kind}@{offset:+.2f}" for kind, offset in zip(self.kinds, self.offsets))
+
+
+def observer_sets(kinds: Sequence[str] | None) -> list[ObserverSet]:
+    """The observer sets ``--observers kinds`` compares: each observer alone where it hovers
+    in the team, then all together; ``[ObserverSet()]`` (the experiment's own) for None or one kind."""
+    if not kinds:
+        return [ObserverSet()]
+    kinds = tuple(kinds)
+    if len(kinds) == 1:
+        return [ObserverSet(kinds, (0.0,))]
+    offsets = LeapfrogConfig(observer=kinds).resolved_observer_offsets
+    alone = [ObserverSet((kind,), (offset,)) for kind, offset in zip(kinds, offsets)]
+    return [*alone, ObserverSet(kinds, offsets)]
+
+
+@dataclass(frozen=True)
 class CompareRow:
     """One estimator on one experiment and camera, over ``n_runs`` runs.
 
@@ -124,6 +160,7 @@ class CompareRow:
     experiment: str
     camera: str
     estimator: str
+    observers: str
     n_runs: int
     n_completed: int
     final_error: float
@@ -149,29 +186,32 @@ class CompareRow:
 
 
 def compare_config(experiment: str, camera: str, estimator: str, preset: str = "paper",
-                   max_time_s: float | None = None) -> LeapfrogConfig:
+                   max_time_s: float | None = None, observers: ObserverSet = ObserverSet()) -> LeapfrogConfig:
     """The configuration of one case (ConfigError / ValueError naming a bad argument)."""
     if experiment not in EXPERIMENTS:
         raise ValueError(f"experiments: unknown experiment {experiment!r}; known: {', '.join(EXPERIMENTS)}")
     if camera not in CAMERAS:
         raise ValueError(f"cameras: unknown camera {camera!r}; known: {', '.join(CAMERAS)}")
-    config = get_preset(preset).apply(EXPERIMENTS[experiment](localiser=estimator), camera_backend=camera)
+    placed = {"observer": observers.kinds, "observer_offsets": observers.offsets} if observers.kinds else {}
+    config = get_preset(preset).apply(EXPERIMENTS[experiment](localiser=estimator, **placed), camera_backend=camera)
     if max_time_s is not None:
         config = dataclasses.replace(config, max_time_s=max_time_s)
     return config
 
 
 def compare_case(experiment: str, camera: str, estimator: str, n_runs: int, seed: int, preset: str = "paper",
-                 max_time_s: float | None = None, log: Callable[[str], None] | None = None) -> CompareRow:
-    """Run one estimator ``n_runs`` times on one experiment and camera and summarise it."""
-    config = compare_config(experiment, camera, estimator, preset, max_time_s)
+                 max_time_s: float | None = None, log: Callable[[str], None] | None = None,
+                 observers: ObserverSet = ObserverSet()) -> CompareRow:
+    """Run one estimator ``n_runs`` times on one experiment, camera and observer set and summarise it."""
+    config = compare_config(experiment, camera, estimator, preset, max_time_s, observers)
+    label = observers.label or str(config.observer)
     factory = TimedFactory(estimator)
     runs = []
     for k in range(n_runs):
         runs.append(run_leapfrog(config, seed + k, localiser=factory))
         if log is not None:
             final = runs[-1].metrics["moma"].final_error
-            log(f"[{experiment}/{camera}/{estimator}] run {k + 1}/{n_runs} seed {seed + k}: E_f {100 * final:.2f} cm")
+            log(f"[{experiment}/{camera}/{estimator}/{label}] run {k + 1}/{n_runs} seed {seed + k}: E_f {100 * final:.2f} cm")
     summary = aggregate([run.metrics["moma"] for run in runs])
     components = POSITION_PLANAR if config.planar_ugvs else POSITION_3D
     position, heading = evaluate_runs(runs, components)
@@ -180,6 +220,7 @@ def compare_case(experiment: str, camera: str, estimator: str, n_runs: int, seed
         experiment=experiment,
         camera=camera,
         estimator=estimator,
+        observers=label,
         n_runs=n_runs,
         n_completed=sum(run.completed for run in runs),
         final_error=summary.mean_final_error,
@@ -200,29 +241,30 @@ def compare_case(experiment: str, camera: str, estimator: str, n_runs: int, seed
 
 def run_compare(estimators: Sequence[str], experiments: Sequence[str], cameras: Sequence[str], n_runs: int, seed: int,
                 preset: str = "paper", max_time_s: float | None = None,
-                log: Callable[[str], None] | None = None) -> list[CompareRow]:
-    """Every experiment x camera x estimator, each on runs ``seed .. seed + n_runs - 1``, in that order.
-    Every configuration is checked before the first run."""
+                log: Callable[[str], None] | None = None, observers: Sequence[str] | None = None) -> list[CompareRow]:
+    """Every experiment x camera x estimator x observer set (:func:`observer_sets` of ``observers``),
+    each on runs ``seed .. seed + n_runs - 1``, in that order. Every configuration is checked before the first run."""
     if int(n_runs) != n_runs or n_runs < 1:
         raise ValueError(f"runs must be an integer >= 1, got {n_runs!r}")
     for name in estimators:
         localiser_factory(name)  # ConfigError for an unknown name, ImportError for a missing extra
-    cases = [(e, c, name) for e in experiments for c in cameras for name in estimators]
-    for e, c, name in cases:
-        compare_config(e, c, name, preset, max_time_s)
-    return [compare_case(e, c, name, int(n_runs), seed, preset, max_time_s, log) for e, c, name in cases]
+    sets = observer_sets(observers)
+    cases = [(e, c, name, o) for e in experiments for c in cameras for name in estimators for o in sets]
+    for e, c, name, o in cases:
+        compare_config(e, c, name, preset, max_time_s, o)
+    return [compare_case(e, c, name, int(n_runs), seed, preset, max_time_s, log, o) for e, c, name, o in cases]
 
 
 def format_table(rows: Sequence[CompareRow]) -> str:
     """A Markdown table, one line per row."""
     head = (
-        "| experiment | camera | estimator | runs (done) | ME_f cm | std | ME cm | % of path | ANEES pos (dof) "
+        "| experiment | camera | estimator | observers | runs (done) | ME_f cm | std | ME cm | % of path | ANEES pos (dof) "
         "| in bounds | ANEES heading | in bounds | 95 % bounds pos / heading | ms per update |"
     )
-    lines = [head, "|" + "---|" * 14]
+    lines = [head, "|" + "---|" * 15]
     for r in rows:
         lines.append(
-            f"| {r.experiment} | {r.camera} | {r.estimator} | {r.n_runs} ({r.n_completed}) | {100 * r.final_error:.2f} "
+            f"| {r.experiment} | {r.camera} | {r.estimator} | {r.observers} | {r.n_runs} ({r.n_completed}) | {100 * r.final_error:.2f} "
             f"| {100 * r.final_error_std:.2f} | {100 * r.mean_error:.2f} | {r.final_error_pct_path:.3f} "
             f"| {r.position_anees:.2f} ({r.position_dof}) | {100 * r.position_inside:.0f} % | {r.heading_anees:.2f} "
             f"| {100 * r.heading_inside:.0f} % | {r.anees_bounds[0]:.2f}-{r.anees_bounds[1]:.2f} / "
@@ -236,7 +278,7 @@ def run_compare_command(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     try:
         rows = run_compare(args.estimators, args.experiments, args.cameras, args.runs, args.seed, args.preset, args.max_time,
-                           log=lambda line: print(line, file=sys.stderr))
+                           log=lambda line: print(line, file=sys.stderr), observers=args.observers)
     except (ValueError, ImportError) as err:
         print(f"moma-env experiment compare: {err}", file=sys.stderr)
         return 2

@@ -39,7 +39,7 @@ from moma_env.camera import (
     RenderConfig,
     make_camera,
 )
-from moma_env.config import ConfigError, check_bool, check_choice, check_non_negative, check_positive
+from moma_env.config import ConfigError, check_bool, check_choice, check_non_negative, check_numbers, check_positive
 from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
 from moma_env.control.waypoint import WaypointFollower, WaypointFollowerConfig
 from moma_env.estimator import EstimatorConfig, Status
@@ -50,7 +50,7 @@ from moma_env.odometry import WheelOdometry, WheelOdometryConfig
 from moma_env.odometry.visual import VisualOdometry, VisualOdometryConfig
 from moma_env.scenarios import Scenario
 from moma_env.sim import Frame, LocaliserFactory, OdometryConsumer, Simulation, measured
-from moma_env.world import ArenaConfig, UAVConfig, UGVConfig, WorldConfig
+from moma_env.world import UAV_KINDS, ArenaConfig, UAVConfig, UGVConfig, WorldConfig
 from moma_env.world.mounts import board_on_top, camera_down
 from training.experiments.odometry_feed import OdometryFeed
 
@@ -73,6 +73,8 @@ MAIN = "ugv_0"
 BUDDY = "ugv_1"
 #: Free floor around the robots' paths inside the arena walls (m).
 _ARENA_MARGIN = 1.5
+#: Default distance (m) between neighbouring observers when several watch the pair.
+_OBSERVER_SPACING_M = 0.5
 
 Waypoint = tuple[float, float, float]
 
@@ -130,7 +132,14 @@ class LeapfrogConfig:
         separation: distance of the second robot to the left of the main one (m).
         dwell_s: time both robots are static at a switch (s).
         start_after_s: time before the first leg, for the observer to settle (s).
-        observer: ``"quadcopter"`` or ``"handheld"``.
+        observer: ``"quadcopter"`` or ``"handheld"``; or a tuple of those kinds,
+            one per observer, for several observers watching the pair at once
+            (named ``uav_0``, ``uav_1``, ...; each flown by its own tracking
+            controller and localised by the estimator like the one observer).
+        observer_offsets: per observer, how far (m) to the world's +y of the
+            pair's centre it hovers: its tracking controller keeps the boards'
+            centroid that far to the other side of its optical axis. None: 0 for
+            one observer; ``(k - (n - 1) / 2) * 0.5`` m for the k-th of n.
         control_hz: control and camera rate (Hz); the paper's camera ran at 25.
         max_time_s: a run that has not finished by then is stopped and flagged (s).
         planar_ugvs: tell the estimator that the UGVs move upright on the floor
@@ -160,7 +169,8 @@ class LeapfrogConfig:
     separation: float = 0.6
     dwell_s: float = 1.5
     start_after_s: float = 1.0
-    observer: str = "quadcopter"
+    observer: str | tuple[str, ...] = "quadcopter"
+    observer_offsets: tuple[float, ...] | None = None
     control_hz: float = 25.0
     max_time_s: float = 300.0
     planar_ugvs: bool = True
@@ -185,7 +195,7 @@ class LeapfrogConfig:
             raise ConfigError(f"{name}.separation", f"robots of 0.45 m need >= 0.5 m between centres, got {self.separation}")
         check_non_negative(f"{name}.dwell_s", self.dwell_s)
         check_non_negative(f"{name}.start_after_s", self.start_after_s)
-        check_choice(f"{name}.observer", self.observer, ("quadcopter", "handheld"))
+        self._check_observers()
         check_positive(f"{name}.control_hz", self.control_hz)
         check_positive(f"{name}.max_time_s", self.max_time_s)
         check_bool(f"{name}.planar_ugvs", self.planar_ugvs)
@@ -213,6 +223,7 @@ class LeapfrogConfig:
             # the narrowest side of the view from the principal point, lens included.
             half_view = depth * PinholeCamera(self.camera).axis_half_view_tan
             needed = self.max_spread() / 2.0 + math.hypot(self.board.width, self.board.height) / 2.0
+            needed += max(abs(v) for v in self.resolved_observer_offsets)
             if half_view < needed:
                 raise ConfigError(
                     f"{name}.altitude",
@@ -250,15 +261,61 @@ class LeapfrogConfig:
         buddy = [left_of(wp, self.separation) for wp in main]
         return max(self.separation, *(math.dist(main[k][:2], buddy[k - 1][:2]) for k in range(1, len(main))))
 
-    def _uav_config(self) -> UAVConfig:
-        return UAVConfig.handheld() if self.observer == "handheld" else UAVConfig()
+    def _check_observers(self) -> None:
+        name = self.experiment
+        if isinstance(self.observer, str):
+            check_choice(f"{name}.observer", self.observer, UAV_KINDS)
+        else:
+            try:
+                kinds = tuple(self.observer)
+            except TypeError:
+                raise ConfigError(f"{name}.observer", f"must be an observer kind or a tuple of them, got {self.observer!r}") from None
+            if not kinds:
+                raise ConfigError(f"{name}.observer", "must name at least one observer")
+            for k, kind in enumerate(kinds):
+                check_choice(f"{name}.observer[{k}]", kind, UAV_KINDS)
+            object.__setattr__(self, "observer", kinds[0] if len(kinds) == 1 else kinds)
+        if self.observer_offsets is not None:
+            offsets = check_numbers(f"{name}.observer_offsets", self.observer_offsets, tuple(f"uav_{k}" for k in range(len(self.observer_kinds))))
+            object.__setattr__(self, "observer_offsets", tuple(float(v) for v in offsets))
 
-    def tracking_config(self) -> TrackingControllerConfig:
-        """The tracking controller's configuration, with the depth pinned if the altitude is fixed."""
+    @property
+    def observer_kinds(self) -> tuple[str, ...]:
+        """The observers' kinds, one per observer."""
+        return (self.observer,) if isinstance(self.observer, str) else tuple(self.observer)
+
+    @property
+    def resolved_observer_offsets(self) -> tuple[float, ...]:
+        """:attr:`observer_offsets` with its default filled in (m, one per observer)."""
+        if self.observer_offsets is not None:
+            return self.observer_offsets
+        n = len(self.observer_kinds)
+        return (0.0,) if n == 1 else tuple((k - (n - 1) / 2.0) * _OBSERVER_SPACING_M for k in range(n))
+
+    def _uav_config(self) -> UAVConfig:
+        """The first observer's configuration (its limits bound the fixed altitude)."""
+        return UAVConfig.handheld() if self.observer_kinds[0] == "handheld" else UAVConfig()
+
+    def uav_configs(self) -> tuple[UAVConfig, ...]:
+        """Every observer's configuration before placement: one ``uav``, or ``uav_0``, ``uav_1``, ..."""
+        kinds = self.observer_kinds
+        out = []
+        for k, kind in enumerate(kinds):
+            names = {} if len(kinds) == 1 else {"name": f"uav_{k}", "camera_name": f"uav_{k}/camera"}
+            out.append(UAVConfig.handheld(**names) if kind == "handheld" else UAVConfig(**names))
+        return tuple(out)
+
+    def tracking_config(self, offset_m: float = 0.0) -> TrackingControllerConfig:
+        """The tracking controller's configuration of an observer hovering ``offset_m`` to the
+        world's +y of the pair, with the depth pinned if the altitude is fixed."""
+        tracking = self.tracking
+        if offset_m != 0.0:
+            # The UAVs keep the yaw they start with (0): body axes are the world's.
+            tracking = dataclasses.replace(tracking, target_offset=(0.0, -offset_m))
         if self.altitude is None:
-            return self.tracking
+            return tracking
         depth = self.altitude - _board_height()
-        return dataclasses.replace(self.tracking, min_depth=depth, max_depth=depth)
+        return dataclasses.replace(tracking, min_depth=depth, max_depth=depth)
 
 
 def _board_height() -> float:
@@ -336,22 +393,24 @@ def _arena(config: LeapfrogConfig) -> ArenaConfig:
 def _world_config(config: LeapfrogConfig, rng: np.random.Generator) -> WorldConfig:
     start_main = config.start_pose()
     start_buddy = left_of(start_main, config.separation)
-    uav = config._uav_config()
-    # The observer starts above the pair, with a small random offset.
-    offset = rng.normal(scale=0.05, size=2)
-    initial = ((start_main[0] + start_buddy[0]) / 2 + offset[0], (start_main[1] + start_buddy[1]) / 2 + offset[1], 0.0)
-    uav = dataclasses.replace(uav, initial=initial, **({} if config.altitude is None else {"altitude": config.altitude}))
+    uavs = []
+    for uav, lateral in zip(config.uav_configs(), config.resolved_observer_offsets):
+        # Each observer starts above the pair (beside it by its offset), with a small random offset.
+        offset = rng.normal(scale=0.05, size=2)
+        cx, cy = (start_main[0] + start_buddy[0]) / 2 + offset[0], (start_main[1] + start_buddy[1]) / 2 + offset[1]
+        initial = (cx, cy if lateral == 0.0 else cy + lateral, 0.0)
+        uavs.append(dataclasses.replace(uav, initial=initial, **({} if config.altitude is None else {"altitude": config.altitude})))
     layout = {"marker_size": config.board.marker_size, "gap": config.board.gap, "dictionary": config.board.dictionary}
     ugvs = (
         UGVConfig(name=MAIN, initial_pose=start_main, board=board_for_robot(0, **layout)),
         UGVConfig(name=BUDDY, initial_pose=start_buddy, board=board_for_robot(1, **layout)),
     )
-    return WorldConfig(arena=_arena(config), ugvs=ugvs, uav=uav, control_hz=config.control_hz)
+    return WorldConfig(arena=_arena(config), ugvs=ugvs, uavs=tuple(uavs), control_hz=config.control_hz)
 
 
 def experiment_scenario(config: LeapfrogConfig, rng: np.random.Generator) -> Scenario:
-    """The run's layout as a :class:`Scenario`: the pair at its start, the observer above it
-    (a small random offset drawn from ``rng``), the camera, estimator and dwell of ``config``."""
+    """The run's layout as a :class:`Scenario`: the pair at its start, the observers above it
+    (each with a small random offset drawn from ``rng``), the camera, estimator and dwell of ``config``."""
     return Scenario(
         name=config.experiment,
         world=_world_config(config, rng),
@@ -417,14 +476,14 @@ def run_leapfrog(
     # and every run by the odometry feed's (child 5, drawn only for a localiser that takes odometry).
     rng_world, rng_camera, rng_odometry, rng_vo_frames, rng_vo, rng_feed = root.spawn(6)
     scenario = experiment_scenario(config, rng_world)
-    uav_cfg = scenario.world.uav
+    uavs = scenario.world.uavs
     floor = floor_texture(config) if config.camera_backend == "rendered" else None
-    camera = (camera_factory or _observer_camera)(config, uav_cfg.camera_name, floor)
+    cameras = {uav.camera_name: (camera_factory or _observer_camera)(config, uav.camera_name, floor) for uav in uavs}
     # The schedule is the authority on switches here (no motion rules), and the first
     # camera frame is the first step's.
     sim = Simulation(
         scenario,
-        {uav_cfg.camera_name: camera},
+        cameras,
         localiser=localiser_factory(config.localiser) if localiser is None else localiser,
         rules=False,
         planar_ugvs=config.planar_ugvs,
@@ -432,9 +491,11 @@ def run_leapfrog(
     )
     frame = sim.reset(rng_camera)
     world = sim.world
-    tracker = BoardTrackingController(
-        uav_cfg.camera_mount[:3, :3], config.camera.fx, (config.camera.width, config.camera.height), config.tracking_config()
-    )
+    image_size = (config.camera.width, config.camera.height)
+    trackers = {
+        uav.name: BoardTrackingController(uav.camera_mount[:3, :3], config.camera.fx, image_size, config.tracking_config(lateral))
+        for uav, lateral in zip(uavs, config.resolved_observer_offsets)
+    }
 
     wheel = WheelOdometry(config.odometry, initial_pose=world.ugv_pose(MAIN))
     feed = OdometryFeed(config.odometry, world, (MAIN, BUDDY), rng_feed) if isinstance(sim.localiser, OdometryConsumer) else None
@@ -451,15 +512,17 @@ def run_leapfrog(
     recorders = {
         name: {m: TrajectoryRecorder(covariances=m == "moma") for m in ("truth", *methods)} for name in (MAIN, BUDDY)
     }
-    recorders[uav_cfg.name] = {m: TrajectoryRecorder(covariances=m == "moma") for m in ("truth", "moma")}
+    for uav in uavs:
+        recorders[uav.name] = {m: TrajectoryRecorder(covariances=m == "moma") for m in ("truth", "moma")}
+    uav_names = set(scenario.world.uav_names)
     localised: dict[str, list[bool]] = {name: [] for name in recorders}
     lost_at: dict[str, float | None] = {m: None for m in methods}
     switch_times: list[float] = []
 
     def record(frame: Frame) -> None:
         t = frame.time
-        for name in (MAIN, BUDDY, uav_cfg.name):
-            truth = world.uav_transform() if name == uav_cfg.name else world.ugv_transform(name)
+        for name in (MAIN, BUDDY, *scenario.world.uav_names):
+            truth = world.uav_transform(name) if name in uav_names else world.ugv_transform(name)
             recorders[name]["truth"].append(t, truth)
             est = frame.estimates[name]
             recorders[name]["moma"].append(t, est.T_w_b, est.covariance)
@@ -475,7 +538,7 @@ def run_leapfrog(
             lost_at["moma"] = t
 
     record(frame)
-    uav_command = np.zeros(4)
+    uav_command: np.ndarray | dict[str, np.ndarray] = np.zeros(4) if len(uavs) == 1 else {uav.name: np.zeros(4) for uav in uavs}
     ugv_commands = {MAIN: np.zeros(3), BUDDY: np.zeros(3)}
     while not schedule.done and world.time < config.max_time_s:
         requests = sim.move(ugv_commands, uav_command)
@@ -489,7 +552,13 @@ def run_leapfrog(
         if progress is not None:
             progress(world.time)
 
-        uav_command = tracker.command([d.T_c_m[:3, 3] for d in frame.detections])
+        if len(uavs) == 1:
+            uav_command = trackers[uavs[0].name].command([d.T_c_m[:3, 3] for d in frame.detections])
+        else:
+            uav_command = {
+                uav.name: trackers[uav.name].command([d.T_c_m[:3, 3] for d in frame.detections if d.camera_id == uav.camera_name])
+                for uav in uavs
+            }
         poses = {}
         for name in (MAIN, BUDDY):
             est = frame.estimates[name]

@@ -47,7 +47,7 @@ import numpy as np
 from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
-from moma_env.env.parallel import OBSERVER, MomaParallelEnv
+from moma_env.env.parallel import MomaParallelEnv
 from moma_env.vector import MomaVectorEnv
 
 __all__ = ["EnvSpec", "TeamSlots", "VectorSlots", "worker", "slot_spaces", "slot_infos", "env_command"]
@@ -78,7 +78,7 @@ def slot_spaces(env) -> tuple[list[str], spaces.Space, spaces.Space]:
             spaces differ (a shared policy needs one shape).
     """
     agents = list(env.possible_agents)
-    if OBSERVER in agents:
+    if env.observer_agents:
         raise ValueError("the shared-policy route needs observer_agent=False (the observer's spaces differ from the UGVs')")
     obs_spaces = [env.observation_space(a) for a in agents]
     act_spaces = [env.action_space(a) for a in agents]
