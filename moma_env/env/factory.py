@@ -61,7 +61,8 @@ class RandomScenarios:
     Raises:
         ConfigError: naming the field, for an unknown configuration, a bad
             override, or a team random layouts cannot keep (e.g.
-            ``"top_observer.n_ugvs"`` with its allowed range), at construction.
+            ``"top_observer.n_ugvs"`` with its allowed range), or several
+            observers (random layouts draw one), at construction.
     """
 
     def __init__(self, configuration: str, overrides: Mapping[str, Any] | None = None) -> None:
@@ -71,6 +72,11 @@ class RandomScenarios:
         self._base = from_mapping(spec.config_type, self._overrides, name=configuration)
         self._team = spec.config_type.check_team({name: getattr(self._base, name) for name in spec.team_fields})
         self._base_scenario = self._base.scenario()
+        if len(self._base_scenario.world.uavs) > 1:
+            raise ConfigError(
+                f"{configuration}.observer",
+                "random layouts draw one observer; several observers need random_scenarios=False",
+            )
 
     @property
     def configuration(self) -> str:
