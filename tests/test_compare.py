@@ -31,7 +31,7 @@ def test_a_case_times_every_update_and_summarises_errors_and_consistency():
         assert math.isfinite(value) and value >= 0.0
     assert row.n_completed == 0  # 8 s is not the whole square
     table = format_table([row])
-    assert table.count("\n") == 2 and "| square | geometric | ekf | 1 (0) |" in table
+    assert table.count("\n") == 2 and "| square | geometric | ekf | quadcopter | 1 (0) |" in table
 
 
 def test_the_paper_preset_with_planar_ugvs_off_and_the_default_preset_planar():

@@ -231,3 +231,33 @@ def test_compare_runs_each_observer_alone_then_together():
     assert args.observers == ["quadcopter", "quadcopter"]
     with pytest.raises(SystemExit):
         build_parser().parse_args(["experiment", "compare", "--observers", "quadcopter,kite"])
+
+
+def test_vector_copies_with_two_observers_are_the_single_env():
+    from moma_env import vector
+
+    envs = vector.make("top_observer", 3, action_mode="velocity", observer=TWO, max_cycles=30)
+    single = parallel_env("top_observer", action_mode="velocity", observer=TWO, max_cycles=30)
+    observations, _ = envs.reset(seed=7)
+    alone, _ = single.reset(seed=8)  # copy 1 of a batch seeded 7
+    rng = np.random.default_rng(1)
+    for _ in range(12):
+        actions = {a: rng.uniform(-1, 1, (3, *envs.single_action_space(a).shape)).astype(np.float32) for a in envs.possible_agents}
+        observations, *_ = envs.step(actions)
+        alone, *_ = single.step({a: actions[a][1] for a in single.possible_agents})
+    for agent in single.possible_agents:
+        assert observations[agent][1].tobytes() == alone[agent].tobytes()
+    assert envs.state().shape == (3, *single.state_space.shape)
+
+
+def test_torchrl_groups_every_observer():
+    pytest.importorskip("torchrl")
+    from torchrl.envs.utils import check_env_specs
+
+    from moma_env.vector.torchrl import MomaTorchRLEnv
+
+    env = MomaTorchRLEnv("top_observer", num_envs=2, seed=0, action_mode="velocity", observer=TWO, max_cycles=20)
+    assert env.group_map["observer"] == ["observer_0", "observer_1"]
+    check_env_specs(env)
+    rollout = env.rollout(5, break_when_any_done=False)
+    assert rollout["next", "observer", "reward"].shape == (2, 5, 2, 1)
