@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Detection"]
+__all__ = ["Detection", "frame_fusion_covariance"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,6 +34,12 @@ class Detection:
             ``T_c_m(true) = [exp([dtheta]x) R, t + dt]`` with ``(dt, dtheta)``
             zero-mean of this covariance (rotation perturbed on the left, i.e.
             about the axes of C; translation additive).
+        persistent_covariance: 6x6 part of ``covariance`` (same frame and
+            convention) that persists from frame to frame while the camera and
+            the board stand still relative to each other, so that averaging
+            the frames of a switch window does not reduce it; None (default):
+            none, the error is independent from frame to frame. The mean of
+            ``n`` such frames has covariance ``P + (covariance - P) / n``.
     """
 
     camera_id: str
@@ -44,8 +50,28 @@ class Detection:
     time: float
     reprojection_error_px: float = float("nan")
     covariance: np.ndarray | None = None
+    persistent_covariance: np.ndarray | None = None
 
     @property
     def n_markers(self) -> int:
         """Number of markers that contributed to the pose."""
         return len(self.marker_ids)
+
+
+def frame_fusion_covariance(d: Detection, frames: int) -> np.ndarray | None:
+    """The covariance an estimator that fuses every frame as independent gives detection ``d``.
+
+    An EKF or a pose graph weighs every detection by its covariance and treats
+    the frames as independent. When a part ``P`` of the covariance ``C``
+    persists from frame to frame (``d.persistent_covariance``), the detection
+    stands for ``C + (frames - 1) P``: fusing ``frames`` still frames of it as
+    independent gives ``P + (C - P) / frames``, the covariance of their mean
+    (fewer frames: a cautious result, more: an over-confident one).
+
+    Returns ``d.covariance`` itself (None when it has none, or without a
+    persistent part).
+    """
+    P = d.persistent_covariance
+    if P is None or d.covariance is None:
+        return d.covariance
+    return d.covariance + (frames - 1) * P

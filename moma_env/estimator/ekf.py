@@ -33,7 +33,9 @@ Update
 ------
 Each detection is the relative pose ``T_c_m = inv(T_w_o T_o_c) T_w_r T_r_m``
 of a board on robot r in a camera on robot o, with the detection's 6x6
-covariance (camera frame) plus a floor of ``detection_floor_m`` /
+covariance (camera frame; with a ``persistent_covariance``, the covariance of
+:func:`~moma_env.estimator.detection.frame_fusion_covariance` over the
+estimator's ``window`` frames) plus a floor of ``detection_floor_m`` /
 ``detection_floor_rad``. The residual ``pose_error(T_c_m measured, predicted)``
 is gated by its normalised innovation squared (``gate_nis``, a chi-square
 quantile of 6 dof), and every accepted detection of the frame is fused in one
@@ -52,7 +54,7 @@ import numpy as np
 from moma_env.config import ConfigError, check_count, check_positive
 from moma_env.estimator.bookkeeping import BookkeptLocaliser, Bookkeeper, RobotRecord
 from moma_env.estimator.config import EstimatorConfig
-from moma_env.estimator.detection import Detection
+from moma_env.estimator.detection import Detection, frame_fusion_covariance
 from moma_env.estimator.results import Phase, Status
 from moma_env.estimator.uncertainty import (
     apply_error,
@@ -239,7 +241,8 @@ class EkfLocaliser(BookkeptLocaliser):
         return any(self._is_reference_board(d, own) for d in group)
 
     def _R(self, d: Detection) -> np.ndarray:
-        return self._floor if d.covariance is None else d.covariance + self._floor
+        cov = frame_fusion_covariance(d, self._book.config.window)
+        return self._floor if cov is None else cov + self._floor
 
     def _random_walk(self, dt: float) -> None:
         if dt <= 0.0:

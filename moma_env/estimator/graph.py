@@ -22,7 +22,9 @@ Factors
 A detection ``T_c_m`` of a board on robot r by a camera on robot o is the
 ``BetweenFactorPose3`` ``T_o_b = T_o_c T_c_m inv(T_r_m)`` between their current
 variables, with the detection's covariance carried to it (GTSAM's convention:
-rotation first, perturbed on the right) plus a floor of ``detection_floor_m`` /
+rotation first, perturbed on the right; with a ``persistent_covariance``, the
+covariance of :func:`~moma_env.estimator.detection.frame_fusion_covariance`
+over the estimator's ``window`` frames) plus a floor of ``detection_floor_m`` /
 ``detection_floor_rad``. As in MOMA, only cameras *located* in the frame (seeing
 a board of a REFERENCE robot, or carried by one) add factors, so that the
 graph stays connected to the anchors; a robot seen for the first time is
@@ -51,7 +53,7 @@ import numpy as np
 from moma_env.config import check_bool, check_positive
 from moma_env.estimator.bookkeeping import BookkeptLocaliser, Bookkeeper, RobotRecord
 from moma_env.estimator.config import EstimatorConfig
-from moma_env.estimator.detection import Detection
+from moma_env.estimator.detection import Detection, frame_fusion_covariance
 from moma_env.estimator.results import Phase
 from moma_env.geometry import invert, se2_to_se3, upright_body_from_mount
 
@@ -298,7 +300,8 @@ class GraphLocaliser(BookkeptLocaliser):
     def _noise(self, d: Detection, T_r_m: np.ndarray):
         """The noise of the factor ``T_o_c T_c_m inv(T_r_m)``: the detection's covariance on the right of
         ``T_c_m`` (GTSAM order), carried through ``inv(T_r_m)`` by the adjoint of ``T_r_m``."""
-        cov = np.zeros((6, 6)) if d.covariance is None else gtsam_from_ros(d.T_c_m, d.covariance)
+        cov = frame_fusion_covariance(d, self._book.config.window)
+        cov = np.zeros((6, 6)) if cov is None else gtsam_from_ros(d.T_c_m, cov)
         Ad = gtsam.Pose3(T_r_m).AdjointMap()
         C = Ad @ cov @ Ad.T + self._floor
         return gtsam.noiseModel.Gaussian.Covariance(0.5 * (C + C.T))
