@@ -72,13 +72,22 @@ def test_plus_noise_and_transformed_carry_the_persistent_part() -> None:
 
 
 def test_frame_fusion_covariance() -> None:
-    C = np.diag(STD**2)
+    rng = np.random.default_rng(6)
+    C = _random_spd(rng) * 1e-6
     d = Detection("down", 0, np.eye(4), np.empty((0, 2)), (), 0.0, covariance=C)
-    assert frame_fusion_covariance(d, 25) is C
-    d = Detection("down", 0, np.eye(4), np.empty((0, 2)), (), 0.0, covariance=C, persistent_covariance=0.5 * C)
-    np.testing.assert_allclose(frame_fusion_covariance(d, 25), C + 24 * 0.5 * C)
-    # fusing 25 independent frames of it gives the covariance of the mean of 25 correlated ones
-    np.testing.assert_allclose(frame_fusion_covariance(d, 25) / 25, 0.5 * C + 0.5 * C / 25)
+    assert frame_fusion_covariance(d, 25) is C  # no persistent part: every frame independent
+    P = 0.3 * C
+    d = Detection("down", 0, np.eye(4), np.empty((0, 2)), (), 0.0, covariance=C, persistent_covariance=P)
+    assert frame_fusion_covariance(d, 1) is C
+    # k frames fused as independent carry exactly the information of the mean of k correlated ones
+    for k in (2, 5, 40):
+        information = sum(np.linalg.inv(frame_fusion_covariance(d, j)) for j in range(1, k + 1))
+        np.testing.assert_allclose(np.linalg.inv(information), P + (C - P) / k, rtol=1e-7)
+    # a persistent part in the lateral translation only (the board shift): the rest is independent
+    S = np.diag([4e-6, 4e-6, 0.0, 0.0, 0.0, 0.0])
+    d = Detection("down", 0, np.eye(4), np.empty((0, 2)), (), 0.0, covariance=C + S, persistent_covariance=S)
+    information = sum(np.linalg.inv(frame_fusion_covariance(d, j)) for j in range(1, 31))
+    np.testing.assert_allclose(np.linalg.inv(information), S + C / 30, rtol=1e-6, atol=1e-15)
 
 
 def _estimator(window: int) -> MomaEstimator:
@@ -148,3 +157,24 @@ def test_bad_persistent_covariance_is_rejected(kwargs: dict, message: str) -> No
     d = Detection("down", 0, g.make_transform(np.eye(3), [0.0, 0.0, 2.0]), np.empty((0, 2)), (), 0.0, **args)
     with pytest.raises(ValueError, match=message):
         est.update(0.04, [d])
+
+
+def test_still_frames_counts_the_frames_a_board_stands_still() -> None:
+    from moma_env.estimator.bookkeeping import Bookkeeper
+
+    book = Bookkeeper(EstimatorConfig(window=5, gate=None))
+    book.add_robot("ref", boards={0: BOARD}, cameras=None, static=True, initial_pose=np.eye(4), time=0.0, planar=False)
+    book.add_robot("target", boards={1: BOARD}, cameras=None, static=False, initial_pose=None, time=0.0, planar=False)
+    book.add_robot("uav", boards=None, cameras={"down": CAMERA}, static=False, initial_pose=None, time=0.0, planar=False)
+    both = [Detection("down", b, np.eye(4), np.empty((0, 2)), (), 0.0) for b in (0, 1)]
+    seen = []
+    t = 0.0
+    for frame in range(6):
+        if frame == 2:
+            book.set_static("target", True, t)
+        t += 0.04
+        _, by_camera = book.begin_update(t, both)
+        seen.append((book.still_frames(0), book.still_frames(1)))
+        book.end_update(t, book.measured_robots(by_camera, book.located_cameras(by_camera)))
+    # the reference stands still from the start; the target's frames count from its static declaration
+    assert seen == [(1, 1), (2, 1), (3, 1), (4, 2), (5, 3), (6, 4)]

@@ -208,6 +208,18 @@ class Bookkeeper:
                 located.add(camera_id)
         return located
 
+    def still_frames(self, board_id: int) -> int:
+        """Which frame (1, 2, ...) of its still run a detection of ``board_id`` in this update is.
+
+        A board stands still while its owner is not MOBILE: this is ``1 +
+        n_static`` of the owner (the frames it was measured in since its static
+        declaration, this update's not yet counted), and 1 for a mobile owner
+        (every frame of a moving board is a new scene). The index of
+        :func:`~moma_env.estimator.detection.frame_fusion_covariance`.
+        """
+        r = self.board_owner[board_id]
+        return 1 if r.phase is Phase.MOBILE else 1 + r.n_static
+
     def measured_robots(self, by_camera: Mapping[str, list[Detection]], located: set[str]) -> set[str]:
         """The robots measured in the frame: boards seen by a located camera, carriers of a located camera."""
         measured = set()

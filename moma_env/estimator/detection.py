@@ -58,20 +58,27 @@ class Detection:
         return len(self.marker_ids)
 
 
-def frame_fusion_covariance(d: Detection, frames: int) -> np.ndarray | None:
-    """The covariance an estimator that fuses every frame as independent gives detection ``d``.
+def frame_fusion_covariance(d: Detection, k: int) -> np.ndarray | None:
+    """The covariance an estimator that fuses frames as independent gives detection ``d``, the
+    ``k``-th frame (1, 2, ...) in which its camera and board stand still relative to each other.
 
     An EKF or a pose graph weighs every detection by its covariance and treats
     the frames as independent. When a part ``P`` of the covariance ``C``
-    persists from frame to frame (``d.persistent_covariance``), the detection
-    stands for ``C + (frames - 1) P``: fusing ``frames`` still frames of it as
-    independent gives ``P + (C - P) / frames``, the covariance of their mean
-    (fewer frames: a cautious result, more: an over-confident one).
+    persists from frame to frame (``d.persistent_covariance``), the mean of
+    ``k`` still frames has covariance ``P + (C - P) / k``; frame ``k`` then
+    brings the information ``I_k - I_(k-1)`` with ``I_j = inv(P + (C - P) / j)``
+    (``I_0 = 0``), and this returns its inverse, so that ``k`` frames fused as
+    independent add up to exactly ``I_k``. Frame 1 gets ``C``; later frames
+    get ever less information on the persistent part.
 
-    Returns ``d.covariance`` itself (None when it has none, or without a
-    persistent part).
+    Returns ``d.covariance`` itself when ``k`` is 1, without a persistent part
+    or without a covariance (None).
     """
     P = d.persistent_covariance
-    if P is None or d.covariance is None:
-        return d.covariance
-    return d.covariance + (frames - 1) * P
+    C = d.covariance
+    if P is None or C is None or k <= 1:
+        return C
+    W = C - P
+    gain = np.linalg.inv(P + W / k) - np.linalg.inv(P + W / (k - 1))
+    cov = np.linalg.inv(0.5 * (gain + gain.T))
+    return 0.5 * (cov + cov.T)

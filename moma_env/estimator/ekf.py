@@ -34,8 +34,9 @@ Update
 Each detection is the relative pose ``T_c_m = inv(T_w_o T_o_c) T_w_r T_r_m``
 of a board on robot r in a camera on robot o, with the detection's 6x6
 covariance (camera frame; with a ``persistent_covariance``, the covariance of
-:func:`~moma_env.estimator.detection.frame_fusion_covariance` over the
-estimator's ``window`` frames) plus a floor of ``detection_floor_m`` /
+:func:`~moma_env.estimator.detection.frame_fusion_covariance` for the frame's
+place in the run of frames its board stands still,
+``Bookkeeper.still_frames``) plus a floor of ``detection_floor_m`` /
 ``detection_floor_rad``. The residual ``pose_error(T_c_m measured, predicted)``
 is gated by its normalised innovation squared (``gate_nis``, a chi-square
 quantile of 6 dof), and every accepted detection of the frame is fused in one
@@ -241,7 +242,7 @@ class EkfLocaliser(BookkeptLocaliser):
         return any(self._is_reference_board(d, own) for d in group)
 
     def _R(self, d: Detection) -> np.ndarray:
-        cov = frame_fusion_covariance(d, self._book.config.window)
+        cov = frame_fusion_covariance(d, self._book.still_frames(d.board_id))
         return self._floor if cov is None else cov + self._floor
 
     def _random_walk(self, dt: float) -> None:

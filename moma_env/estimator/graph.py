@@ -24,7 +24,8 @@ A detection ``T_c_m`` of a board on robot r by a camera on robot o is the
 variables, with the detection's covariance carried to it (GTSAM's convention:
 rotation first, perturbed on the right; with a ``persistent_covariance``, the
 covariance of :func:`~moma_env.estimator.detection.frame_fusion_covariance`
-over the estimator's ``window`` frames) plus a floor of ``detection_floor_m`` /
+for the frame's place in the run of frames its board stands still,
+``Bookkeeper.still_frames``) plus a floor of ``detection_floor_m`` /
 ``detection_floor_rad``. As in MOMA, only cameras *located* in the frame (seeing
 a board of a REFERENCE robot, or carried by one) add factors, so that the
 graph stays connected to the anchors; a robot seen for the first time is
@@ -240,7 +241,8 @@ class GraphLocaliser(BookkeptLocaliser):
                 if self._key[r.name] is None:
                     self._variable(r, T_w_o @ T_o_c @ d.T_c_m @ invert(T_r_m))
                 Z = T_o_c @ d.T_c_m @ invert(T_r_m)
-                self._factors.add(gtsam.BetweenFactorPose3(key_o, self._key[r.name], gtsam.Pose3(Z), self._noise(d, T_r_m)))
+                noise = self._noise(d, T_r_m, book.still_frames(d.board_id))
+                self._factors.add(gtsam.BetweenFactorPose3(key_o, self._key[r.name], gtsam.Pose3(Z), noise))
                 self._n_factors += 1
                 measured.add(r.name)
         if self._factors.size() or self._values.size():
@@ -297,10 +299,11 @@ class GraphLocaliser(BookkeptLocaliser):
             pose = upright_body_from_mount(pose, np.eye(4), r.plane_z)
         return self._new_variable(r, pose)
 
-    def _noise(self, d: Detection, T_r_m: np.ndarray):
+    def _noise(self, d: Detection, T_r_m: np.ndarray, still: int = 1):
         """The noise of the factor ``T_o_c T_c_m inv(T_r_m)``: the detection's covariance on the right of
-        ``T_c_m`` (GTSAM order), carried through ``inv(T_r_m)`` by the adjoint of ``T_r_m``."""
-        cov = frame_fusion_covariance(d, self._book.config.window)
+        ``T_c_m`` (GTSAM order), carried through ``inv(T_r_m)`` by the adjoint of ``T_r_m``; with a
+        persistent part, that of the ``still``-th still frame (:func:`frame_fusion_covariance`)."""
+        cov = frame_fusion_covariance(d, still)
         cov = np.zeros((6, 6)) if cov is None else gtsam_from_ros(d.T_c_m, cov)
         Ad = gtsam.Pose3(T_r_m).AdjointMap()
         C = Ad @ cov @ Ad.T + self._floor
