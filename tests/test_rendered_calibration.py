@@ -43,6 +43,21 @@ def test_fit_recovers_shift_and_persistence() -> None:
     assert fit.nees_frame_model == pytest.approx(1.0, abs=0.1)
     assert fit.nees_window_model == pytest.approx(1.0, abs=0.15)
     assert fit.nees_window_pnp > 5.0 * fit.nees_window_model
+    assert fit.yaw_frame_nees == 0.0 and fit.depth_bias_m == 0.0  # no yaw or depth error drawn
+
+
+def test_yaw_and_depth_summaries() -> None:
+    records = _records(sigma_px=0.0, rho=0.0, pnp_px=0.2, blocks=50, window=10, seed=5)
+    rng = np.random.default_rng(6)
+    error = records.error.copy()
+    error[:, 2] = -0.01  # every board 1 cm farther than it is
+    error[:, 5] = rng.normal(0.0, np.sqrt(1e-5), len(error))  # white yaw error of the reported variance
+    fit = fit_board_shift(
+        DetectionRecords(records.run, records.board, records.time, error, records.covariance, records.depth, records.board_world), FX, FY, window=10
+    )
+    assert fit.depth_bias_m == pytest.approx(-0.01)
+    assert fit.yaw_frame_nees == pytest.approx(1.0, abs=0.15)  # white yaw of the reported variance
+    assert fit.yaw_window_nees == pytest.approx(1.0, abs=0.3)
 
 
 def test_white_pnp_noise_alone_needs_no_shift() -> None:

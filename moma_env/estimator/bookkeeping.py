@@ -220,6 +220,26 @@ class Bookkeeper:
         r = self.board_owner[board_id]
         return 1 if r.phase is Phase.MOBILE else 1 + r.n_static
 
+    def still_together(self, camera_id: str, group: list[Detection]) -> int:
+        """Which frame (1, 2, ...) of a run in which the robots ``camera_id`` relates stand still together this is.
+
+        The static robots of the frame are the owners of the boards in
+        ``group`` (the camera's detections) that are not MOBILE, and the
+        camera's owner if it is not MOBILE. With two or more, ``1 +
+        min(n_static)`` over them (the frames since the latest of their static
+        declarations); otherwise 1. Without odometry the only frames an
+        estimator combines are those relating robots that stand still
+        together, so this, not :meth:`still_frames`, is the index of
+        :func:`~moma_env.estimator.detection.frame_fusion_covariance` there.
+        """
+        own = self.camera_owner[camera_id]
+        static = {id(r): r for r in (self.board_owner[d.board_id] for d in group) if r is not own and r.phase is not Phase.MOBILE}
+        if own.phase is not Phase.MOBILE:
+            static[id(own)] = own
+        if len(static) < 2:
+            return 1
+        return 1 + min(r.n_static for r in static.values())
+
     def measured_robots(self, by_camera: Mapping[str, list[Detection]], located: set[str]) -> set[str]:
         """The robots measured in the frame: boards seen by a located camera, carriers of a located camera."""
         measured = set()

@@ -60,7 +60,7 @@ class Detection:
 
 def frame_fusion_covariance(d: Detection, k: int) -> np.ndarray | None:
     """The covariance an estimator that fuses frames as independent gives detection ``d``, the
-    ``k``-th frame (1, 2, ...) in which its camera and board stand still relative to each other.
+    ``k``-th frame (1, 2, ...) in which its board stands still.
 
     An EKF or a pose graph weighs every detection by its covariance and treats
     the frames as independent. When a part ``P`` of the covariance ``C``

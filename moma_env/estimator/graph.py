@@ -25,7 +25,9 @@ variables, with the detection's covariance carried to it (GTSAM's convention:
 rotation first, perturbed on the right; with a ``persistent_covariance``, the
 covariance of :func:`~moma_env.estimator.detection.frame_fusion_covariance`
 for the frame's place in the run of frames its board stands still,
-``Bookkeeper.still_frames``) plus a floor of ``detection_floor_m`` /
+``Bookkeeper.still_frames``, once odometry chains the frames of moving robots;
+before any odometry, and in ``graph_vision``, in the run of frames the robots
+its camera relates stand still together, ``Bookkeeper.still_together``) plus a floor of ``detection_floor_m`` /
 ``detection_floor_rad``. As in MOMA, only cameras *located* in the frame (seeing
 a board of a REFERENCE robot, or carried by one) add factors, so that the
 graph stays connected to the anchors; a robot seen for the first time is
@@ -153,6 +155,7 @@ class GraphLocaliser(BookkeptLocaliser):
         self._n_factors = 0
         self._last_key: dict[str, int] = {}  # the robot's latest variable, whatever its kind
         self._motion: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # odometry since it: (T, GTSAM covariance)
+        self._chained = False  # an odometry factor was added (see update)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -203,6 +206,7 @@ class GraphLocaliser(BookkeptLocaliser):
         self._book.time = self._book.checked_time(time)
         if not self.graph.odometry or name not in self._last_key:
             return
+        self._chained = True  # odometry factors chain the frames of a moving robot
         delta = se2_to_se3(dx, dy, dyaw)
         Q = np.zeros((6, 6))
         Q[np.ix_((0, 1, 5), (0, 1, 5))] = Q3
@@ -233,6 +237,11 @@ class GraphLocaliser(BookkeptLocaliser):
             key_o = self._key[own.name]
             T_w_o = self._guess[own.name]
             measured.add(own.name)
+            # Which still frame each detection is (its persistent noise): odometry chains the frames of a
+            # moving robot, so every frame of a still board shares its error; without, only the frames
+            # relating robots that stand still together are combined.
+            together = book.still_together(camera_id, group)
+            still = (lambda d: book.still_frames(d.board_id)) if self._chained else (lambda d, k=together: k)
             for d in group:
                 r = book.board_owner[d.board_id]
                 if r is own:
@@ -241,7 +250,7 @@ class GraphLocaliser(BookkeptLocaliser):
                 if self._key[r.name] is None:
                     self._variable(r, T_w_o @ T_o_c @ d.T_c_m @ invert(T_r_m))
                 Z = T_o_c @ d.T_c_m @ invert(T_r_m)
-                noise = self._noise(d, T_r_m, book.still_frames(d.board_id))
+                noise = self._noise(d, T_r_m, still(d))
                 self._factors.add(gtsam.BetweenFactorPose3(key_o, self._key[r.name], gtsam.Pose3(Z), noise))
                 self._n_factors += 1
                 measured.add(r.name)
