@@ -178,3 +178,42 @@ def test_still_frames_counts_the_frames_a_board_stands_still() -> None:
         book.end_update(t, book.measured_robots(by_camera, book.located_cameras(by_camera)))
     # the reference stands still from the start; the target's frames count from its static declaration
     assert seen == [(1, 1), (2, 1), (3, 1), (4, 2), (5, 3), (6, 4)]
+
+
+def test_still_together_counts_the_frames_the_related_robots_stand_still_together() -> None:
+    from moma_env.estimator.bookkeeping import Bookkeeper
+
+    book = Bookkeeper(EstimatorConfig(window=5, gate=None))
+    book.add_robot("ref", boards={0: BOARD}, cameras=None, static=True, initial_pose=np.eye(4), time=0.0, planar=False)
+    book.add_robot("target", boards={1: BOARD}, cameras=None, static=False, initial_pose=None, time=0.0, planar=False)
+    book.add_robot("uav", boards=None, cameras={"down": CAMERA}, static=False, initial_pose=None, time=0.0, planar=False)
+    both = [Detection("down", b, np.eye(4), np.empty((0, 2)), (), 0.0) for b in (0, 1)]
+    seen = []
+    t = 0.0
+    for frame in range(6):
+        if frame == 2:
+            book.set_static("target", True, t)
+        t += 0.04
+        _, by_camera = book.begin_update(t, both)
+        seen.append(book.still_together("down", by_camera["down"]))
+        book.end_update(t, book.measured_robots(by_camera, book.located_cameras(by_camera)))
+    # a moving target: each frame a new scene; then the frames since it stopped beside the reference
+    assert seen == [1, 1, 1, 2, 3, 4]
+    only_ref = book.begin_update(t + 0.04, both[:1])[1]
+    assert book.still_together("down", only_ref["down"]) == 1  # one static robot: nothing held still together
+
+
+@pytest.mark.parametrize("name", ["ekf", "graph"])
+def test_filters_reject_a_bad_persistent_covariance(name: str) -> None:
+    from moma_env.estimator.registry import localiser_factory
+
+    try:
+        localiser = localiser_factory(name)(EstimatorConfig(window=5, gate=None))
+    except ImportError:
+        pytest.skip("gtsam is not installed")
+    localiser.add_robot("ref", boards={0: BOARD}, static=True, initial_pose=np.eye(4))
+    localiser.add_robot("uav", cameras={"down": CAMERA}, static=False)
+    T = g.make_transform(np.eye(3), [0.0, 0.0, 2.0])
+    bad = Detection("down", 0, T, np.empty((0, 2)), (), 0.0, covariance=np.eye(6), persistent_covariance=-np.eye(6))
+    with pytest.raises(ValueError, match=r"detections\[0\].persistent_covariance"):
+        localiser.update(0.04, [bad])

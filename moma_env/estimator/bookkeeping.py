@@ -70,7 +70,7 @@ class RobotRecord:
 
 def check_detection(d: object, i: int, board_owner: Mapping[int, object], camera_owner: Mapping[str, object]) -> Detection:
     """``d`` if it is a :class:`Detection` of known ids with a finite rigid ``T_c_m`` and, if any,
-    a finite symmetric 6x6 covariance; TypeError / UnknownCameraError / UnknownBoardError /
+    a finite symmetric 6x6 covariance and persistent covariance; TypeError / UnknownCameraError / UnknownBoardError /
     ValueError naming ``detections[i]`` otherwise."""
     if not isinstance(d, Detection):
         raise TypeError(f"detections[{i}] must be a Detection, got {type(d).__name__}")
@@ -92,6 +92,20 @@ def check_detection(d: object, i: int, board_owner: Mapping[int, object], camera
             or (np.diag(cov) < 0.0).any()
         ):
             raise ValueError(f"detections[{i}].covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
+    P = d.persistent_covariance
+    if P is not None:
+        if cov is None:
+            raise ValueError(f"detections[{i}].persistent_covariance needs a covariance (it is a part of it)")
+        if (
+            not isinstance(P, np.ndarray)
+            or P.shape != (6, 6)
+            or not np.isfinite(P).all()
+            or np.abs(P - P.T).max() > 1e-9 * max(1.0, float(np.abs(P).max()))
+            or (np.diag(P) < 0.0).any()
+        ):
+            raise ValueError(
+                f"detections[{i}].persistent_covariance must be a finite symmetric 6x6 array with a non-negative diagonal"
+            )
     return d
 
 
