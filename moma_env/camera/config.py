@@ -128,6 +128,18 @@ class CameraConfig:
             about twice the RMS error of a correct pose (``~1.3 noise_px`` for
             a 16-corner board), so it rejects poses that fell into a wrong
             minimum after a jump and practically never a correct one.
+        board_shift_px: std (px, >= 0) of an error shared by every corner of
+            a board (a shift of its image in u and in v), added to each
+            detection's covariance as the lateral translation it gives at the
+            board's depth (:mod:`moma_env.camera.board_shift`). None
+            (default): the backend's: none for the geometric backend (a
+            non-zero value is an error there: it draws no such shift), the
+            measured ``RENDERED_SHIFT_PX`` for the rendered one.
+        board_shift_persistence: fraction (in [0, 1]) of the shift's variance
+            that persists while the camera and the board stand still (each
+            detection's ``persistent_covariance``). None (default): the
+            backend's (the measured ``RENDERED_SHIFT_PERSISTENCE`` for the
+            rendered one).
     """
 
     width: int = 720
@@ -151,6 +163,8 @@ class CameraConfig:
     pnp_sigma_floor_px: float = 0.1
     pnp_warm_start: bool = False
     pnp_warm_max_rms_px: float | None = None
+    board_shift_px: float | None = None
+    board_shift_persistence: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "width", _check_positive_int("camera.width", self.width))
@@ -201,6 +215,12 @@ class CameraConfig:
                     f"1.3 noise_px: nearly every warm start would be rejected), got {self.pnp_warm_max_rms_px!r}",
                 )
             object.__setattr__(self, "pnp_warm_max_rms_px", float(self.pnp_warm_max_rms_px))
+        if self.board_shift_px is not None:
+            check_non_negative("camera.board_shift_px", self.board_shift_px)
+            object.__setattr__(self, "board_shift_px", float(self.board_shift_px))
+        if self.board_shift_persistence is not None:
+            check_range("camera.board_shift_persistence", self.board_shift_persistence, 0.0, 1.0)
+            object.__setattr__(self, "board_shift_persistence", float(self.board_shift_persistence))
 
     @property
     def warm_max_rms_px(self) -> float:

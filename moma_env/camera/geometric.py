@@ -64,6 +64,7 @@ import cv2
 import numpy as np
 
 from moma_env.camera.backend import BoardView, OcclusionQuery, as_pose
+from moma_env.camera.board_shift import board_shift_for
 from moma_env.camera.config import CameraConfig
 from moma_env.camera.pinhole import PinholeCamera
 from moma_env.camera.kernels import camera_parameters, project_markers, solve_boards, solve_settings, undistort_points
@@ -161,6 +162,7 @@ class GeometricCamera:
         self.camera_id = camera_id
         self.camera = PinholeCamera(config)
         self.config = self.camera.config
+        board_shift_for(self.config, "geometric")  # ConfigError for a board shift: this backend draws none
         self._first_solver = _FIRST_SOLVER[config.pnp_method]
         self._refine_lm = config.pnp_method == "ITERATIVE"
         self._geometries: dict[tuple[int, ...], _BoardSetGeometry] = {}

@@ -26,7 +26,10 @@ with the real pipeline a camera on the robots would run:
    (``GeometricCamera.solve_boards``, so both backends solve identically),
    the same choice between the two poses of the planar ambiguity and a
    covariance whose corner noise is, by default, estimated from each board's
-   residuals (``CameraConfig.pnp_sigma_source``).
+   residuals (``CameraConfig.pnp_sigma_source``), plus the board-shift error
+   model (:mod:`moma_env.camera.board_shift`: an error shared by a board's
+   corners, mostly persistent in time, measured against the truth), which
+   also gives each detection's ``persistent_covariance``.
 
 Speed: the floor view is kept while the camera does not move (or, with
 ``RenderConfig.floor_reuse_px``, while it moves the view by less than that);
@@ -51,6 +54,7 @@ objects).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time as _time
 from collections.abc import Sequence
@@ -60,6 +64,7 @@ import numpy as np
 
 from moma_env.camera.backend import BoardView, OcclusionQuery, as_pose
 from moma_env.camera.board_raster import BoardRaster, aruco_dictionary
+from moma_env.camera.board_shift import board_shift_for
 from moma_env.camera.config import CameraConfig
 from moma_env.camera.floor import FloorConfig, FloorTexture
 from moma_env.camera.geometric import GeometricCamera, board_up_rows, finite_or_none
@@ -108,7 +113,10 @@ class RenderedCamera:
         render: RenderConfig | None = None,
         floor: FloorTexture | None = None,
     ) -> None:
-        self._solver = GeometricCamera(camera_id, config)  # validates camera_id and config
+        # The solver validates camera_id and config; the board shift is this backend's, not the solver's.
+        self._solver = GeometricCamera(camera_id, dataclasses.replace(config, board_shift_px=None))
+        #: The board-shift error model added to every detection's covariance (``CameraConfig.board_shift_px``).
+        self.board_shift = board_shift_for(config, "rendered")
         self.camera_id = camera_id
         self.camera: PinholeCamera = self._solver.camera
         self.config = config
@@ -247,13 +255,18 @@ class RenderedCamera:
             np.concatenate(objects), px, np.array(starts, dtype=np.int64), up_m, up_c, self._sigma_px
         )
         detections = []
+        shift = self.board_shift
+        fx, fy = self.config.fx, self.config.fy
         for i, (b, indices) in enumerate(order):
             if not math.isfinite(rms[i]):
                 continue
             ids = tuple(layouts[b].marker_ids[k] for k in indices)
             first, end = starts[i], starts[i + 1]
+            covariance, persistent = shift.apply(T[i], finite_or_none(cov[i]), fx, fy)
             detections.append(
-                Detection(self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, float(rms[i]), finite_or_none(cov[i]))
+                Detection(
+                    self.camera_id, boards[b].board_id, T[i], px[first:end], ids, time, float(rms[i]), covariance, persistent
+                )
             )
         return detections
 

@@ -70,7 +70,7 @@ class RobotRecord:
 
 def check_detection(d: object, i: int, board_owner: Mapping[int, object], camera_owner: Mapping[str, object]) -> Detection:
     """``d`` if it is a :class:`Detection` of known ids with a finite rigid ``T_c_m`` and, if any,
-    a finite symmetric 6x6 covariance; TypeError / UnknownCameraError / UnknownBoardError /
+    a finite symmetric 6x6 covariance and persistent covariance; TypeError / UnknownCameraError / UnknownBoardError /
     ValueError naming ``detections[i]`` otherwise."""
     if not isinstance(d, Detection):
         raise TypeError(f"detections[{i}] must be a Detection, got {type(d).__name__}")
@@ -92,6 +92,20 @@ def check_detection(d: object, i: int, board_owner: Mapping[int, object], camera
             or (np.diag(cov) < 0.0).any()
         ):
             raise ValueError(f"detections[{i}].covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
+    P = d.persistent_covariance
+    if P is not None:
+        if cov is None:
+            raise ValueError(f"detections[{i}].persistent_covariance needs a covariance (it is a part of it)")
+        if (
+            not isinstance(P, np.ndarray)
+            or P.shape != (6, 6)
+            or not np.isfinite(P).all()
+            or np.abs(P - P.T).max() > 1e-9 * max(1.0, float(np.abs(P).max()))
+            or (np.diag(P) < 0.0).any()
+        ):
+            raise ValueError(
+                f"detections[{i}].persistent_covariance must be a finite symmetric 6x6 array with a non-negative diagonal"
+            )
     return d
 
 
@@ -207,6 +221,38 @@ class Bookkeeper:
             ):
                 located.add(camera_id)
         return located
+
+    def still_frames(self, board_id: int) -> int:
+        """Which frame (1, 2, ...) of its still run a detection of ``board_id`` in this update is.
+
+        A board stands still while its owner is not MOBILE: this is ``1 +
+        n_static`` of the owner (the frames it was measured in since its static
+        declaration, this update's not yet counted), and 1 for a mobile owner
+        (every frame of a moving board is a new scene). The index of
+        :func:`~moma_env.estimator.detection.frame_fusion_covariance`.
+        """
+        r = self.board_owner[board_id]
+        return 1 if r.phase is Phase.MOBILE else 1 + r.n_static
+
+    def still_together(self, camera_id: str, group: list[Detection]) -> int:
+        """Which frame (1, 2, ...) of a run in which the robots ``camera_id`` relates stand still together this is.
+
+        The static robots of the frame are the owners of the boards in
+        ``group`` (the camera's detections) that are not MOBILE, and the
+        camera's owner if it is not MOBILE. With two or more, ``1 +
+        min(n_static)`` over them (the frames since the latest of their static
+        declarations); otherwise 1. Without odometry the only frames an
+        estimator combines are those relating robots that stand still
+        together, so this, not :meth:`still_frames`, is the index of
+        :func:`~moma_env.estimator.detection.frame_fusion_covariance` there.
+        """
+        own = self.camera_owner[camera_id]
+        static = {id(r): r for r in (self.board_owner[d.board_id] for d in group) if r is not own and r.phase is not Phase.MOBILE}
+        if own.phase is not Phase.MOBILE:
+            static[id(own)] = own
+        if len(static) < 2:
+            return 1
+        return 1 + min(r.n_static for r in static.values())
 
     def measured_robots(self, by_camera: Mapping[str, list[Detection]], located: set[str]) -> set[str]:
         """The robots measured in the frame: boards seen by a located camera, carriers of a located camera."""

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Detection"]
+__all__ = ["Detection", "frame_fusion_covariance"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,6 +34,12 @@ class Detection:
             ``T_c_m(true) = [exp([dtheta]x) R, t + dt]`` with ``(dt, dtheta)``
             zero-mean of this covariance (rotation perturbed on the left, i.e.
             about the axes of C; translation additive).
+        persistent_covariance: 6x6 part of ``covariance`` (same frame and
+            convention) that persists from frame to frame while the camera and
+            the board stand still relative to each other, so that averaging
+            the frames of a switch window does not reduce it; None (default):
+            none, the error is independent from frame to frame. The mean of
+            ``n`` such frames has covariance ``P + (covariance - P) / n``.
     """
 
     camera_id: str
@@ -44,8 +50,35 @@ class Detection:
     time: float
     reprojection_error_px: float = float("nan")
     covariance: np.ndarray | None = None
+    persistent_covariance: np.ndarray | None = None
 
     @property
     def n_markers(self) -> int:
         """Number of markers that contributed to the pose."""
         return len(self.marker_ids)
+
+
+def frame_fusion_covariance(d: Detection, k: int) -> np.ndarray | None:
+    """The covariance an estimator that fuses frames as independent gives detection ``d``, the
+    ``k``-th frame (1, 2, ...) in which its board stands still.
+
+    An EKF or a pose graph weighs every detection by its covariance and treats
+    the frames as independent. When a part ``P`` of the covariance ``C``
+    persists from frame to frame (``d.persistent_covariance``), the mean of
+    ``k`` still frames has covariance ``P + (C - P) / k``; frame ``k`` then
+    brings the information ``I_k - I_(k-1)`` with ``I_j = inv(P + (C - P) / j)``
+    (``I_0 = 0``), and this returns its inverse, so that ``k`` frames fused as
+    independent add up to exactly ``I_k``. Frame 1 gets ``C``; later frames
+    get ever less information on the persistent part.
+
+    Returns ``d.covariance`` itself when ``k`` is 1, without a persistent part
+    or without a covariance (None).
+    """
+    P = d.persistent_covariance
+    C = d.covariance
+    if P is None or C is None or k <= 1:
+        return C
+    W = C - P
+    gain = np.linalg.inv(P + W / k) - np.linalg.inv(P + W / (k - 1))
+    cov = np.linalg.inv(0.5 * (gain + gain.T))
+    return 0.5 * (cov + cov.T)

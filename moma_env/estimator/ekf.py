@@ -33,7 +33,12 @@ Update
 ------
 Each detection is the relative pose ``T_c_m = inv(T_w_o T_o_c) T_w_r T_r_m``
 of a board on robot r in a camera on robot o, with the detection's 6x6
-covariance (camera frame) plus a floor of ``detection_floor_m`` /
+covariance (camera frame; with a ``persistent_covariance``, the covariance of
+:func:`~moma_env.estimator.detection.frame_fusion_covariance` for the frame's
+place in the run of frames its board stands still, ``Bookkeeper.still_frames``,
+once odometry chains the frames of moving robots; before any odometry, in the
+run of frames the robots its camera relates stand still together,
+``Bookkeeper.still_together``) plus a floor of ``detection_floor_m`` /
 ``detection_floor_rad``. The residual ``pose_error(T_c_m measured, predicted)``
 is gated by its normalised innovation squared (``gate_nis``, a chi-square
 quantile of 6 dof), and every accepted detection of the frame is fused in one
@@ -52,7 +57,7 @@ import numpy as np
 from moma_env.config import ConfigError, check_count, check_positive
 from moma_env.estimator.bookkeeping import BookkeptLocaliser, Bookkeeper, RobotRecord
 from moma_env.estimator.config import EstimatorConfig
-from moma_env.estimator.detection import Detection
+from moma_env.estimator.detection import Detection, frame_fusion_covariance
 from moma_env.estimator.results import Phase, Status
 from moma_env.estimator.uncertainty import (
     apply_error,
@@ -126,6 +131,8 @@ class EkfLocaliser(BookkeptLocaliser):
         floor = [ekf.detection_floor_m**2] * 3 + [ekf.detection_floor_rad**2] * 3
         self._floor = np.diag(floor)
         self._gate = float(ekf.gate_nis)
+        self._chained = False  # odometry received: it chains the frames of a moving robot
+        self._groups: dict[str, list[Detection]] = {}  # the current update's detections by camera
 
     # ------------------------------------------------------------------ queries
     @property
@@ -168,6 +175,7 @@ class EkfLocaliser(BookkeptLocaliser):
             raise ValueError(f"odometry of {name!r}: increment must be finite and covariance a finite 3x3 array")
         self._book.time = self._book.checked_time(time)
         self._odometry_seen.add(name)
+        self._chained = True
         T = self._pose[name]
         if T is None:
             return
@@ -195,6 +203,7 @@ class EkfLocaliser(BookkeptLocaliser):
         self._last_update = t
         self._random_walk(dt)
         self._odometry_seen.clear()
+        self._groups = by_camera
 
         references = {camera_id for camera_id, group in by_camera.items() if self._sees_reference(camera_id, group)}
         used: set[int] = set()
@@ -239,7 +248,13 @@ class EkfLocaliser(BookkeptLocaliser):
         return any(self._is_reference_board(d, own) for d in group)
 
     def _R(self, d: Detection) -> np.ndarray:
-        return self._floor if d.covariance is None else d.covariance + self._floor
+        if d.persistent_covariance is None:
+            cov = d.covariance
+        elif self._chained:  # odometry chains the frames: every frame of a still board shares its error
+            cov = frame_fusion_covariance(d, self._book.still_frames(d.board_id))
+        else:
+            cov = frame_fusion_covariance(d, self._book.still_together(d.camera_id, self._groups[d.camera_id]))
+        return self._floor if cov is None else cov + self._floor
 
     def _random_walk(self, dt: float) -> None:
         if dt <= 0.0:

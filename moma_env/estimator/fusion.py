@@ -79,8 +79,11 @@ def information_fusion(
         T = apply_error(T, step)
     J: dict = {}
     Q = np.zeros((6, 6))
+    P = None  # the persistent part of the fresh noise (the candidates' are independent of each other)
     for W, e in zip(weights, errors):
         for key, Jk in e.J.items():
             J[key] = J[key] + W @ Jk if key in J else W @ Jk
         Q += W @ e.Q @ W.T
-    return T, LinearError(J, 0.5 * (Q + Q.T))
+        if e.P is not None:
+            P = W @ e.P @ W.T if P is None else P + W @ e.P @ W.T
+    return T, LinearError(J, 0.5 * (Q + Q.T), None if P is None else 0.5 * (P + P.T))

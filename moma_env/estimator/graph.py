@@ -22,7 +22,12 @@ Factors
 A detection ``T_c_m`` of a board on robot r by a camera on robot o is the
 ``BetweenFactorPose3`` ``T_o_b = T_o_c T_c_m inv(T_r_m)`` between their current
 variables, with the detection's covariance carried to it (GTSAM's convention:
-rotation first, perturbed on the right) plus a floor of ``detection_floor_m`` /
+rotation first, perturbed on the right; with a ``persistent_covariance``, the
+covariance of :func:`~moma_env.estimator.detection.frame_fusion_covariance`
+for the frame's place in the run of frames its board stands still,
+``Bookkeeper.still_frames``, once odometry chains the frames of moving robots;
+before any odometry, and in ``graph_vision``, in the run of frames the robots
+its camera relates stand still together, ``Bookkeeper.still_together``) plus a floor of ``detection_floor_m`` /
 ``detection_floor_rad``. As in MOMA, only cameras *located* in the frame (seeing
 a board of a REFERENCE robot, or carried by one) add factors, so that the
 graph stays connected to the anchors; a robot seen for the first time is
@@ -51,7 +56,7 @@ import numpy as np
 from moma_env.config import check_bool, check_positive
 from moma_env.estimator.bookkeeping import BookkeptLocaliser, Bookkeeper, RobotRecord
 from moma_env.estimator.config import EstimatorConfig
-from moma_env.estimator.detection import Detection
+from moma_env.estimator.detection import Detection, frame_fusion_covariance
 from moma_env.estimator.results import Phase
 from moma_env.geometry import invert, se2_to_se3, upright_body_from_mount
 
@@ -150,6 +155,7 @@ class GraphLocaliser(BookkeptLocaliser):
         self._n_factors = 0
         self._last_key: dict[str, int] = {}  # the robot's latest variable, whatever its kind
         self._motion: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # odometry since it: (T, GTSAM covariance)
+        self._chained = False  # an odometry factor was added (see update)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -200,6 +206,7 @@ class GraphLocaliser(BookkeptLocaliser):
         self._book.time = self._book.checked_time(time)
         if not self.graph.odometry or name not in self._last_key:
             return
+        self._chained = True  # odometry factors chain the frames of a moving robot
         delta = se2_to_se3(dx, dy, dyaw)
         Q = np.zeros((6, 6))
         Q[np.ix_((0, 1, 5), (0, 1, 5))] = Q3
@@ -230,6 +237,11 @@ class GraphLocaliser(BookkeptLocaliser):
             key_o = self._key[own.name]
             T_w_o = self._guess[own.name]
             measured.add(own.name)
+            # Which still frame each detection is (its persistent noise): odometry chains the frames of a
+            # moving robot, so every frame of a still board shares its error; without, only the frames
+            # relating robots that stand still together are combined.
+            together = book.still_together(camera_id, group)
+            still = (lambda d: book.still_frames(d.board_id)) if self._chained else (lambda d, k=together: k)
             for d in group:
                 r = book.board_owner[d.board_id]
                 if r is own:
@@ -238,7 +250,8 @@ class GraphLocaliser(BookkeptLocaliser):
                 if self._key[r.name] is None:
                     self._variable(r, T_w_o @ T_o_c @ d.T_c_m @ invert(T_r_m))
                 Z = T_o_c @ d.T_c_m @ invert(T_r_m)
-                self._factors.add(gtsam.BetweenFactorPose3(key_o, self._key[r.name], gtsam.Pose3(Z), self._noise(d, T_r_m)))
+                noise = self._noise(d, T_r_m, still(d))
+                self._factors.add(gtsam.BetweenFactorPose3(key_o, self._key[r.name], gtsam.Pose3(Z), noise))
                 self._n_factors += 1
                 measured.add(r.name)
         if self._factors.size() or self._values.size():
@@ -295,10 +308,12 @@ class GraphLocaliser(BookkeptLocaliser):
             pose = upright_body_from_mount(pose, np.eye(4), r.plane_z)
         return self._new_variable(r, pose)
 
-    def _noise(self, d: Detection, T_r_m: np.ndarray):
+    def _noise(self, d: Detection, T_r_m: np.ndarray, still: int = 1):
         """The noise of the factor ``T_o_c T_c_m inv(T_r_m)``: the detection's covariance on the right of
-        ``T_c_m`` (GTSAM order), carried through ``inv(T_r_m)`` by the adjoint of ``T_r_m``."""
-        cov = np.zeros((6, 6)) if d.covariance is None else gtsam_from_ros(d.T_c_m, d.covariance)
+        ``T_c_m`` (GTSAM order), carried through ``inv(T_r_m)`` by the adjoint of ``T_r_m``; with a
+        persistent part, that of the ``still``-th still frame (:func:`frame_fusion_covariance`)."""
+        cov = frame_fusion_covariance(d, still)
+        cov = np.zeros((6, 6)) if cov is None else gtsam_from_ros(d.T_c_m, cov)
         Ad = gtsam.Pose3(T_r_m).AdjointMap()
         C = Ad @ cov @ Ad.T + self._floor
         return gtsam.noiseModel.Gaussian.Covariance(0.5 * (C + C.T))

@@ -135,6 +135,24 @@ def _check_covariance(d: Detection) -> None:
         raise ValueError(f"{_what(d)}: covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
 
 
+def _check_persistent(d: Detection) -> None:
+    """ValueError unless ``d.persistent_covariance`` is a finite symmetric 6x6 array with a
+    non-negative diagonal, given with a ``covariance`` (it is a part of it)."""
+    P = d.persistent_covariance
+    if d.covariance is None:
+        raise ValueError(f"{_what(d)}: persistent_covariance needs a covariance (it is a part of it)")
+    if not _clearly_valid_covariance(P) and (
+        not isinstance(P, np.ndarray)
+        or P.shape != (6, 6)
+        or not all_finite(P)
+        or np.abs(P - P.T).max() > 1e-9 * max(1.0, float(np.abs(P).max()))
+        or (np.diag(P) < 0.0).any()
+    ):
+        raise ValueError(
+            f"{_what(d)}: persistent_covariance must be a finite symmetric 6x6 array with a non-negative diagonal"
+        )
+
+
 class _Robot:
     """Mutable per-robot state of the estimator (private)."""
 
@@ -191,7 +209,7 @@ class _Robot:
         self.camera_world: dict[str, tuple[np.ndarray, LinearError]] = {}  # camera_id -> T_w_c and its error
         self.covariance: np.ndarray | None = None  # 6x6 of the reported pose (uncertainty module's convention)
         self.ref_key: int | None = None  # key of the frozen pose's error in the joint covariance, REFERENCE only
-        self.window_error = RunningErrorMean()  # mean error of the window's inliers
+        self.window_error = RunningErrorMean(window=True)  # mean error of the window's inliers
 
 
 class MomaEstimator:
@@ -497,13 +515,16 @@ class MomaEstimator:
                     # LinearError(J).plus_noise(J_meas @ inverse_jacobian(T_c_m), covariance), without
                     # the zero Q: Q + 0.0 is the 0 + Q it gave (-0.0 entries turn +0.0 alike).
                     cov = d.covariance
+                    P = None  # the part of the noise that persists over a switch window
                     if cov is None:
                         Q = np.zeros((6, 6))
                     else:
                         A = J_meas @ inverse_jacobian(d.T_c_m)
                         Q = A @ cov @ A.T
                         Q += 0.0
-                    errors.append(LinearError._of(J, Q))
+                        if d.persistent_covariance is not None:
+                            P = A @ d.persistent_covariance @ A.T
+                    errors.append(LinearError._of(J, Q, P))
                     located.append(T_w_m @ T_m_c)
             if located:
                 if len(located) > 1 and self._information_fusion:
@@ -533,7 +554,7 @@ class MomaEstimator:
                         mount = r.board_mounts[d.board_id]
                         sample = upright_body_from_mount(T_w_m, mount, r.plane_z)
                         A = upright_projection_jacobian(T_w_m, mount)
-                    error = camera_error.transformed(A @ J_cam).plus_noise(A @ J_meas, d.covariance)
+                    error = camera_error.transformed(A @ J_cam).plus_noise(A @ J_meas, d.covariance, d.persistent_covariance)
                     samples.setdefault(r, []).append((sample, error))
         for camera_id, (T_w_c, camera_error) in camera_poses.items():
             r = camera_owner[camera_id]
@@ -612,6 +633,8 @@ class MomaEstimator:
             cov = d.covariance
             if cov is not None and not _clearly_valid_covariance(cov):
                 _check_covariance(d)
+            if d.persistent_covariance is not None:
+                _check_persistent(d)
             group = by_camera.get(camera_id)
             if group is None:
                 by_camera[camera_id] = [d]

@@ -21,6 +21,15 @@ fresh noise (the detections of this frame)::
 which keeps the correlations a chain creates: every sample of a switch window
 shares the reference's error, which averaging does not reduce, while the fresh
 noise averages down.
+
+Fresh noise need not be white in time: a part of it, of covariance ``P``
+(included in ``Q``), may persist over the frames of a switch window (a
+detection's ``persistent_covariance``: an error that stays while the camera and
+the board stand still). The mean of ``n`` samples of one window then has the
+fresh covariance ``(sum_i Q_i + (n - 1) sum_i P_i) / n^2`` (for equal samples
+``P + (Q - P) / n``) instead of ``sum_i Q_i / n^2``
+(:func:`window_mean_noise`); ``P = None`` is zero, and everything is computed
+exactly as without it.
 """
 
 from __future__ import annotations
@@ -40,6 +49,8 @@ __all__ = [
     "inverse_jacobian",
     "upright_projection_jacobian",
     "LinearError",
+    "RunningErrorMean",
+    "window_mean_noise",
 ]
 
 
@@ -138,6 +149,23 @@ def upright_projection_jacobian(T_w_x: np.ndarray, T_b_x: np.ndarray) -> np.ndar
     )
 
 
+def window_mean_noise(Q_sum: np.ndarray, P_sum: np.ndarray | None, n: int) -> np.ndarray:
+    """Fresh-noise covariance of the mean of ``n`` samples of one switch window (6x6).
+
+    ``Q_sum`` is the sum of the samples' fresh covariances ``Q_i``, ``P_sum`` the
+    sum of their persistent parts ``P_i`` (None: none). The persistent parts of
+    two samples of a window are taken as fully correlated (the same draw, its
+    covariance the mean of theirs), the rest as independent::
+
+        Cov(mean) = (sum_i Q_i + (n - 1) sum_i P_i) / n^2
+
+    With ``P_sum`` None this is ``Q_sum / n^2``, bit for bit.
+    """
+    if P_sum is None:
+        return Q_sum / (n * n)
+    return (Q_sum + (n - 1) * P_sum) / (n * n)
+
+
 class LinearError:
     """The error of one estimate: ``e = sum_s J[s] @ e_s + n``, ``n ~ N(0, Q)`` (6-vectors).
 
@@ -145,13 +173,18 @@ class LinearError:
         J: reference name -> 6x6 Jacobian with respect to that reference robot's
             error (world frame). Treated as read-only.
         Q: 6x6 covariance of the fresh noise, independent of every reference.
+        P: 6x6 part of ``Q`` that persists over the samples of a switch window
+            (see the module docstring), or None (none: white noise).
     """
 
-    __slots__ = ("J", "Q")
+    __slots__ = ("J", "Q", "P")
 
-    def __init__(self, J: Mapping[str, np.ndarray] | None = None, Q: np.ndarray | None = None):
+    def __init__(
+        self, J: Mapping[str, np.ndarray] | None = None, Q: np.ndarray | None = None, P: np.ndarray | None = None
+    ):
         self.J = dict(J) if J else {}
         self.Q = np.zeros((6, 6)) if Q is None else Q
+        self.P = P
 
     @classmethod
     def of_reference(cls, name: str) -> LinearError:
@@ -159,26 +192,36 @@ class LinearError:
         return cls({name: np.eye(6)})
 
     @classmethod
-    def _of(cls, J: dict[str, np.ndarray], Q: np.ndarray) -> LinearError:
-        """A new error owning the new dict ``J`` (not copied) and ``Q``."""
+    def _of(cls, J: dict[str, np.ndarray], Q: np.ndarray, P: np.ndarray | None = None) -> LinearError:
+        """A new error owning the new dict ``J`` (not copied), ``Q`` and ``P``."""
         error = cls.__new__(cls)
         error.J = J
         error.Q = Q
+        error.P = P
         return error
 
     def transformed(self, A: np.ndarray) -> LinearError:
         """The error ``A @ e``."""
-        return LinearError._of({s: A @ J for s, J in self.J.items()}, A @ self.Q @ A.T)
+        P = self.P
+        return LinearError._of({s: A @ J for s, J in self.J.items()}, A @ self.Q @ A.T, None if P is None else A @ P @ A.T)
 
-    def plus_noise(self, A: np.ndarray, covariance: np.ndarray | None) -> LinearError:
-        """A new error: this one plus ``A @ n`` for fresh noise ``n`` of ``covariance`` (None: no noise)."""
+    def plus_noise(
+        self, A: np.ndarray, covariance: np.ndarray | None, persistent: np.ndarray | None = None
+    ) -> LinearError:
+        """A new error: this one plus ``A @ n`` for fresh noise ``n`` of ``covariance`` (None: no noise),
+        of which the part of covariance ``persistent`` (None: none) persists over a switch window."""
+        P = self.P
+        if persistent is not None and covariance is not None:
+            added = A @ persistent @ A.T
+            P = added if P is None else P + added
         if covariance is None:
-            return LinearError._of(dict(self.J), self.Q)
-        return LinearError._of(dict(self.J), self.Q + A @ covariance @ A.T)
+            return LinearError._of(dict(self.J), self.Q, P)
+        return LinearError._of(dict(self.J), self.Q + A @ covariance @ A.T, P)
 
     @staticmethod
     def mean(errors: Sequence[LinearError]) -> LinearError:
-        """The error of the mean of estimates with these errors, their fresh noises independent."""
+        """The error of the mean of estimates with these errors, their fresh noises independent
+        (persistent parts included: independent of each other, e.g. different boards of one frame)."""
         return RunningErrorMean().mean(errors)
 
     def covariance(self, P: Mapping[tuple[str, str], np.ndarray]) -> np.ndarray:
@@ -218,11 +261,20 @@ class RunningErrorMean:
     are added, in the same order as :meth:`LinearError.mean` adds them, so the
     result is the same to the bit. Any other change starts the sums afresh.
     Errors are recognised by identity and treated as read-only, as everywhere.
+
+    Args:
+        window: the errors are samples of one switch window: their persistent
+            parts (``LinearError.P``) are the same draw, so the mean's fresh
+            noise is :func:`window_mean_noise` and its persistent part
+            ``sum_i P_i / n``. False (default): the errors' fresh noises are
+            independent, persistent parts included (``sum_i P_i / n^2``).
+            Without persistent parts both give :meth:`LinearError.mean`.
     """
 
-    __slots__ = ("_errors", "_J", "_Q", "_mean")
+    __slots__ = ("_errors", "_J", "_Q", "_P", "_mean", "_window")
 
-    def __init__(self) -> None:
+    def __init__(self, window: bool = False) -> None:
+        self._window = window
         self.clear()
 
     def clear(self) -> None:
@@ -230,6 +282,7 @@ class RunningErrorMean:
         self._errors: list[LinearError] = []
         self._J: dict[str, np.ndarray] = {}
         self._Q = np.zeros((6, 6))
+        self._P: np.ndarray | None = None
         self._mean: LinearError | None = None
 
     def mean(self, errors: Sequence[LinearError]) -> LinearError:
@@ -259,10 +312,20 @@ class RunningErrorMean:
                 else:
                     J[s] = Js.copy()
             Q += e.Q
+            if e.P is not None:
+                if self._P is None:
+                    self._P = e.P.copy()
+                else:
+                    self._P += e.P
             summed.append(e)
+        P = self._P
         if n == 1:
             mean = errors[0]
-        else:
+        elif P is None:
             mean = LinearError._of({s: Js / n for s, Js in J.items()}, Q / (n * n))
+        elif self._window:
+            mean = LinearError._of({s: Js / n for s, Js in J.items()}, window_mean_noise(Q, P, n), P / n)
+        else:
+            mean = LinearError._of({s: Js / n for s, Js in J.items()}, Q / (n * n), P / (n * n))
         self._mean = mean
         return mean
