@@ -159,7 +159,10 @@ def test_bad_persistent_covariance_is_rejected(kwargs: dict, message: str) -> No
         est.update(0.04, [d])
 
 
-def test_still_frames_counts_the_frames_a_board_stands_still() -> None:
+def _six_frames(observe) -> tuple:
+    """``(observations, book, time, detections)``: ``observe(book, by_camera)`` after each of six
+    frames in which a camera sees a reference board and a target's, the target declared static
+    before the third; the book, the last time (s) and the frame's detections after them."""
     from moma_env.estimator.bookkeeping import Bookkeeper
 
     book = Bookkeeper(EstimatorConfig(window=5, gate=None))
@@ -174,29 +177,19 @@ def test_still_frames_counts_the_frames_a_board_stands_still() -> None:
             book.set_static("target", True, t)
         t += 0.04
         _, by_camera = book.begin_update(t, both)
-        seen.append((book.still_frames(0), book.still_frames(1)))
+        seen.append(observe(book, by_camera))
         book.end_update(t, book.measured_robots(by_camera, book.located_cameras(by_camera)))
+    return seen, book, t, both
+
+
+def test_still_frames_counts_the_frames_a_board_stands_still() -> None:
+    seen, *_ = _six_frames(lambda book, by_camera: (book.still_frames(0), book.still_frames(1)))
     # the reference stands still from the start; the target's frames count from its static declaration
     assert seen == [(1, 1), (2, 1), (3, 1), (4, 2), (5, 3), (6, 4)]
 
 
 def test_still_together_counts_the_frames_the_related_robots_stand_still_together() -> None:
-    from moma_env.estimator.bookkeeping import Bookkeeper
-
-    book = Bookkeeper(EstimatorConfig(window=5, gate=None))
-    book.add_robot("ref", boards={0: BOARD}, cameras=None, static=True, initial_pose=np.eye(4), time=0.0, planar=False)
-    book.add_robot("target", boards={1: BOARD}, cameras=None, static=False, initial_pose=None, time=0.0, planar=False)
-    book.add_robot("uav", boards=None, cameras={"down": CAMERA}, static=False, initial_pose=None, time=0.0, planar=False)
-    both = [Detection("down", b, np.eye(4), np.empty((0, 2)), (), 0.0) for b in (0, 1)]
-    seen = []
-    t = 0.0
-    for frame in range(6):
-        if frame == 2:
-            book.set_static("target", True, t)
-        t += 0.04
-        _, by_camera = book.begin_update(t, both)
-        seen.append(book.still_together("down", by_camera["down"]))
-        book.end_update(t, book.measured_robots(by_camera, book.located_cameras(by_camera)))
+    seen, book, t, both = _six_frames(lambda book, by_camera: book.still_together("down", by_camera["down"]))
     # a moving target: each frame a new scene; then the frames since it stopped beside the reference
     assert seen == [1, 1, 1, 2, 3, 4]
     only_ref = book.begin_update(t + 0.04, both[:1])[1]

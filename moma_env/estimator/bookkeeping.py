@@ -30,7 +30,7 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 
 from moma_env.config import ConfigError, check_rigid_transform
-from moma_env.estimator.checks import checked_time, mapping_field
+from moma_env.estimator.checks import checked_time, is_covariance, mapping_field
 from moma_env.estimator.config import EstimatorConfig
 from moma_env.estimator.detection import Detection
 from moma_env.estimator.errors import UnknownBoardError, UnknownCameraError, UnknownRobotError
@@ -83,26 +83,13 @@ def check_detection(d: object, i: int, board_owner: Mapping[int, object], camera
     except ConfigError as err:
         raise ValueError(str(err)) from None
     cov = d.covariance
-    if cov is not None:
-        if (
-            not isinstance(cov, np.ndarray)
-            or cov.shape != (6, 6)
-            or not np.isfinite(cov).all()
-            or np.abs(cov - cov.T).max() > 1e-9 * max(1.0, float(np.abs(cov).max()))
-            or (np.diag(cov) < 0.0).any()
-        ):
-            raise ValueError(f"detections[{i}].covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
+    if cov is not None and not is_covariance(cov):
+        raise ValueError(f"detections[{i}].covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
     P = d.persistent_covariance
     if P is not None:
         if cov is None:
             raise ValueError(f"detections[{i}].persistent_covariance needs a covariance (it is a part of it)")
-        if (
-            not isinstance(P, np.ndarray)
-            or P.shape != (6, 6)
-            or not np.isfinite(P).all()
-            or np.abs(P - P.T).max() > 1e-9 * max(1.0, float(np.abs(P).max()))
-            or (np.diag(P) < 0.0).any()
-        ):
+        if not is_covariance(P):
             raise ValueError(
                 f"detections[{i}].persistent_covariance must be a finite symmetric 6x6 array with a non-negative diagonal"
             )

@@ -1,4 +1,4 @@
-"""Boundary checks shared by the estimators: a frame's time and a mapping argument.
+"""Boundary checks shared by the estimators: a frame's time, a mapping argument, a covariance.
 
 Times are seconds; every estimator takes its frames in non-decreasing time.
 """
@@ -8,9 +8,11 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from moma_env.config import ConfigError
+import numpy as np
 
-__all__ = ["checked_time", "mapping_field"]
+from moma_env.config import ConfigError, all_finite
+
+__all__ = ["checked_time", "mapping_field", "is_covariance"]
 
 
 def checked_time(time: float, last: float | None) -> float:
@@ -27,6 +29,18 @@ def checked_time(time: float, last: float | None) -> float:
     if last is not None and t < last:
         raise ValueError(f"time goes backwards: {t} s after {last} s")
     return t
+
+
+def is_covariance(value: object) -> bool:
+    """Whether ``value`` is a finite 6x6 array, symmetric within 1e-9 of its largest entry
+    (or of 1), with a non-negative diagonal: what a detection's covariance must be."""
+    return (
+        isinstance(value, np.ndarray)
+        and value.shape == (6, 6)
+        and all_finite(value)
+        and np.abs(value - value.T).max() <= 1e-9 * max(1.0, float(np.abs(value).max()))
+        and not (np.diag(value) < 0.0).any()
+    )
 
 
 def mapping_field(field: str, value: Mapping | None) -> Mapping:

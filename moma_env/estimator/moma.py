@@ -12,7 +12,7 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 
 from moma_env.config import ConfigError, all_finite, check_rigid_transform
-from moma_env.estimator.checks import checked_time, mapping_field
+from moma_env.estimator.checks import checked_time, is_covariance, mapping_field
 from moma_env.estimator.config import EstimatorConfig
 from moma_env.estimator.detection import Detection
 from moma_env.estimator.errors import (
@@ -124,14 +124,7 @@ def _clearly_valid_covariance(cov: object) -> bool:
 
 def _check_covariance(d: Detection) -> None:
     """ValueError unless ``d.covariance`` is a finite symmetric 6x6 array with a non-negative diagonal."""
-    cov = d.covariance
-    if (
-        not isinstance(cov, np.ndarray)
-        or cov.shape != (6, 6)
-        or not all_finite(cov)
-        or np.abs(cov - cov.T).max() > 1e-9 * max(1.0, float(np.abs(cov).max()))
-        or (np.diag(cov) < 0.0).any()
-    ):
+    if not is_covariance(d.covariance):
         raise ValueError(f"{_what(d)}: covariance must be a finite symmetric 6x6 array with a non-negative diagonal")
 
 
@@ -141,13 +134,7 @@ def _check_persistent(d: Detection) -> None:
     P = d.persistent_covariance
     if d.covariance is None:
         raise ValueError(f"{_what(d)}: persistent_covariance needs a covariance (it is a part of it)")
-    if not _clearly_valid_covariance(P) and (
-        not isinstance(P, np.ndarray)
-        or P.shape != (6, 6)
-        or not all_finite(P)
-        or np.abs(P - P.T).max() > 1e-9 * max(1.0, float(np.abs(P).max()))
-        or (np.diag(P) < 0.0).any()
-    ):
+    if not _clearly_valid_covariance(P) and not is_covariance(P):
         raise ValueError(
             f"{_what(d)}: persistent_covariance must be a finite symmetric 6x6 array with a non-negative diagonal"
         )

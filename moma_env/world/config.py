@@ -509,18 +509,9 @@ class WorldConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.arena, ArenaConfig):
             raise ConfigError("arena", f"must be an ArenaConfig, got {type(self.arena).__name__}")
-        ugvs = tuple(self.ugvs)
+        ugvs = _tuple_of("ugvs", self.ugvs, UGVConfig)
         object.__setattr__(self, "ugvs", ugvs)
-        for i, ugv in enumerate(ugvs):
-            if not isinstance(ugv, UGVConfig):
-                raise ConfigError(f"ugvs[{i}]", f"must be a UGVConfig, got {type(ugv).__name__}")
-        if isinstance(self.uavs, UAVConfig) or not isinstance(self.uavs, (tuple, list)):
-            raise ConfigError("uavs", f"must be a sequence of UAVConfig, got {type(self.uavs).__name__}")
-        uavs = tuple(self.uavs)
-        object.__setattr__(self, "uavs", uavs)
-        for k, uav in enumerate(uavs):
-            if not isinstance(uav, UAVConfig):
-                raise ConfigError(f"uavs[{k}]", f"must be a UAVConfig, got {type(uav).__name__}")
+        object.__setattr__(self, "uavs", _tuple_of("uavs", self.uavs, UAVConfig))
         check_positive("control_hz", self.control_hz)
         if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1:
             raise ConfigError("substeps", f"must be an int >= 1, got {self.substeps!r}")
@@ -713,6 +704,16 @@ def _rebased(error: ConfigError, own_prefix: str, path: str) -> ConfigError:
     else:
         name = f"{path}.{name}"
     return ConfigError(name, message)
+
+
+def _tuple_of(field_name: str, values: object, cls: type) -> tuple:
+    """``values`` (a tuple or list of ``cls``) as a tuple; ConfigError naming the field or the bad entry."""
+    if not isinstance(values, (tuple, list)):
+        raise ConfigError(field_name, f"must be a sequence of {cls.__name__}, got {type(values).__name__}")
+    for k, value in enumerate(values):
+        if not isinstance(value, cls):
+            raise ConfigError(f"{field_name}[{k}]", f"must be a {cls.__name__}, got {type(value).__name__}")
+    return tuple(values)
 
 
 def _build(cls: type, mapping: object, own_prefix: str, path: str) -> Any:
