@@ -16,8 +16,8 @@ and ``VmasEnv`` give it): the agents are split in groups, each group a sub-tenso
 of batch ``(B, n_agents)`` whose agents are stacked along dim 1:
 
 * group ``"ugv"``: every UGV agent (``ugv_0``, ``ugv_1``, ...; they share their
-  spaces, which is checked); group ``"observer"``: the UAV observer, when it is an
-  agent. :attr:`MomaTorchRLEnv.group_map` names them (the grouping by name prefix
+  spaces, which is checked); group ``"observer"``: the observers, when they are
+  agents (``observer``, or ``observer_0``, ``observer_1``, ... with several). :attr:`MomaTorchRLEnv.group_map` names them (the grouping by name prefix
   that TorchRL's ``PettingZooWrapper`` makes by default, and BenchMARL reads);
 * ``(group, "observation")``: ``(B, n, D)`` float32; ``(group, "action")``: ``(B, n)``
   int64 for a ``Discrete`` agent (categorical encoding, switching mode) or
