@@ -82,3 +82,14 @@ def test_env_config_rejects_bad_camera_options() -> None:
         rendered_env(render={"noise_std": -1.0})
     with pytest.raises(ValueError, match="centralised"):
         CentralisedTeamEnv(rendered_env(action_mode="velocity", observer_image=IMAGE_SIZE))
+
+
+def test_each_of_several_observers_sees_its_own_camera_frame() -> None:
+    env = rendered_env(action_mode="velocity", observer_image=IMAGE_SIZE, observer=("quadcopter", "quadcopter"), observer_spacing=0.6)
+    obs, _ = env.reset(seed=2)
+    for agent, uav in zip(env.observer_agents, env.scenario.world.uavs):
+        assert env.observation_space(agent).contains(obs[agent])
+        frame = env.cameras[uav.camera_name].last_image
+        assert abs(float(obs[agent]["image"].mean()) - float(frame.mean())) < 2.0
+    # the two observers stand 0.6 m apart: their images differ
+    assert not np.array_equal(obs["observer_0"]["image"], obs["observer_1"]["image"])
