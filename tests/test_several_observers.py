@@ -261,3 +261,20 @@ def test_torchrl_groups_every_observer():
     check_env_specs(env)
     rollout = env.rollout(5, break_when_any_done=False)
     assert rollout["next", "observer", "reward"].shape == (2, 5, 2, 1)
+
+
+def test_the_planned_policy_flies_two_observers_and_reaches_every_goal():
+    from agents.policies.planned import PlannedPolicy
+    from moma_env.planning.validate import coverage_radius
+
+    env = parallel_env("top_observer", action_mode="velocity", observer=TWO)
+    one = TopObserverConfig().scenario()
+    assert coverage_radius(env.scenario) == coverage_radius(one)  # the same UAVs' ceilings: the same coverage
+    observations, infos = env.reset(seed=0)
+    policy = PlannedPolicy()
+    policy.reset(env, seed=0)
+    terminations = {}
+    while env.agents:
+        observations, _, terminations, _, infos = env.step(policy.act(observations, infos))
+    assert all(terminations.values())  # every goal reached ends the episode
+    assert infos["ugv_0"]["reached_goal"] and infos["ugv_1"]["reached_goal"]

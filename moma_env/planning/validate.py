@@ -94,20 +94,25 @@ def coverage_radius(scenario: Scenario) -> float:
     ``h`` is the UAV's ``max_altitude - COVERAGE_ALTITUDE_MARGIN_M`` (capped by
     the height at which a marker still images ``COVERAGE_MARKER_PX_FACTOR *
     min_marker_px``) plus the camera mount's z offset minus the highest board.
+    With several observers, the largest of their radii: one observer that keeps
+    the whole team in view is enough to localise it.
     """
-    uav = scenario.world.uav
-    if uav is None:
+    uavs = scenario.world.uavs
+    if not uavs:
         raise ValueError(f"scenario {scenario.name!r} has no observer")
     cam = scenario.camera
     boards = [u for u in scenario.world.ugvs if u.board is not None]
     board_z = max(u.board_height for u in boards)
     marker = min(u.board.marker_size for u in boards)  # type: ignore[union-attr]
-    cam_dz = float(uav.camera_mount[2, 3])
     h_marker = min(cam.fx, cam.fy) * marker / (COVERAGE_MARKER_PX_FACTOR * max(cam.min_marker_px, 1e-9))
-    h = min(uav.max_altitude - COVERAGE_ALTITUDE_MARGIN_M + cam_dz - board_z, h_marker)
     half_u = (cam.width / 2.0 - cam.margin_px) / cam.fx
     half_v = (cam.height / 2.0 - cam.margin_px) / cam.fy
-    return max(h, 0.0) * min(half_u, half_v)
+    radii = []
+    for uav in uavs:
+        cam_dz = float(uav.camera_mount[2, 3])
+        h = min(uav.max_altitude - COVERAGE_ALTITUDE_MARGIN_M + cam_dz - board_z, h_marker)
+        radii.append(max(h, 0.0) * min(half_u, half_v))
+    return max(radii)
 
 
 def enclosing_circle(points: np.ndarray) -> tuple[float, float, float]:
