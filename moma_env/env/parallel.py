@@ -446,10 +446,9 @@ class MomaParallelEnv(ParallelEnv):
             self.render()
         return observations, rewards, terminations, truncations, infos
 
-    def _uav_command(self, observer_actions: Mapping[str, list[float]]) -> np.ndarray | dict[str, np.ndarray] | None:
-        """The UAVs' commands: an agent's action scaled to its limits, else its tracker's
-        command from its camera's last detections. One UAV: its command; several: UAV name ->
-        command; none: None."""
+    def _uav_command(self, observer_actions: Mapping[str, list[float]]) -> dict[str, np.ndarray] | None:
+        """UAV name -> its command: its agent's action scaled to its limits, else its tracker's
+        command from its camera's last detections (None without a UAV)."""
         if not self._uavs:
             return None
         commands = {}
@@ -461,8 +460,6 @@ class MomaParallelEnv(ParallelEnv):
             else:
                 positions = [d.T_c_m[:3, 3].tolist() for d in self.simulation.frame.detections if d.camera_id == uav.camera_name]
                 commands[uav.name] = self._trackers[uav.name].command(positions)
-        if len(commands) == 1:
-            return commands[self._uavs[0].name]
         return commands
 
     # ------------------------------------------------------------------ observations

@@ -538,7 +538,7 @@ def run_leapfrog(
             lost_at["moma"] = t
 
     record(frame)
-    uav_command: np.ndarray | dict[str, np.ndarray] = np.zeros(4) if len(uavs) == 1 else {uav.name: np.zeros(4) for uav in uavs}
+    uav_command = {uav.name: np.zeros(4) for uav in uavs}
     ugv_commands = {MAIN: np.zeros(3), BUDDY: np.zeros(3)}
     while not schedule.done and world.time < config.max_time_s:
         requests = sim.move(ugv_commands, uav_command)
@@ -552,13 +552,10 @@ def run_leapfrog(
         if progress is not None:
             progress(world.time)
 
-        if len(uavs) == 1:
-            uav_command = trackers[uavs[0].name].command([d.T_c_m[:3, 3] for d in frame.detections])
-        else:
-            uav_command = {
-                uav.name: trackers[uav.name].command([d.T_c_m[:3, 3] for d in frame.detections if d.camera_id == uav.camera_name])
-                for uav in uavs
-            }
+        uav_command = {
+            uav.name: trackers[uav.name].command([d.T_c_m[:3, 3] for d in frame.detections if d.camera_id == uav.camera_name])
+            for uav in uavs
+        }
         poses = {}
         for name in (MAIN, BUDDY):
             est = frame.estimates[name]
