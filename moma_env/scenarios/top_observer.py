@@ -61,7 +61,7 @@ from moma_env.scenarios.sampling import (
     random_surroundings,
 )
 from moma_env.scenarios.spec import ScenarioSpec
-from moma_env.world import UAV_KINDS, UAVConfig, UGVConfig
+from moma_env.world import UAV_KINDS, UAVConfig, UGVConfig, checked_observer_kinds
 
 __all__ = [
     "TopObserverConfig",
@@ -155,20 +155,7 @@ class TopObserverConfig(ScenarioConfig):
         check_choice(self._field("formation"), self.formation, FORMATIONS)
         object.__setattr__(self, "start", planar_pose(self._field("start"), self.start))
         object.__setattr__(self, "goal_offset", planar_pose(self._field("goal_offset"), self.goal_offset))
-        if isinstance(self.observer, str):
-            check_choice(self._field("observer"), self.observer, UAV_KINDS)
-        else:
-            try:
-                kinds = tuple(self.observer)
-            except TypeError:
-                raise ConfigError(
-                    self._field("observer"), f"must be an observer kind or a tuple of them, got {self.observer!r}"
-                ) from None
-            if not 1 <= len(kinds) <= MAX_OBSERVERS:
-                raise ConfigError(self._field("observer"), f"must name 1 to {MAX_OBSERVERS} observers, got {len(kinds)}")
-            for k, kind in enumerate(kinds):
-                check_choice(f"{self._field('observer')}[{k}]", kind, UAV_KINDS)
-            object.__setattr__(self, "observer", kinds[0] if len(kinds) == 1 else kinds)
+        object.__setattr__(self, "observer", checked_observer_kinds(self._field("observer"), self.observer, MAX_OBSERVERS))
         check_positive(self._field("observer_spacing"), self.observer_spacing)
         low, high = field_default(UAVConfig, "min_altitude"), field_default(UAVConfig, "max_altitude")
         check_range(self._field("altitude"), self.altitude, low, high)

@@ -7,6 +7,7 @@ by the caller and are not imported here.
 from moma_env.world.arena import WALL_NAME, obstacle_name
 from moma_env.world.config import (
     UAV_KINDS,
+    checked_observer_kinds,
     ArenaConfig,
     BoxObstacle,
     CameraMount,
@@ -36,6 +37,7 @@ __all__ = [
     "SledConfig",
     "UAVConfig",
     "UAV_KINDS",
+    "checked_observer_kinds",
     "WorldConfig",
     "world_config_from_mapping",
     "board_on_top",

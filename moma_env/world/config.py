@@ -52,6 +52,7 @@ __all__ = [
     "UGVConfig",
     "UAVConfig",
     "UAV_KINDS",
+    "checked_observer_kinds",
     "SledConfig",
     "WorldConfig",
     "world_config_from_mapping",
@@ -67,6 +68,26 @@ _OBSTACLE_PREFIX = "obstacle["
 
 #: Kinds of observer the UAV state models.
 UAV_KINDS = ("quadcopter", "handheld")
+
+def checked_observer_kinds(field_name: str, value: object, max_observers: int | None = None) -> str | tuple[str, ...]:
+    """``value``, one observer kind (:data:`UAV_KINDS`) or a sequence of them, as one kind or a
+    tuple of two or more (a one-element sequence becomes its kind); ConfigError naming
+    ``field_name`` (or ``field_name[k]``) otherwise, or beyond ``max_observers``."""
+    if isinstance(value, str):
+        check_choice(field_name, value, UAV_KINDS)
+        return value
+    try:
+        kinds = tuple(value)  # type: ignore[arg-type]
+    except TypeError:
+        raise ConfigError(field_name, f"must be an observer kind or a tuple of them, got {value!r}") from None
+    if not kinds:
+        raise ConfigError(field_name, "must name at least one observer")
+    if max_observers is not None and len(kinds) > max_observers:
+        raise ConfigError(field_name, f"must name 1 to {max_observers} observers, got {len(kinds)}")
+    for k, kind in enumerate(kinds):
+        check_choice(f"{field_name}[{k}]", kind, UAV_KINDS)
+    return kinds[0] if len(kinds) == 1 else kinds
+
 
 #: Defaults that :meth:`UAVConfig.handheld` applies for a hand-held camera:
 #: slower, smoother velocity response and much less tilt than a quadcopter.

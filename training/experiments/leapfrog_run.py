@@ -50,7 +50,7 @@ from moma_env.odometry import WheelOdometry, WheelOdometryConfig
 from moma_env.odometry.visual import VisualOdometry, VisualOdometryConfig
 from moma_env.scenarios import Scenario
 from moma_env.sim import Frame, LocaliserFactory, OdometryConsumer, Simulation, measured
-from moma_env.world import UAV_KINDS, ArenaConfig, UAVConfig, UGVConfig, WorldConfig
+from moma_env.world import ArenaConfig, UAVConfig, UGVConfig, WorldConfig, checked_observer_kinds
 from moma_env.world.mounts import board_on_top, camera_down
 from training.experiments.odometry_feed import OdometryFeed
 
@@ -263,18 +263,7 @@ class LeapfrogConfig:
 
     def _check_observers(self) -> None:
         name = self.experiment
-        if isinstance(self.observer, str):
-            check_choice(f"{name}.observer", self.observer, UAV_KINDS)
-        else:
-            try:
-                kinds = tuple(self.observer)
-            except TypeError:
-                raise ConfigError(f"{name}.observer", f"must be an observer kind or a tuple of them, got {self.observer!r}") from None
-            if not kinds:
-                raise ConfigError(f"{name}.observer", "must name at least one observer")
-            for k, kind in enumerate(kinds):
-                check_choice(f"{name}.observer[{k}]", kind, UAV_KINDS)
-            object.__setattr__(self, "observer", kinds[0] if len(kinds) == 1 else kinds)
+        object.__setattr__(self, "observer", checked_observer_kinds(f"{name}.observer", self.observer))
         if self.observer_offsets is not None:
             offsets = check_numbers(f"{name}.observer_offsets", self.observer_offsets, tuple(f"uav_{k}" for k in range(len(self.observer_kinds))))
             object.__setattr__(self, "observer_offsets", tuple(float(v) for v in offsets))
