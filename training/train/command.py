@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 from moma_env.config import ConfigError
 from moma_env.tasks import TASKS
 from training.cli_args import ACTION_MODE_NAMES, SCENARIO_NAMES, choice, int_at_least
-from training.train.config import ALGORITHMS, ROUTES, TrainConfig, reward_overrides
+from training.train.config import ALGORITHMS, ROUTES, TEACHERS, TrainConfig, reward_overrides
 
 if TYPE_CHECKING:
     from moma_env.env.config import RewardConfig
@@ -95,6 +95,15 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
                     help="seed of the first held-out evaluation episode (default %(default)s)")
     tr.add_argument("--eval-sample-actions", action="store_true",
                     help="the held-out evaluations sample the policy's actions (default: the most likely one)")
+    tr.add_argument("--pretrain", choices=TEACHERS, type=choice(TEACHERS, "teacher"), default=None,
+                    help="clone this scripted policy into the network before learning (behaviour cloning; PPO-like, switching mode)")
+    tr.add_argument("--pretrain-rows", type=int_at_least(1, "row count"), default=defaults["pretrain_rows"],
+                    help="demonstration rows: UGV slot steps (shared route) or env steps (centralised) (default %(default)s)")
+    tr.add_argument("--pretrain-epochs", type=int_at_least(1, "epoch count"), default=defaults["pretrain_epochs"],
+                    help="behaviour cloning passes over the demonstrations, per round (default %(default)s)")
+    tr.add_argument("--pretrain-rounds", type=int_at_least(1, "round count"), default=defaults["pretrain_rounds"],
+                    help="cloning rounds; each after the first adds --pretrain-rows rows of the states the cloned policy "
+                         "reaches, labelled by the teacher (DAgger) (default %(default)s)")
     tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
     tr.add_argument("--json", action="store_true", help="print the final manifest as JSON (default: a summary)")
     from training.train.rllib_command import add_rllib_arguments
@@ -139,6 +148,10 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         eval_seed=args.eval_seed,
         eval_sample_actions=args.eval_sample_actions,
         progress_bar=args.progress_bar,
+        pretrain=args.pretrain,
+        pretrain_rows=args.pretrain_rows,
+        pretrain_epochs=args.pretrain_epochs,
+        pretrain_rounds=args.pretrain_rounds,
     )
 
 
@@ -148,7 +161,8 @@ _VALUE_OPTIONS = MappingProxyType({
     "route": "--route", "max_cycles": "--max-cycles", "n_steps": "--n-steps", "batch_size": "--batch-size",
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
-    "eval_seed": "--eval-seed",
+    "eval_seed": "--eval-seed", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",
+    "pretrain_rounds": "--pretrain-rounds",
 })
 #: TrainConfig fields -> (the flag, the field's value when the flag is given; without it, the other).
 _FLAGS = MappingProxyType({"subproc": ("--subproc", True), "normalize": ("--no-normalize", False),

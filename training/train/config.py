@@ -36,7 +36,7 @@ if TYPE_CHECKING:
     from moma_env.env.config import RewardConfig
 
 __all__ = [
-    "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "TrainConfig", "reward_overrides",
+    "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "TrainConfig", "reward_overrides",
     "run_env_options", "config_to_dict", "config_from_dict",
 ]
 
@@ -50,6 +50,11 @@ DISCRETE_ONLY = frozenset({"dqn"})
 MASKED = frozenset({"maskable_ppo"})
 #: Algorithms that need a ``Box`` action (velocity mode).
 BOX_ONLY = frozenset({"sac", "td3"})
+#: Algorithms whose model a scripted teacher can initialise (``pretrain``): an actor and a critic.
+PRETRAINABLE = frozenset({"ppo", "maskable_ppo"})
+#: Scripted teachers a run may be cloned from (``pretrain``): built-in switching-mode
+#: policies of :func:`training.evaluation.policies.load_policy`.
+TEACHERS = ("greedy", "scripted")
 #: Training routes (see the module docstring).
 ROUTES = ("centralised", "shared")
 
@@ -92,6 +97,15 @@ class TrainConfig:
         progress_bar: show SB3's progress bar.
         torch_threads: torch's intra-op threads while training (1: the networks
             are tiny, more threads only contend with the envs for the cores).
+        pretrain: a scripted teacher to clone before learning (``"greedy"`` or
+            ``"scripted"``, :mod:`training.train.pretrain`; None: start from scratch).
+            PPO-like algorithms in switching mode only.
+        pretrain_rows: demonstration rows to record (UGV slot steps on the shared
+            route, env steps on the centralised one).
+        pretrain_epochs: passes of behaviour cloning over the demonstrations, per round.
+        pretrain_rounds: rounds of cloning; each after the first adds
+            ``pretrain_rows`` rows of the states the cloned policy reaches, labelled
+            by the teacher (DAgger).
     """
 
     scenario: str
@@ -120,6 +134,10 @@ class TrainConfig:
     eval_sample_actions: bool = False
     progress_bar: bool = False
     torch_threads: int = 1
+    pretrain: str | None = None
+    pretrain_rows: int = 64_000
+    pretrain_epochs: int = 30
+    pretrain_rounds: int = 1
 
     def __post_init__(self) -> None:
         from moma_env.env.config import ACTION_MODES, RewardConfig
@@ -155,6 +173,15 @@ class TrainConfig:
         check_bool("eval_sample_actions", self.eval_sample_actions)
         check_bool("progress_bar", self.progress_bar)
         check_count("torch_threads", self.torch_threads, 1)
+        if self.pretrain is not None:
+            check_choice("pretrain", self.pretrain, TEACHERS)
+            if self.algo not in PRETRAINABLE:
+                raise ConfigError("pretrain", f"behaviour cloning initialises PPO's actor and critic: use --algo {' or '.join(sorted(PRETRAINABLE))}")
+            if self.action_mode != "switching":
+                raise ConfigError("pretrain", f"the {self.pretrain} teacher acts in the switching action mode: use --action-mode switching")
+        check_count("pretrain_rows", self.pretrain_rows, 1)
+        check_count("pretrain_epochs", self.pretrain_epochs, 1)
+        check_count("pretrain_rounds", self.pretrain_rounds, 1)
         if self.algo in DISCRETE_ONLY and (self.action_mode != "switching" or self.route != "shared"):
             raise ConfigError(
                 "algo", f"{self.algo} needs one discrete action per slot: use --action-mode switching --route shared"

@@ -23,7 +23,7 @@ from typing import Any
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 
 from moma_env.config import ConfigError
-from moma_env.io import claim_run_folder, run_kind
+from moma_env.io import claim_run_folder, run_kind, write_json
 from training.train.callbacks import EVALUATIONS, CheckpointCallback, EvaluationCallback
 from training.train.checkpoint import checkpoint_files, read_manifest, remove_stale_temporaries, save_checkpoint, source_revision
 from agents.learned import torch_threads
@@ -31,7 +31,10 @@ from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.models import algorithm_class, build_model, training_logger
 
-__all__ = ["train", "RESUMABLE_CHANGES"]
+__all__ = ["train", "RESUMABLE_CHANGES", "PRETRAINING"]
+
+#: The record of a run's behaviour cloning (:func:`training.train.pretrain.pretrain_model`), in its folder.
+PRETRAINING = "pretrain.json"
 
 #: Fields of the configuration that a resumed run may change; every other must match the run's.
 RESUMABLE_CHANGES = frozenset(
@@ -115,6 +118,13 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
     logger = training_logger(out, model.num_timesteps)
     model.set_logger(logger)
     try:
+        if config.pretrain is not None and not resume:
+            from training.train.pretrain import pretrain_model
+
+            write_json(out / PRETRAINING, pretrain_model(model, venv, config))
+            if config.eval_every > 0:  # where the cloned policy starts the curves
+                evaluation.init_callback(model)
+                evaluation.evaluate_now()
         remaining = config.steps - model.num_timesteps
         if remaining > 0:
             model.learn(remaining, callback=chain, reset_num_timesteps=not resume, progress_bar=config.progress_bar)

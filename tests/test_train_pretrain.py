@@ -1,0 +1,159 @@
+"""Behaviour cloning from a scripted teacher (``moma-env train --pretrain``): what the
+demonstrations hold, DAgger's labels, the normalisation statistics, the cloning itself,
+and a pretrained run's records and reproducibility.
+
+Runs are tiny: plumbing and the direction of learning, not its final quality.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecNormalize
+
+from agents.policies.base import ADVANCE, HOLD
+from moma_env.config import ConfigError
+from training.train.config import TrainConfig
+from training.train.envs import env_spec, make_vec_env, wrap_normalisation
+from training.train.models import build_model
+from training.train.pretrain import behaviour_clone, collect_demonstrations, discounted_returns, seed_normalisation
+from training.train.run import PRETRAINING, train
+
+TASK = "top_observer_team4"  # greedy parallel turns: several movers, commit_legs, action masks
+
+
+def tiny(**changes) -> TrainConfig:
+    base = dict(
+        scenario=TASK, algo="maskable_ppo", steps=128, envs=2, n_steps=16, batch_size=64, net_arch=(16,), max_cycles=60,
+        checkpoint_every=10**6, eval_episodes=1, eval_max_cycles=20, pretrain="greedy", pretrain_rows=480, pretrain_epochs=3,
+    )
+    return TrainConfig(**(base | changes))
+
+
+class KeepModel(BaseCallback):
+    def _on_step(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("route", ["shared", "centralised"])
+def test_demonstrations_are_the_teachers_allowed_actions(route):
+    config = tiny(route=route)
+    demos = collect_demonstrations(env_spec(config), "greedy", 2, 400, seed=0, route=route)
+    stride = 2 * 4 if route == "shared" else 2
+    assert demos.stride == stride and len(demos) >= 400 and len(demos) % stride == 0
+    per_agent = demos.masks.reshape(len(demos), -1, 2)
+    actions = demos.actions.reshape(len(demos), -1)
+    assert per_agent.shape[1] == (1 if route == "shared" else 4)
+    chosen = np.take_along_axis(per_agent, actions[:, :, None], axis=2)[:, :, 0]
+    assert chosen.all()  # the teacher never asks for what the rules refuse
+    assert (actions == ADVANCE).any() and (actions == HOLD).any()
+    venv = make_vec_env(config, 0)  # the run's own envs: the same observation rows
+    assert demos.observations.shape == (len(demos), *venv.observation_space.shape)
+    venv.close()
+
+
+def test_with_a_learner_the_learner_acts_and_the_teacher_labels():
+    # A learner that holds wherever holding is allowed: no robot starts a leg, so the
+    # observations never change much, while the teacher's labels ask robots to advance.
+    config = tiny()
+
+    def hold(observations, masks):
+        return np.where(masks[:, HOLD], HOLD, ADVANCE)
+
+    demos = collect_demonstrations(env_spec(config), "greedy", 2, 400, seed=0, learner=hold)
+    free = demos.masks.all(axis=1)
+    assert free.any()
+    assert (demos.actions[free] == ADVANCE).any()  # the teacher would have moved
+    taught = collect_demonstrations(env_spec(config), "greedy", 2, 400, seed=0)
+    assert not np.array_equal(demos.observations, taught.observations)  # the states are the learner's
+    assert np.array_equal(demos.observations[:8], taught.observations[:8])  # from the same first layouts
+
+
+def test_discounted_returns_restart_at_episode_ends():
+    # two slots, three steps; slot 0's episode ends at step 1
+    rewards = np.array([1.0, 10.0, 2.0, 20.0, 4.0, 40.0])
+    ends = np.array([False, False, True, False, False, False])
+    out = discounted_returns(rewards, ends, 2, 0.5)
+    assert np.allclose(out, [1 + 0.5 * 2, 10 + 0.5 * 20 + 0.25 * 40, 2, 20 + 0.5 * 40, 4, 40])
+
+
+def test_seeded_statistics_are_those_the_wrapper_gathers_on_the_same_transitions():
+    config = tiny()
+    demos = collect_demonstrations(env_spec(config), "greedy", 2, 800, seed=0)
+    seeded = wrap_normalisation(make_vec_env(config, 0), config)
+    seed_normalisation(seeded, demos)
+    stepped = wrap_normalisation(make_vec_env(config, 0), config)
+    stepped.reset()
+    steps = len(demos) // demos.stride
+    for t in range(steps):
+        if t == steps - 1:  # before the last step the wrapper has seen the observations the demonstrations hold
+            obs_mean, obs_var = stepped.obs_rms.mean.copy(), stepped.obs_rms.var.copy()
+        stepped.step(demos.actions[t * demos.stride:(t + 1) * demos.stride])
+    assert np.array_equal(seeded.obs_rms.mean, obs_mean) and np.array_equal(seeded.obs_rms.var, obs_var)
+    assert seeded.ret_rms.var == stepped.ret_rms.var and seeded.ret_rms.mean == stepped.ret_rms.mean
+    seeded.close()
+    stepped.close()
+
+
+def test_cloning_brings_the_policy_to_the_teachers_choices():
+    config = tiny(net_arch=(32,))
+    demos = collect_demonstrations(env_spec(config), "greedy", 2, 2400, seed=0)
+    venv = wrap_normalisation(make_vec_env(config, 0), config)
+    model = build_model(config, venv)
+    seed_normalisation(venv, demos)
+    epochs = behaviour_clone(model, demos, venv.normalize_obs, venv.normalize_reward, 15, 64, seed=0)
+    assert epochs[-1]["policy_loss"] < epochs[0]["policy_loss"]
+    assert epochs[-1]["value_loss"] < epochs[0]["value_loss"]
+    assert epochs[-1]["choice_accuracy"] > epochs[0]["choice_accuracy"]
+    assert epochs[-1]["accuracy"] >= epochs[-1]["choice_accuracy"]  # forced rows are always right
+    venv.close()
+
+
+def test_a_pretrained_run_records_its_cloning_and_is_reproducible(tmp_path):
+    weights = []
+    for name in ("a", "b"):
+        keep = KeepModel()
+        manifest = train(tiny(pretrain_rounds=2, eval_every=10**6), tmp_path / name, callbacks=[keep])
+        weights.append(keep.model.policy.state_dict())
+    assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])
+    record = json.loads((tmp_path / "a" / PRETRAINING).read_text())
+    assert record["teacher"] == "greedy" and len(record["rounds"]) == 2
+    assert record["rounds"][1]["rows"] > record["rounds"][0]["rows"]
+    assert "learner_episodes" in record["rounds"][0]
+    evaluations = json.loads((tmp_path / "a" / "evaluations.json").read_text())["records"]
+    assert evaluations[0]["num_timesteps"] == 0  # the cloned policy, before any PPO update
+    assert manifest["config"]["pretrain"] == "greedy"
+    keep = KeepModel()
+    train(tiny(pretrain=None), tmp_path / "c", callbacks=[keep])
+    assert not (tmp_path / "c" / PRETRAINING).exists()
+    assert not all(torch.equal(weights[0][k], keep.model.policy.state_dict()[k]) for k in weights[0])
+
+
+@pytest.mark.parametrize(
+    "changes, words",
+    [
+        ({"algo": "dqn"}, "PPO"),
+        ({"algo": "ppo", "action_mode": "velocity"}, "switching"),
+        ({"pretrain": "planned"}, "greedy"),
+        ({"pretrain_rounds": 0}, "pretrain_rounds"),
+    ],
+)
+def test_bad_pretraining_settings_name_the_field(changes, words):
+    with pytest.raises(ConfigError) as err:
+        tiny(**changes)
+    assert "pretrain" in str(err.value) and words in str(err.value)
+
+
+def test_the_normalisation_wrapper_is_optional():
+    config = tiny(normalize=False)
+    venv = wrap_normalisation(make_vec_env(config, 0), config)
+    assert not isinstance(venv, VecNormalize)
+    model = build_model(config, venv)
+    demos = collect_demonstrations(env_spec(config), "greedy", 2, 400, seed=0)
+    epochs = behaviour_clone(model, demos, None, None, 2, 64, seed=0)
+    assert len(epochs) == 2 and np.isfinite(epochs[-1]["policy_loss"])
+    venv.close()

@@ -1,0 +1,365 @@
+"""Behaviour cloning from a scripted teacher before reinforcement learning.
+
+A policy trained from scratch on the coordination tasks rarely sees a goal
+reached in a million timesteps; the greedy parallel teacher
+(:class:`agents.policies.GreedyParallelPolicy`) reaches every goal. So a run may
+start from the teacher (``moma-env train --pretrain greedy``):
+
+1. :func:`collect_demonstrations` drives the run's own batched env
+   (:class:`moma_env.vector.MomaVectorEnv`, the copies the shared route trains
+   on) with one teacher per copy for a number of UGV slot steps, and records
+   every slot's observation, the teacher's action, the motion rules' action mask
+   and the team's reward, copy by copy in the order the slots are laid out.
+2. :func:`seed_normalisation` feeds those observations and the running
+   discounted returns of those rewards to the run's ``VecNormalize``, exactly the
+   statistics the wrapper would have gathered had it stepped through the same
+   transitions.
+3. :func:`behaviour_clone` fits the policy to the teacher's actions (the
+   negative log-likelihood of the masked action distribution) and the value
+   network to the normalised discounted return of the rest of each episode, so
+   that the first PPO updates start from a critic that knows the teacher's
+   returns rather than undo the cloned policy.
+
+Everything is seeded: the envs from the run's seed (copy ``k`` resets first with
+``seed + k * N``, as :class:`~training.train.shared_vec_env.SharedPolicyVecEnv`
+seeds it), the minibatch order from a generator of the run's seed, the network
+from the model's own seeding; the same seed and thread count give the same weights.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+
+from moma_env.vector import MomaVectorEnv
+from training.evaluation.policies import load_policy
+from training.train.config import TEACHERS, TrainConfig
+from training.train.envs import env_spec
+from training.train.team_slots import EnvSpec, slot_spaces
+
+__all__ = ["Demonstrations", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
+
+
+
+@dataclass(frozen=True)
+class Demonstrations:
+    """What a teacher did: ``stride`` rows per env step of every copy (on the shared
+    route a row per UGV slot, a copy's robots in ``agents`` order, then the next
+    copy's; on the centralised route a row per copy), then the next step's.
+
+    Attributes:
+        observations: ``(T, D)`` float32, the observation before the action (a robot's
+            own, or the team's concatenated).
+        actions: the teacher's switching actions, ``(T,)`` (a robot's) or ``(T, N)`` (the team's) int64.
+        masks: ``(T, M)`` bool, the actions the motion rules would grant then (the team's side by side).
+        rewards: ``(T,)`` float64, the team's reward of that step (rounded to float32, as the training envs give it).
+        episode_ends: ``(T,)`` bool, the step ended the copy's episode (terminated or truncated).
+        complete: ``(T,)`` bool, the row's episode ended within the collection (its
+            discounted return is complete; the episodes still running at the end are cut).
+        stride: rows per env step of every copy.
+        episodes: episodes finished during the collection.
+        successes: of those, the ones where every robot reached its goal.
+    """
+
+    observations: np.ndarray
+    actions: np.ndarray
+    masks: np.ndarray
+    rewards: np.ndarray
+    episode_ends: np.ndarray
+    complete: np.ndarray
+    stride: int
+    episodes: int
+    successes: int
+
+    def __len__(self) -> int:
+        return int(self.actions.shape[0])
+
+    def __add__(self, other: "Demonstrations") -> "Demonstrations":
+        """Both collections' rows, this one's first (same stride; each keeps its episodes)."""
+        if other.stride != self.stride or other.observations.shape[1:] != self.observations.shape[1:]:
+            raise ValueError(f"cannot join demonstrations of stride {self.stride} and {other.stride}")
+        return Demonstrations(
+            *(np.concatenate([getattr(self, f), getattr(other, f)]) for f in ("observations", "actions", "masks", "rewards", "episode_ends", "complete")),
+            self.stride, self.episodes + other.episodes, self.successes + other.successes,
+        )
+
+
+#: A policy acting on demonstration rows: ``(observations (R, D), masks (R, M)) -> actions`` of the rows' shape.
+RowPolicy = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def collect_demonstrations(
+    spec: EnvSpec, teacher: str, n_copies: int, rows: int, seed: int, route: str = "shared", learner: RowPolicy | None = None
+) -> Demonstrations:
+    """Drive ``n_copies`` copies of ``spec`` with ``teacher`` until at least ``rows`` rows are recorded.
+
+    Args:
+        spec: the run's env (its options are the training env's; the teacher's own
+            env options, e.g. ``action_masks=True``, are added, which change no
+            observation, action or reward).
+        teacher: one of :data:`TEACHERS`.
+        n_copies: copies stepped together.
+        rows: rows to record at least (whole env steps of every copy).
+        seed: copy ``k`` resets first with ``seed + k * N`` (``shared``, ``N`` UGVs) or
+            ``seed + k`` (``centralised``), the seeds the run's own envs start from.
+        route: ``"shared"``: a row per UGV slot (its own observation and action);
+            ``"centralised"``: a row per copy (the team's concatenated observation,
+            the agents' actions side by side, their masks concatenated).
+        learner: None: the teacher acts. Else the learner acts and the teacher only
+            labels every row with what it would have done (DAgger: the states are
+            the learner's, the actions the teacher's).
+
+    Raises:
+        ValueError: an unknown teacher or route, a teacher for another action mode,
+            or an env whose UGVs cannot share one policy.
+    """
+    if teacher not in TEACHERS:
+        raise ValueError(f"teacher must be one of {TEACHERS}, got {teacher!r}")
+    if route not in ("shared", "centralised"):
+        raise ValueError(f"route must be 'shared' or 'centralised', got {route!r}")
+    if spec.options.get("action_mode", "switching") != "switching":
+        raise ValueError(f"the {teacher} teacher acts in the switching action mode, the run trains in {spec.options['action_mode']!r}")
+    policies = [load_policy(teacher, spec.configuration) for _ in range(n_copies)]
+    options = dict(spec.options) | dict(getattr(policies[0], "env_options", {}))
+    vector = MomaVectorEnv(spec.configuration, n_copies, **options)
+    try:
+        agents, _, action_space = slot_spaces(vector.envs[0])
+        n = len(agents)
+        shared = route == "shared"
+        seeds = [seed + k * (n if shared else 1) for k in range(n_copies)]
+        observations, infos = vector.reset(seed=seeds)
+        for k, policy in enumerate(policies):
+            policy.reset(vector.envs[k], seed=seeds[k])
+        stride = n_copies * n if shared else n_copies  # rows per env step of every copy
+        steps = math.ceil(rows / stride)
+        total = steps * stride
+        obs_size = vector.envs[0].observation_space(agents[0]).shape[0]
+        n_actions = int(action_space.n)
+        obs_out = np.empty((total, obs_size if shared else obs_size * n), dtype=np.float32)
+        act_out = np.empty((total,) if shared else (total, n), dtype=np.int64)
+        mask_out = np.empty((total, n_actions if shared else n_actions * n), dtype=bool)
+        reward_out = np.empty(total, dtype=np.float64)
+        end_out = np.zeros(total, dtype=bool)
+        episodes = successes = 0
+        for t in range(steps):
+            masks = vector.action_masks()
+            actions = {a: np.empty(n_copies, dtype=np.int64) for a in agents}
+            for k, policy in enumerate(policies):
+                chosen = policy.act({a: observations[a][k] for a in agents}, infos[k])
+                for a in agents:
+                    actions[a][k] = int(chosen[a])
+            block = slice(t * stride, (t + 1) * stride)
+            # (K, N, ...) per copy and agent, then one row per slot or per copy
+            obs_out[block] = np.stack([observations[a] for a in agents], axis=1).reshape(stride, -1)
+            act_out[block] = np.stack([actions[a] for a in agents], axis=1).reshape(act_out[block].shape)
+            mask_out[block] = np.stack([masks[a] for a in agents], axis=1).reshape(stride, -1)
+            if learner is not None:
+                acted = np.asarray(learner(obs_out[block], mask_out[block]), dtype=np.int64).reshape(n_copies, n)
+                actions = {a: acted[:, j].copy() for j, a in enumerate(agents)}
+            observations, rewards, terminations, truncations, infos = vector.step(actions)
+            ended = np.zeros(n_copies, dtype=bool)
+            for a in agents:
+                ended |= np.asarray(terminations[a], dtype=bool) | np.asarray(truncations[a], dtype=bool)
+            per_row = stride // n_copies
+            reward_out[block] = np.repeat(np.asarray(rewards[agents[0]], dtype=np.float32), per_row)  # SB3's reward precision
+            end_out[block] = np.repeat(ended, per_row)
+            for k in np.flatnonzero(ended):
+                episodes += 1
+                final = infos[k]["final_info"]
+                successes += int(all(bool(final[a].get("reached_goal", False)) for a in agents))
+                policies[k].reset(vector.envs[k], seed=None)
+        return Demonstrations(obs_out, act_out, mask_out, reward_out, end_out, _ended_later(end_out, stride), stride, episodes, successes)
+    finally:
+        vector.close()
+
+
+def seed_normalisation(venv: VecNormalize, demonstrations: Demonstrations) -> None:
+    """Give ``venv`` the statistics it would have gathered stepping through the
+    demonstrations' transitions: the observations, block by block in their float32
+    as the wrapper sees them, and each row's running discounted return
+    (``returns = returns * gamma + reward``, restarted at an episode's end)."""
+    n = demonstrations.stride
+    returns = np.zeros(n)
+    for t in range(len(demonstrations) // n):
+        block = slice(t * n, (t + 1) * n)
+        if venv.norm_obs:
+            venv.obs_rms.update(demonstrations.observations[block])
+        if venv.norm_reward:
+            returns = returns * venv.gamma + demonstrations.rewards[block]
+            venv.ret_rms.update(returns)
+            returns[demonstrations.episode_ends[block]] = 0.0
+
+
+def discounted_returns(rewards: np.ndarray, episode_ends: np.ndarray, n_slots: int, gamma: float) -> np.ndarray:
+    """Each row's discounted return of the rest of its episode (zero past an episode's end;
+    an episode still running when the collection stopped is cut there)."""
+    out = np.empty_like(rewards, dtype=np.float64)
+    running = np.zeros(n_slots)
+    for t in range(len(rewards) // n_slots - 1, -1, -1):
+        block = slice(t * n_slots, (t + 1) * n_slots)
+        running = rewards[block] + gamma * running * ~episode_ends[block]
+        out[block] = running
+    return out
+
+
+def behaviour_clone(
+    model: BaseAlgorithm,
+    demonstrations: Demonstrations,
+    normalise_obs: Callable[[np.ndarray], np.ndarray] | None,
+    normalise_reward: Callable[[np.ndarray], np.ndarray] | None,
+    epochs: int,
+    batch_size: int,
+    seed: int,
+) -> list[dict[str, float]]:
+    """Fit ``model``'s policy to the teacher's actions and its value network to the returns.
+
+    Args:
+        model: a PPO-like model (``PPO`` or sb3-contrib's ``MaskablePPO``; the masks are
+            given to a model that takes them).
+        demonstrations: what the teacher did.
+        normalise_obs / normalise_reward: the run's ``VecNormalize`` transforms (None: identity).
+        epochs: passes over the demonstrations.
+        batch_size: rows per gradient step.
+        seed: seed of the minibatch order.
+
+    Returns:
+        one record per epoch: mean ``policy_loss`` (negative log-likelihood of the
+        teacher's action), ``value_loss`` (mean squared error, normalised returns)
+        ``accuracy`` (share of rows whose most likely action is the teacher's) and
+        ``choice_accuracy`` (the same over the rows where the masks left a choice;
+        elsewhere the action is forced and the policy cannot err).
+    """
+    observations = demonstrations.observations
+    if normalise_obs is not None:
+        observations = normalise_obs(observations)
+    rewards = demonstrations.rewards if normalise_reward is None else normalise_reward(demonstrations.rewards).astype(np.float64)
+    returns = discounted_returns(rewards, demonstrations.episode_ends, demonstrations.stride, float(model.gamma))
+    policy = model.policy
+    masked = isinstance(policy, MaskableActorCriticPolicy)
+    obs_t = torch.as_tensor(np.asarray(observations, dtype=np.float32))
+    act_t = torch.as_tensor(demonstrations.actions)
+    mask_t = torch.as_tensor(demonstrations.masks)
+    ret_t = torch.as_tensor(returns, dtype=torch.float32)
+    choice_t = torch.as_tensor(_has_choice(demonstrations))
+    value_rows = torch.as_tensor(demonstrations.complete, dtype=torch.float32)
+    rng = np.random.default_rng(seed)
+    records: list[dict[str, float]] = []
+    policy.set_training_mode(True)
+    for _ in range(epochs):
+        order = torch.as_tensor(rng.permutation(len(demonstrations)))
+        sums = {"policy_loss": 0.0, "value_loss": 0.0, "accuracy": 0.0, "choice_accuracy": 0.0}
+        choice_rows = 0
+        for start in range(0, len(order), batch_size):
+            rows = order[start:start + batch_size]
+            if masked:
+                values, log_prob, _ = policy.evaluate_actions(obs_t[rows], act_t[rows], action_masks=mask_t[rows])
+            else:
+                values, log_prob, _ = policy.evaluate_actions(obs_t[rows], act_t[rows])
+            keep = value_rows[rows]
+            value_loss = ((values.flatten() - ret_t[rows]) ** 2 * keep).sum() / keep.sum().clamp(min=1)
+            policy_loss = -log_prob.mean()
+            loss = policy_loss + model.vf_coef * value_loss
+            policy.optimizer.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(policy.parameters(), model.max_grad_norm)
+            policy.optimizer.step()
+            with torch.no_grad():
+                distribution = policy.get_distribution(obs_t[rows], action_masks=mask_t[rows]) if masked else policy.get_distribution(obs_t[rows])
+                agree = (distribution.mode().reshape(act_t[rows].shape) == act_t[rows]).reshape(len(rows), -1).all(dim=1)
+                choice = choice_t[rows]
+            sums["policy_loss"] += float(policy_loss.detach()) * len(rows)
+            sums["value_loss"] += float(value_loss.detach()) * len(rows)
+            sums["accuracy"] += float(agree.float().sum())
+            sums["choice_accuracy"] += float(agree[choice].float().sum())
+            choice_rows += int(choice.sum())
+        record = {k: sums[k] / len(order) for k in ("policy_loss", "value_loss", "accuracy")}
+        record["choice_accuracy"] = sums["choice_accuracy"] / choice_rows if choice_rows else math.nan
+        records.append(record)
+    policy.set_training_mode(False)
+    return records
+
+
+def _ended_later(episode_ends: np.ndarray, n_slots: int) -> np.ndarray:
+    """``(T,)`` bool: the row's slot ends an episode at this row or a later one."""
+    out = np.empty_like(episode_ends)
+    seen = np.zeros(n_slots, dtype=bool)
+    for t in range(len(episode_ends) // n_slots - 1, -1, -1):
+        block = slice(t * n_slots, (t + 1) * n_slots)
+        seen |= episode_ends[block]
+        out[block] = seen
+    return out
+
+
+def _has_choice(demonstrations: Demonstrations) -> np.ndarray:
+    """``(T,)`` bool: some agent of the row had more than one action allowed."""
+    n_agents = 1 if demonstrations.actions.ndim == 1 else demonstrations.actions.shape[1]
+    per_agent = demonstrations.masks.reshape(len(demonstrations), n_agents, -1)
+    return (per_agent.sum(axis=2) > 1).any(axis=1)
+
+
+def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> dict[str, Any]:
+    """Clone ``config.pretrain`` into a new run's ``model`` (and its ``venv``'s normalisation).
+
+    The teacher's demonstrations come from ``config.envs`` copies of the run's env
+    seeded as the run's own envs are (``config.seed``), ``config.pretrain_rows`` rows
+    of them, on the run's route; each round clones all the rows gathered so far
+    (``config.pretrain_epochs`` passes of minibatches of ``config.batch_size``), and
+    every round after the first first adds ``config.pretrain_rows`` rows of the
+    states the cloned policy reaches, labelled with the teacher's actions (DAgger).
+
+    Returns:
+        the record of ``pretrain.json``: the teacher, its episodes and successes,
+        wall time (s), and per round the rows, the per-epoch losses and accuracies
+        and the cloned policy's episodes and successes while it gathered the next
+        round's states.
+    """
+    start = time.perf_counter()
+    spec = env_spec(config)
+    demonstrations = collect_demonstrations(spec, config.pretrain, config.envs, config.pretrain_rows, config.seed, config.route)
+    normalise_obs = normalise_reward = None
+    if isinstance(venv, VecNormalize):
+        seed_normalisation(venv, demonstrations)
+        normalise_obs = venv.normalize_obs if venv.norm_obs else None
+        normalise_reward = venv.normalize_reward if venv.norm_reward else None
+    teacher = {"episodes": demonstrations.episodes, "successes": demonstrations.successes}
+    rounds: list[dict[str, Any]] = []
+    for k in range(config.pretrain_rounds):
+        if k > 0:  # DAgger: the states the cloned policy reaches, labelled by the teacher
+            learner = _row_policy(model, normalise_obs)
+            seed = config.seed + k * config.pretrain_rows  # other layouts than the earlier rounds'
+            visited = collect_demonstrations(spec, config.pretrain, config.envs, config.pretrain_rows, seed, config.route, learner)
+            rounds[-1]["learner_episodes"], rounds[-1]["learner_successes"] = visited.episodes, visited.successes
+            demonstrations = demonstrations + visited
+        epochs = behaviour_clone(model, demonstrations, normalise_obs, normalise_reward, config.pretrain_epochs, config.batch_size, config.seed + k)
+        rounds.append({"rows": len(demonstrations), "epochs": epochs})
+    return {
+        "teacher": config.pretrain,
+        "teacher_episodes": teacher["episodes"],
+        "teacher_successes": teacher["successes"],
+        "wall_time_s": time.perf_counter() - start,
+        "rounds": rounds,
+    }
+
+
+def _row_policy(model: BaseAlgorithm, normalise_obs: Callable[[np.ndarray], np.ndarray] | None) -> RowPolicy:
+    """``model``'s most likely actions (among the allowed ones, for a masked model) on demonstration rows."""
+    masked = isinstance(model.policy, MaskableActorCriticPolicy)
+
+    def act(observations: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        obs = observations if normalise_obs is None else normalise_obs(observations)
+        if masked:
+            actions, _ = model.predict(obs, deterministic=True, action_masks=masks)
+        else:
+            actions, _ = model.predict(obs, deterministic=True)
+        return actions
+
+    return act
