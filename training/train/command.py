@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 from moma_env.config import ConfigError
 from moma_env.tasks import TASKS
 from training.cli_args import ACTION_MODE_NAMES, SCENARIO_NAMES, choice, int_at_least
-from training.train.config import ALGORITHMS, ROUTES, TEACHERS, TrainConfig, reward_overrides
+from training.train.config import ALGORITHMS, NETWORKS, ROUTES, TEACHERS, TrainConfig, reward_overrides
 
 if TYPE_CHECKING:
     from moma_env.env.config import RewardConfig
@@ -95,6 +95,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
                     help="seed of the first held-out evaluation episode (default %(default)s)")
     tr.add_argument("--eval-sample-actions", action="store_true",
                     help="the held-out evaluations sample the policy's actions (default: the most likely one)")
+    tr.add_argument("--network", choices=NETWORKS, type=choice(NETWORKS, "network"), default=defaults["network"],
+                    help="policy network: SB3's mlp, or team (centralised route: one encoder and head shared by every robot, "
+                         "pooled over the team) (default %(default)s)")
     tr.add_argument("--pretrain", choices=TEACHERS, type=choice(TEACHERS, "teacher"), default=None,
                     help="clone this scripted policy into the network before learning (behaviour cloning; PPO-like, switching mode)")
     tr.add_argument("--pretrain-rows", type=int_at_least(1, "row count"), default=defaults["pretrain_rows"],
@@ -148,6 +151,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         eval_seed=args.eval_seed,
         eval_sample_actions=args.eval_sample_actions,
         progress_bar=args.progress_bar,
+        network=args.network,
         pretrain=args.pretrain,
         pretrain_rows=args.pretrain_rows,
         pretrain_epochs=args.pretrain_epochs,
@@ -161,7 +165,7 @@ _VALUE_OPTIONS = MappingProxyType({
     "route": "--route", "max_cycles": "--max-cycles", "n_steps": "--n-steps", "batch_size": "--batch-size",
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
-    "eval_seed": "--eval-seed", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",
+    "eval_seed": "--eval-seed", "network": "--network", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",
     "pretrain_rounds": "--pretrain-rounds",
 })
 #: TrainConfig fields -> (the flag, the field's value when the flag is given; without it, the other).

@@ -36,7 +36,7 @@ if TYPE_CHECKING:
     from moma_env.env.config import RewardConfig
 
 __all__ = [
-    "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "TrainConfig", "reward_overrides",
+    "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "NETWORKS", "TrainConfig", "reward_overrides",
     "run_env_options", "config_to_dict", "config_from_dict",
 ]
 
@@ -52,6 +52,8 @@ MASKED = frozenset({"maskable_ppo"})
 BOX_ONLY = frozenset({"sac", "td3"})
 #: Algorithms whose model a scripted teacher can initialise (``pretrain``): an actor and a critic.
 PRETRAINABLE = frozenset({"ppo", "maskable_ppo"})
+#: Policy networks (``network``): SB3's MLP, or the team network of :mod:`agents.team_network`.
+NETWORKS = ("mlp", "team")
 #: Scripted teachers a run may be cloned from (``pretrain``): built-in switching-mode
 #: policies of :func:`training.evaluation.policies.load_policy`.
 TEACHERS = ("greedy", "scripted")
@@ -97,6 +99,10 @@ class TrainConfig:
         progress_bar: show SB3's progress bar.
         torch_threads: torch's intra-op threads while training (1: the networks
             are tiny, more threads only contend with the envs for the cores).
+        network: ``"mlp"`` (SB3's MLP over the observation) or ``"team"`` (on the
+            centralised route in switching mode: one encoder and one action head
+            shared by every robot, with max and mean pooling over the team,
+            :mod:`agents.team_network`); ``net_arch`` gives its hidden sizes.
         pretrain: a scripted teacher to clone before learning (``"greedy"`` or
             ``"scripted"``, :mod:`training.train.pretrain`; None: start from scratch).
             PPO-like algorithms in switching mode only.
@@ -134,6 +140,7 @@ class TrainConfig:
     eval_sample_actions: bool = False
     progress_bar: bool = False
     torch_threads: int = 1
+    network: str = "mlp"
     pretrain: str | None = None
     pretrain_rows: int = 64_000
     pretrain_epochs: int = 30
@@ -173,6 +180,10 @@ class TrainConfig:
         check_bool("eval_sample_actions", self.eval_sample_actions)
         check_bool("progress_bar", self.progress_bar)
         check_count("torch_threads", self.torch_threads, 1)
+        check_choice("network", self.network, NETWORKS)
+        if self.network == "team" and (self.route != "centralised" or self.action_mode != "switching" or self.algo not in PRETRAINABLE):
+            raise ConfigError("network", "the team network gives each robot of the centralised team its switching action: "
+                              "use --route centralised --action-mode switching with --algo ppo or maskable_ppo")
         if self.pretrain is not None:
             check_choice("pretrain", self.pretrain, TEACHERS)
             if self.algo not in PRETRAINABLE:

@@ -71,11 +71,11 @@ def build_model(config: TrainConfig, venv: VecEnv) -> BaseAlgorithm:
     """A new model of ``config.algo`` on ``venv``, seeded with ``config.seed``, on the CPU
     (give it a :func:`training_logger` before ``learn``)."""
     cls = algorithm_class(config.algo)
-    return cls(
-        "MlpPolicy",
-        venv,
-        seed=config.seed,
-        device="cpu",
-        verbose=0,
-        **_hyperparameters(config, venv.num_envs),
-    )
+    kwargs = _hyperparameters(config, venv.num_envs)
+    policy: Any = "MlpPolicy"
+    if config.network == "team":
+        from agents.team_network import MaskableTeamActorCriticPolicy, TeamActorCriticPolicy
+
+        policy = MaskableTeamActorCriticPolicy if config.algo == "maskable_ppo" else TeamActorCriticPolicy
+        kwargs["policy_kwargs"] = {"net_arch": list(config.net_arch), "n_agents": len(venv.action_space.nvec)}
+    return cls(policy, venv, seed=config.seed, device="cpu", verbose=0, **kwargs)
