@@ -30,6 +30,7 @@ def tiny(**changes) -> TrainConfig:
     base = dict(
         scenario=TASK, algo="maskable_ppo", steps=128, envs=2, n_steps=16, batch_size=64, net_arch=(16,), max_cycles=60,
         checkpoint_every=10**6, eval_episodes=1, eval_max_cycles=20, pretrain="greedy", pretrain_rows=480, pretrain_epochs=3,
+        dagger_rounds=0, dagger_rows=240, dagger_epochs=2,
     )
     return TrainConfig(**(base | changes))
 
@@ -117,7 +118,7 @@ def test_a_pretrained_run_records_its_cloning_and_is_reproducible(tmp_path):
     weights = []
     for name in ("a", "b"):
         keep = KeepModel()
-        manifest = train(tiny(pretrain_rounds=2, eval_every=10**6), tmp_path / name, callbacks=[keep])
+        manifest = train(tiny(dagger_rounds=1, eval_every=10**6), tmp_path / name, callbacks=[keep])
         weights.append(keep.model.policy.state_dict())
     assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])
     record = json.loads((tmp_path / "a" / PRETRAINING).read_text())
@@ -139,13 +140,14 @@ def test_a_pretrained_run_records_its_cloning_and_is_reproducible(tmp_path):
         ({"algo": "dqn"}, "PPO"),
         ({"algo": "ppo", "action_mode": "velocity"}, "switching"),
         ({"pretrain": "planned"}, "greedy"),
-        ({"pretrain_rounds": 0}, "pretrain_rounds"),
+        ({"dagger_rounds": -1}, "dagger_rounds"),
+        ({"dagger_rows": 0}, "dagger_rows"),
     ],
 )
 def test_bad_pretraining_settings_name_the_field(changes, words):
     with pytest.raises(ConfigError) as err:
         tiny(**changes)
-    assert "pretrain" in str(err.value) and words in str(err.value)
+    assert ("pretrain" in str(err.value) or "dagger" in str(err.value)) and words in str(err.value)
 
 
 def test_the_normalisation_wrapper_is_optional():
@@ -157,3 +159,12 @@ def test_the_normalisation_wrapper_is_optional():
     epochs = behaviour_clone(model, demos, None, None, 2, 64, seed=0)
     assert len(epochs) == 2 and np.isfinite(epochs[-1]["policy_loss"])
     venv.close()
+
+
+def test_a_cloned_policy_may_be_kept_without_reinforcement_learning(tmp_path):
+    manifest = train(tiny(steps=0, eval_every=10**6), tmp_path / "run")
+    assert manifest["num_timesteps"] == 0 and (tmp_path / "run" / manifest["model"]).is_file()
+    records = json.loads((tmp_path / "run" / "evaluations.json").read_text())["records"]
+    assert [r["num_timesteps"] for r in records] == [0]
+    with pytest.raises(ConfigError, match="steps"):
+        tiny(steps=0, pretrain=None)

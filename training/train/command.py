@@ -59,7 +59,7 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     algos = sorted(ALGORITHMS)
     tr.add_argument("--algo", choices=algos, type=choice(algos, "algorithm"), default=defaults["algo"],
                     help="algorithm (default %(default)s; dqn: switching + shared; maskable_ppo: switching, needs sb3-contrib; sac, td3: velocity)")
-    tr.add_argument("--timesteps", type=int_at_least(1, "timestep count"), default=defaults["steps"], metavar="TIMESTEPS",
+    tr.add_argument("--timesteps", type=int_at_least(0, "timestep count"), default=defaults["steps"], metavar="TIMESTEPS",
                     help="total training timesteps: env steps (centralised) or agent steps (shared) (default %(default)s)")
     tr.add_argument("--num-envs", type=int_at_least(1, "env count"), default=defaults["envs"], metavar="K",
                     help="env copies K stepped together (default %(default)s)")
@@ -103,10 +103,13 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--pretrain-rows", type=int_at_least(1, "row count"), default=defaults["pretrain_rows"],
                     help="demonstration rows: UGV slot steps (shared route) or env steps (centralised) (default %(default)s)")
     tr.add_argument("--pretrain-epochs", type=int_at_least(1, "epoch count"), default=defaults["pretrain_epochs"],
-                    help="behaviour cloning passes over the demonstrations, per round (default %(default)s)")
-    tr.add_argument("--pretrain-rounds", type=int_at_least(1, "round count"), default=defaults["pretrain_rounds"],
-                    help="cloning rounds; each after the first adds --pretrain-rows rows of the states the cloned policy "
-                         "reaches, labelled by the teacher (DAgger) (default %(default)s)")
+                    help="behaviour cloning passes over the teacher's rows (default %(default)s)")
+    tr.add_argument("--dagger-rounds", type=int_at_least(0, "round count"), default=defaults["dagger_rounds"],
+                    help="DAgger rounds after the cloning: the cloned policy acts, the teacher labels (default %(default)s)")
+    tr.add_argument("--dagger-rows", type=int_at_least(1, "row count"), default=defaults["dagger_rows"],
+                    help="rows recorded per DAgger round (default %(default)s)")
+    tr.add_argument("--dagger-epochs", type=int_at_least(1, "epoch count"), default=defaults["dagger_epochs"],
+                    help="cloning passes over all rows per DAgger round (default %(default)s)")
     tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
     tr.add_argument("--json", action="store_true", help="print the final manifest as JSON (default: a summary)")
     from training.train.rllib_command import add_rllib_arguments
@@ -155,7 +158,9 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         pretrain=args.pretrain,
         pretrain_rows=args.pretrain_rows,
         pretrain_epochs=args.pretrain_epochs,
-        pretrain_rounds=args.pretrain_rounds,
+        dagger_rounds=args.dagger_rounds,
+        dagger_rows=args.dagger_rows,
+        dagger_epochs=args.dagger_epochs,
     )
 
 
@@ -166,7 +171,7 @@ _VALUE_OPTIONS = MappingProxyType({
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
     "eval_seed": "--eval-seed", "network": "--network", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",
-    "pretrain_rounds": "--pretrain-rounds",
+    "dagger_rounds": "--dagger-rounds", "dagger_rows": "--dagger-rows", "dagger_epochs": "--dagger-epochs",
 })
 #: TrainConfig fields -> (the flag, the field's value when the flag is given; without it, the other).
 _FLAGS = MappingProxyType({"subproc": ("--subproc", True), "normalize": ("--no-normalize", False),

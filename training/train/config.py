@@ -71,7 +71,7 @@ class TrainConfig:
         algo: a key of :data:`ALGORITHMS` (``maskable_ppo``: sb3-contrib's
             MaskablePPO, the switching mode's actions masked by the motion rules).
         steps: total SB3 timesteps (env steps on the centralised route, agent
-            steps on the shared route).
+            steps on the shared route); 0 with ``pretrain``: the cloned policy as it is.
         envs: number of env copies K.
         subproc: run the K copies in worker processes.
         seed: seed of the model and of the envs (copy k resets first with a seed
@@ -106,12 +106,14 @@ class TrainConfig:
         pretrain: a scripted teacher to clone before learning (``"greedy"`` or
             ``"scripted"``, :mod:`training.train.pretrain`; None: start from scratch).
             PPO-like algorithms in switching mode only.
-        pretrain_rows: demonstration rows to record (UGV slot steps on the shared
-            route, env steps on the centralised one).
-        pretrain_epochs: passes of behaviour cloning over the demonstrations, per round.
-        pretrain_rounds: rounds of cloning; each after the first adds
-            ``pretrain_rows`` rows of the states the cloned policy reaches, labelled
-            by the teacher (DAgger).
+        pretrain_rows: teacher demonstration rows to record (UGV slot steps on the
+            shared route, env steps on the centralised one).
+        pretrain_epochs: passes of behaviour cloning over them.
+        dagger_rounds: DAgger rounds after that cloning: each records ``dagger_rows``
+            rows of the states the cloned policy reaches, labelled with the teacher's
+            actions, and clones all the rows so far for ``dagger_epochs`` passes.
+        dagger_rows: rows per DAgger round.
+        dagger_epochs: cloning passes per DAgger round.
     """
 
     scenario: str
@@ -142,16 +144,18 @@ class TrainConfig:
     torch_threads: int = 1
     network: str = "mlp"
     pretrain: str | None = None
-    pretrain_rows: int = 64_000
+    pretrain_rows: int = 256_000
     pretrain_epochs: int = 30
-    pretrain_rounds: int = 1
+    dagger_rounds: int = 3
+    dagger_rows: int = 32_000
+    dagger_epochs: int = 8
 
     def __post_init__(self) -> None:
         from moma_env.env.config import ACTION_MODES, RewardConfig
 
         check_choice("scenario", self.scenario, sorted(CONFIGURATION_NAMES) + sorted(TASKS))
         check_choice("algo", self.algo, sorted(ALGORITHMS))
-        check_count("steps", self.steps, 1)
+        check_count("steps", self.steps, 0 if self.pretrain is not None else 1)  # a cloned policy may be trained no further
         check_count("envs", self.envs, 1)
         check_bool("subproc", self.subproc)
         check_count("seed", self.seed, 0)
@@ -190,9 +194,9 @@ class TrainConfig:
                 raise ConfigError("pretrain", f"behaviour cloning initialises PPO's actor and critic: use --algo {' or '.join(sorted(PRETRAINABLE))}")
             if self.action_mode != "switching":
                 raise ConfigError("pretrain", f"the {self.pretrain} teacher acts in the switching action mode: use --action-mode switching")
-        check_count("pretrain_rows", self.pretrain_rows, 1)
-        check_count("pretrain_epochs", self.pretrain_epochs, 1)
-        check_count("pretrain_rounds", self.pretrain_rounds, 1)
+        for name in ("pretrain_rows", "pretrain_epochs", "dagger_rows", "dagger_epochs"):
+            check_count(name, getattr(self, name), 1)
+        check_count("dagger_rounds", self.dagger_rounds, 0)
         if self.algo in DISCRETE_ONLY and (self.action_mode != "switching" or self.route != "shared"):
             raise ConfigError(
                 "algo", f"{self.algo} needs one discrete action per slot: use --action-mode switching --route shared"

@@ -311,10 +311,11 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
 
     The teacher's demonstrations come from ``config.envs`` copies of the run's env
     seeded as the run's own envs are (``config.seed``), ``config.pretrain_rows`` rows
-    of them, on the run's route; each round clones all the rows gathered so far
-    (``config.pretrain_epochs`` passes of minibatches of ``config.batch_size``), and
-    every round after the first first adds ``config.pretrain_rows`` rows of the
-    states the cloned policy reaches, labelled with the teacher's actions (DAgger).
+    of them, on the run's route, cloned for ``config.pretrain_epochs`` passes of
+    minibatches of ``config.batch_size``. Then each of ``config.dagger_rounds`` DAgger
+    rounds adds ``config.dagger_rows`` rows of the states the cloned policy reaches
+    (from seeds after the teacher's), labelled with the teacher's actions, and clones
+    every row so far for ``config.dagger_epochs`` passes.
 
     Returns:
         the record of ``pretrain.json``: the teacher, its episodes and successes,
@@ -331,15 +332,15 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
         normalise_obs = venv.normalize_obs if venv.norm_obs else None
         normalise_reward = venv.normalize_reward if venv.norm_reward else None
     teacher = {"episodes": demonstrations.episodes, "successes": demonstrations.successes}
-    rounds: list[dict[str, Any]] = []
-    for k in range(config.pretrain_rounds):
-        if k > 0:  # DAgger: the states the cloned policy reaches, labelled by the teacher
-            learner = _row_policy(model, normalise_obs)
-            seed = config.seed + k * config.pretrain_rows  # other layouts than the earlier rounds'
-            visited = collect_demonstrations(spec, config.pretrain, config.envs, config.pretrain_rows, seed, config.route, learner)
-            rounds[-1]["learner_episodes"], rounds[-1]["learner_successes"] = visited.episodes, visited.successes
-            demonstrations = demonstrations + visited
-        epochs = behaviour_clone(model, demonstrations, normalise_obs, normalise_reward, config.pretrain_epochs, config.batch_size, config.seed + k)
+    epochs = behaviour_clone(model, demonstrations, normalise_obs, normalise_reward, config.pretrain_epochs, config.batch_size, config.seed)
+    rounds: list[dict[str, Any]] = [{"rows": len(demonstrations), "epochs": epochs}]
+    for k in range(1, config.dagger_rounds + 1):
+        # DAgger: the states the cloned policy reaches (other layouts than the teacher's), labelled by the teacher
+        seed = config.seed + config.pretrain_rows + (k - 1) * config.dagger_rows
+        visited = collect_demonstrations(spec, config.pretrain, config.envs, config.dagger_rows, seed, config.route, _row_policy(model, normalise_obs))
+        rounds[-1]["learner_episodes"], rounds[-1]["learner_successes"] = visited.episodes, visited.successes
+        demonstrations = demonstrations + visited
+        epochs = behaviour_clone(model, demonstrations, normalise_obs, normalise_reward, config.dagger_epochs, config.batch_size, config.seed + k)
         rounds.append({"rows": len(demonstrations), "epochs": epochs})
     return {
         "teacher": config.pretrain,
