@@ -141,3 +141,16 @@ def test_a_damaged_result_file_is_refused_naming_it(tmp_path):
     damaged.write_text('[{"scenario": "top_observer", "policy"')
     with pytest.raises(ConfigError, match=damaged.name):
         sweep(spec, out, LocalBackend(1), resume=True)
+
+
+def test_sampling_applies_to_trained_policies_and_is_seeded():
+    # the published team-of-four policy samples its actions; the greedy policy ignores the flag
+    spec = SweepSpec(scenarios=("top_observer_team4",), policies=("greedy", "top_observer_team4_mppo"), seeds=(4,), max_cycles=200,
+                     sample_actions=True)
+    assert SweepSpec.from_dict(spec.to_dict()) == spec
+    sampled = [run_cell(Cell("top_observer_team4", "top_observer_team4_mppo", 4), spec.options) for _ in range(2)]
+    assert json.dumps(sampled[0]) == json.dumps(sampled[1])
+    deterministic = run_cell(Cell("top_observer_team4", "top_observer_team4_mppo", 4), spec.options | {"sample_actions": False})
+    assert json.dumps(deterministic) != json.dumps(sampled[0])
+    greedy = run_cell(Cell("top_observer_team4", "greedy", 4), spec.options | {"max_cycles": 60})
+    assert json.dumps(greedy) == json.dumps(run_cell(Cell("top_observer_team4", "greedy", 4), spec.options | {"max_cycles": 60, "sample_actions": False}))

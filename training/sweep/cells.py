@@ -18,7 +18,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from training.evaluation.harness import evaluate
-from training.evaluation.policies import POLICY_ACTION_MODES, load_policy
+from training.evaluation.policies import BUILTIN_POLICIES, POLICY_ACTION_MODES, load_policy
 from training.sweep.spec import Cell
 
 __all__ = ["run_cell", "run_cells", "CELL_KEYS"]
@@ -32,13 +32,15 @@ def run_cell(cell: Cell, options: Mapping[str, Any]) -> dict[str, Any]:
 
     Args:
         cell: the scenario, policy spec and reset seed.
-        options: ``random_scenarios`` and ``max_cycles`` (:attr:`training.sweep.spec.SweepSpec.options`).
+        options: ``random_scenarios``, ``max_cycles`` and ``sample_actions`` (a trained policy
+            samples; :attr:`training.sweep.spec.SweepSpec.options`).
 
     Raises:
         PolicyLoadError: the policy spec names no loadable policy.
         ConfigError: a bad scenario or option.
     """
-    policy = load_policy(cell.policy, cell.scenario, cell.seed)
+    sample = bool(options.get("sample_actions", False)) and cell.policy not in BUILTIN_POLICIES
+    policy = load_policy(cell.policy, cell.scenario, cell.seed, sample_actions=sample)
     env_options = dict(getattr(policy, "env_options", {}))  # a trained policy says which env it fits
     action_mode = env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(cell.policy, "switching")
     result = evaluate(

@@ -47,6 +47,8 @@ def add_sweep_parser(subparsers, add_subcommand: Callable[..., argparse.Argument
     sw.add_argument("--resume", action="store_true", help="continue the sweep in --out: run only the cells without a result")
     sw.add_argument("--fixed", dest="random_scenarios", action="store_false", help="the configuration's default layout for every seed (default: a random layout per seed)")
     sw.add_argument("--max-cycles", type=int_at_least(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
+    sw.add_argument("--sample-actions", action="store_true",
+                    help="trained policies sample their actions (seeded by the episode's seed); built-in policies are unchanged")
     sw.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
     sw.add_argument("--json", action="store_true", help="print the report as JSON")
     sw.set_defaults(handler=run_sweep_command)
@@ -90,6 +92,7 @@ def run_sweep_command(args: argparse.Namespace) -> int:
             seeds=parse_seeds(args.seeds),
             random_scenarios=args.random_scenarios,
             max_cycles=args.max_cycles,
+            sample_actions=args.sample_actions,
         )
         if args.backend == "local":
             if args.address is not None:

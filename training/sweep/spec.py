@@ -81,6 +81,8 @@ class SweepSpec:
         seeds: the reset seeds (>= 0, distinct).
         random_scenarios: a random layout per seed (else the configuration's default layout).
         max_cycles: episode length limit in steps (None: the scenario's).
+        sample_actions: trained policies sample their actions (seeded by the episode's
+            seed) instead of taking the most likely one; built-in policies are unchanged.
     """
 
     scenarios: tuple[str, ...]
@@ -88,6 +90,7 @@ class SweepSpec:
     seeds: tuple[int, ...]
     random_scenarios: bool = True
     max_cycles: int | None = None
+    sample_actions: bool = False
 
     def __post_init__(self) -> None:
         for name in ("scenarios", "policies", "seeds"):
@@ -105,6 +108,7 @@ class SweepSpec:
         for k, seed in enumerate(self.seeds):
             check_count(f"seeds[{k}]", seed, 0)
         check_bool("random_scenarios", self.random_scenarios)
+        check_bool("sample_actions", self.sample_actions)
         if self.max_cycles is not None:
             check_count("max_cycles", self.max_cycles, 1)
 
@@ -120,6 +124,7 @@ class SweepSpec:
             "seeds": list(self.seeds),
             "random_scenarios": self.random_scenarios,
             "max_cycles": self.max_cycles,
+            "sample_actions": self.sample_actions,
         }
 
     @classmethod
@@ -134,7 +139,7 @@ class SweepSpec:
     @property
     def options(self) -> dict[str, Any]:
         """The episode options every cell shares (what :func:`training.sweep.cells.run_cell` takes)."""
-        return {"random_scenarios": self.random_scenarios, "max_cycles": self.max_cycles}
+        return {"random_scenarios": self.random_scenarios, "max_cycles": self.max_cycles, "sample_actions": self.sample_actions}
 
 
 def chunks(cells: Sequence[Cell], size: int) -> list[list[Cell]]:
