@@ -99,7 +99,8 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
                     help="policy network: SB3's mlp, or team (centralised route: one encoder and head shared by every robot, "
                          "pooled over the team) (default %(default)s)")
     tr.add_argument("--pretrain", choices=TEACHERS, type=choice(TEACHERS, "teacher"), default=None,
-                    help="clone this scripted policy into the network before learning (behaviour cloning; PPO-like, switching mode)")
+                    help="clone this scripted policy into the network before learning (behaviour cloning; PPO-like, switching mode) "
+                         "(default: none, learning starts from random weights)")
     tr.add_argument("--pretrain-rows", type=int_at_least(1, "row count"), default=defaults["pretrain_rows"],
                     help="demonstration rows: UGV slot steps (shared route) or env steps (centralised) (default %(default)s)")
     tr.add_argument("--pretrain-epochs", type=int_at_least(1, "epoch count"), default=defaults["pretrain_epochs"],
