@@ -1,0 +1,92 @@
+"""The comparison table of a sweep (``python -m training.sweep.compare``): one row per
+policy from ``summary.json``, training-seed groups pooled with a Student-t interval, and
+a bad folder, scenario or group refused with a message naming it."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from scipy import stats
+
+from training.sweep.compare import CompareError, comparison_table, main, seed_interval
+
+
+def _entry(policy: str, success: float, time_s: float, e_f_m: float, scenario: str = "top_observer_team6") -> dict:
+    stat = lambda mean, std=0.5: {"mean": mean, "std": std, "n": 10}  # noqa: E731
+    return {
+        "scenario": scenario,
+        "policy": policy,
+        "n_episodes": 10,
+        "success_rate": success,
+        "lost_track_rate": 0.0,
+        "time_to_goal_s": stat(time_s, 2.0),
+        "duration_s": stat(time_s),
+        "steps": stat(100.0),
+        "total_reward": stat(1.0),
+        "n_switches": stat(30.0),
+        "n_refused": stat(0.0),
+        "me_m": stat(e_f_m),
+        "e_f_m": stat(e_f_m),
+    }
+
+
+SUMMARY = [
+    _entry("runs/a_s0", 1.0, 24.0, 0.007),
+    _entry("runs/a_s1", 0.9, 26.0, 0.008),
+    _entry("runs/a_s2", 0.8, 28.0, 0.009),
+    _entry("greedy", 1.0, 23.0, 0.0065),
+    _entry("scripted", 0.0, math.nan, 0.004),
+    _entry("greedy", 0.5, 70.0, 0.01, scenario="caterpillar_multi_bend4"),
+]
+
+
+def test_the_interval_is_students_over_the_values():
+    mean, half = seed_interval([1.0, 2.0, 4.0])
+    std = math.sqrt(((1 - 7 / 3) ** 2 + (2 - 7 / 3) ** 2 + (4 - 7 / 3) ** 2) / 2)
+    assert mean == pytest.approx(7 / 3)
+    assert half == pytest.approx(stats.t.ppf(0.975, 2) * std / math.sqrt(3))
+    assert seed_interval([5.0, math.nan])[0] == 5.0 and math.isnan(seed_interval([5.0])[1])
+
+
+def test_rows_follow_the_sweep_and_a_group_row_follows_its_last_policy():
+    table = comparison_table(
+        SUMMARY,
+        "top_observer_team6",
+        labels={"runs/a_s0": "learned, seed 0"},
+        seeds={"learned": ["runs/a_s0", "runs/a_s1", "runs/a_s2"]},
+    )
+    lines = table.splitlines()
+    assert lines[0].startswith("| policy | success | time to goal s |")
+    assert [line.split("|")[1].strip() for line in lines[2:]] == [
+        "learned, seed 0",
+        "runs/a_s1",
+        "runs/a_s2",
+        "learned, mean of 3 ± 95 % interval (t, 2 dof)",
+        "greedy",
+        "scripted",
+    ]
+    half_success = stats.t.ppf(0.975, 2) * 10.0 / math.sqrt(3)  # 100, 90, 80 %: std 10
+    assert f"90 ± {half_success:.0f} %" in lines[5]
+    assert "| 24.0 ± 2.0 |" in lines[2] and "| 0.70 |" in lines[2]
+    assert lines[7].split("|")[3].strip() == "-"  # no success: no time to goal
+
+
+def test_the_scenario_must_be_chosen_when_the_sweep_has_several():
+    with pytest.raises(CompareError, match="choose one"):
+        comparison_table(SUMMARY)
+    with pytest.raises(CompareError, match="'nowhere' is not in the sweep"):
+        comparison_table(SUMMARY, "nowhere")
+    with pytest.raises(CompareError, match=r"group 'x': policies \['runs/a_s9'\]"):
+        comparison_table(SUMMARY, "top_observer_team6", seeds={"x": ["runs/a_s0", "runs/a_s9"]})
+
+
+def test_the_command_prints_the_table_or_names_what_is_wrong(tmp_path, capsys):
+    (tmp_path / "summary.json").write_text(json.dumps({"groups": SUMMARY}), encoding="utf-8")
+    assert main([str(tmp_path), "--scenario", "caterpillar_multi_bend4"]) == 0
+    assert "| greedy | 50 % | 70.0 ± 2.0 |" in capsys.readouterr().out
+    assert main([str(tmp_path / "missing"), "--scenario", "x"]) == 2
+    assert "is not a sweep folder" in capsys.readouterr().err
+    assert main([str(tmp_path), "--scenario", "top_observer_team6", "--seeds", "nameonly"]) == 2
+    assert "expected NAME=VALUE" in capsys.readouterr().err

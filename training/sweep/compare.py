@@ -1,0 +1,191 @@
+"""A sweep's results as the comparison table of the docs, training seeds pooled.
+
+``python -m training.sweep.compare SWEEP_DIR [--scenario NAME] [--label POLICY=TEXT ...]
+[--seeds TEXT=POLICY,POLICY,... ...]`` reads the sweep's ``summary.json``
+(:mod:`training.sweep.table`) and prints a Markdown table, one row per policy of the
+scenario in the sweep's order: success rate, time to goal over the successful episodes
+(mean ± sample standard deviation), switches and refused requests per episode, final
+and mean localisation error (each episode's mean over its robots, then the mean over
+episodes, in cm) and the share of episodes where some robot lost track.
+
+``--seeds`` adds a row per group of policies (the training seeds of one recipe): the
+mean of each column over the group's policies with the half width of its 95 %
+interval, Student's t with one degree of freedom fewer than the group has policies,
+so the interval is over training seeds, not over episodes. Time to goal pools each
+policy's mean over its own successes.
+
+Units: time in s, errors in cm, rates in %, counts per episode.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from scipy import stats
+
+from moma_env.io import read_json_in
+from training.sweep.table import TABLE_FILES
+
+__all__ = ["COLUMNS", "CompareError", "seed_interval", "policy_cells", "group_cells", "comparison_table", "main"]
+
+#: Column title -> (summary key, how a policy's value is read, scale to the shown unit).
+COLUMNS: Mapping[str, tuple[str, str, float]] = {
+    "success": ("success_rate", "rate", 100.0),
+    "time to goal s": ("time_to_goal_s", "mean", 1.0),
+    "switches": ("n_switches", "mean", 1.0),
+    "refused": ("n_refused", "mean", 1.0),
+    "ME_f cm": ("e_f_m", "mean", 100.0),
+    "ME cm": ("me_m", "mean", 100.0),
+    "lost track": ("lost_track_rate", "rate", 100.0),
+}
+
+_DIGITS = {"success": 0, "lost track": 0, "ME_f cm": 2, "ME cm": 2}
+
+
+class CompareError(ValueError):
+    """A sweep folder, scenario or policy group the table cannot be made of (the message says which)."""
+
+
+def seed_interval(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float]:
+    """``(mean, half width)`` of the two-sided ``confidence`` Student-t interval of the mean
+    of ``values`` (NaN values dropped); the half width is NaN with fewer than two values."""
+    finite = [float(v) for v in values if math.isfinite(float(v))]
+    if not finite:
+        return math.nan, math.nan
+    n = len(finite)
+    mean = sum(finite) / n
+    if n < 2:
+        return mean, math.nan
+    std = math.sqrt(sum((v - mean) ** 2 for v in finite) / (n - 1))
+    return mean, float(stats.t.ppf(0.5 + confidence / 2.0, n - 1)) * std / math.sqrt(n)
+
+
+def _value(entry: Mapping[str, Any], column: str) -> float:
+    key, kind, scale = COLUMNS[column]
+    value = entry[key] if kind == "rate" else entry[key]["mean"]
+    return math.nan if value is None else scale * float(value)
+
+
+def _number(value: float, column: str) -> str:
+    return "-" if not math.isfinite(value) else f"{value:.{_DIGITS.get(column, 1)}f}"
+
+
+def _percent(column: str) -> str:
+    return " %" if COLUMNS[column][1] == "rate" else ""
+
+
+def policy_cells(entry: Mapping[str, Any]) -> list[str]:
+    """The table cells of one policy's summary entry, in :data:`COLUMNS` order."""
+    cells = []
+    for column in COLUMNS:
+        value = _value(entry, column)
+        if not math.isfinite(value):
+            cells.append("-")
+            continue
+        text = _number(value, column) + _percent(column)
+        std = entry["time_to_goal_s"]["std"] if column == "time to goal s" else None
+        if std is not None and math.isfinite(float(std)):
+            text += f" ± {float(std):.1f}"
+        cells.append(text)
+    return cells
+
+
+def group_cells(entries: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The cells of a group's row: each column's mean over ``entries`` ± its 95 % t half width."""
+    cells = []
+    for column in COLUMNS:
+        mean, half = seed_interval([_value(e, column) for e in entries])
+        text = _number(mean, column)
+        if math.isfinite(mean) and math.isfinite(half):
+            text += f" ± {_number(half, column)}"
+        cells.append(text + (_percent(column) if math.isfinite(mean) else ""))
+    return cells
+
+
+def _read_summary(folder: Path) -> list[dict[str, Any]]:
+    path, data = read_json_in(folder, TABLE_FILES["summary"], CompareError, "a sweep folder", "is the sweep finished?")
+    groups = data.get("groups") if isinstance(data, dict) else None
+    if not isinstance(groups, list):
+        raise CompareError(f"{str(path)!r}: no 'groups' list")
+    return groups
+
+
+def comparison_table(
+    summary: Sequence[Mapping[str, Any]],
+    scenario: str | None = None,
+    labels: Mapping[str, str] | None = None,
+    seeds: Mapping[str, Sequence[str]] | None = None,
+) -> str:
+    """The Markdown table of ``summary`` (``summary.json``'s ``groups``) for ``scenario``
+    (None: the sweep's only one), with a row per ``seeds`` group after its first policy's
+    row, and policies shown as ``labels`` names them.
+
+    Raises:
+        CompareError: no such scenario, several and none chosen, or a group naming a
+            policy the scenario was not swept with.
+    """
+    scenarios = list(dict.fromkeys(e["scenario"] for e in summary))
+    if scenario is None:
+        if len(scenarios) != 1:
+            raise CompareError(f"the sweep has scenarios {scenarios}; choose one with --scenario")
+        scenario = scenarios[0]
+    entries = {e["policy"]: e for e in summary if e["scenario"] == scenario}
+    if not entries:
+        raise CompareError(f"scenario {scenario!r} is not in the sweep; it has {scenarios}")
+    labels = dict(labels or {})
+    seeds = dict(seeds or {})
+    for name, policies in seeds.items():
+        missing = [p for p in policies if p not in entries]
+        if missing:
+            raise CompareError(f"group {name!r}: policies {missing} not swept on {scenario}; swept: {list(entries)}")
+    after = {}
+    for name, policies in seeds.items():
+        last = max(list(entries).index(p) for p in policies)
+        after.setdefault(list(entries)[last], []).append(name)
+    lines = ["| policy | " + " | ".join(COLUMNS) + " |", "|---" * (len(COLUMNS) + 1) + "|"]
+    for policy, entry in entries.items():
+        lines.append(f"| {labels.get(policy, policy)} | " + " | ".join(policy_cells(entry)) + " |")
+        for name in after.get(policy, ()):
+            group = [entries[p] for p in seeds[name]]
+            title = f"{name}, mean of {len(group)} ± 95 % interval (t, {len(group) - 1} dof)"
+            lines.append(f"| {title} | " + " | ".join(group_cells(group)) + " |")
+    return "\n".join(lines)
+
+
+def _pairs(texts: Sequence[str], option: str) -> list[tuple[str, str]]:
+    out = []
+    for text in texts:
+        key, sep, value = text.partition("=")
+        if not sep or not key or not value:
+            raise CompareError(f"{option} {text!r}: expected NAME=VALUE")
+        out.append((key, value))
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Print the comparison table of a sweep folder; exit status 2 on a bad folder or option."""
+    parser = argparse.ArgumentParser(prog="python -m training.sweep.compare", description=__doc__.splitlines()[0])
+    parser.add_argument("sweep", type=Path, help="a finished sweep folder (moma-env sweep --out)")
+    parser.add_argument("--scenario", default=None, help="the scenario to tabulate (default: the sweep's only one)")
+    parser.add_argument("--label", action="append", default=[], metavar="POLICY=TEXT",
+                        help="show POLICY (its spec in the sweep) as TEXT (default: the spec)")
+    parser.add_argument("--seeds", action="append", default=[], metavar="TEXT=POLICY,POLICY,...",
+                        help="a row TEXT pooling these policies (training seeds) with a 95 %% t interval (default: none)")
+    args = parser.parse_args(argv)
+    try:
+        seeds = {name: [p for p in value.split(",") if p] for name, value in _pairs(args.seeds, "--seeds")}
+        table = comparison_table(_read_summary(args.sweep), args.scenario, dict(_pairs(args.label, "--label")), seeds)
+    except (CompareError, OSError, ValueError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print(table)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
