@@ -101,16 +101,15 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--pretrain", choices=TEACHERS, type=choice(TEACHERS, "teacher"), default=None,
                     help="clone this scripted policy into the network before learning (behaviour cloning; PPO-like, switching mode) "
                          "(default: none, learning starts from random weights)")
-    tr.add_argument("--pretrain-rows", type=int_at_least(1, "row count"), default=defaults["pretrain_rows"],
-                    help="demonstration rows: UGV slot steps (shared route) or env steps (centralised) (default %(default)s)")
-    tr.add_argument("--pretrain-epochs", type=int_at_least(1, "epoch count"), default=defaults["pretrain_epochs"],
-                    help="behaviour cloning passes over the teacher's rows (default %(default)s)")
-    tr.add_argument("--dagger-rounds", type=int_at_least(0, "round count"), default=defaults["dagger_rounds"],
-                    help="DAgger rounds after the cloning: the cloned policy acts, the teacher labels (default %(default)s)")
-    tr.add_argument("--dagger-rows", type=int_at_least(1, "row count"), default=defaults["dagger_rows"],
-                    help="rows recorded per DAgger round (default %(default)s)")
-    tr.add_argument("--dagger-epochs", type=int_at_least(1, "epoch count"), default=defaults["dagger_epochs"],
-                    help="cloning passes over all rows per DAgger round (default %(default)s)")
+    for flag, low, unit, text in (
+        ("--pretrain-rows", 1, "row count", "demonstration rows: UGV slot steps (shared route) or env steps (centralised)"),
+        ("--pretrain-epochs", 1, "epoch count", "behaviour cloning passes over the teacher's rows"),
+        ("--dagger-rounds", 0, "round count", "DAgger rounds after the cloning: the cloned policy acts, the teacher labels"),
+        ("--dagger-rows", 1, "row count", "rows recorded per DAgger round"),
+        ("--dagger-epochs", 1, "epoch count", "cloning passes over all rows per DAgger round"),
+    ):
+        field = flag[2:].replace("-", "_")
+        tr.add_argument(flag, type=int_at_least(low, unit), default=defaults[field], help=text + " (default %(default)s)")
     tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
     tr.add_argument("--json", action="store_true", help="print the final manifest as JSON (default: a summary)")
     from training.train.rllib_command import add_rllib_arguments
