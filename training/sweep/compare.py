@@ -14,7 +14,8 @@ interval, Student's t with one degree of freedom fewer than the group has polici
 so the interval is over training seeds, not over episodes. Time to goal pools each
 policy's mean over its own successes.
 
-Units: time in s, errors in cm, rates in %, counts per episode.
+Units: time in s, errors in cm, rates in %, counts per episode. (The table of
+``moma-env evaluate`` folders is :mod:`training.train.compare`.)
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from typing import Any
 from scipy import stats
 
 from moma_env.io import read_json_in
+from training.evaluation.harness import mean_std
 from training.sweep.table import TABLE_FILES
 
 __all__ = ["COLUMNS", "CompareError", "seed_interval", "policy_cells", "group_cells", "comparison_table", "main"]
@@ -54,15 +56,11 @@ class CompareError(ValueError):
 def seed_interval(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float]:
     """``(mean, half width)`` of the two-sided ``confidence`` Student-t interval of the mean
     of ``values`` (NaN values dropped); the half width is NaN with fewer than two values."""
-    finite = [float(v) for v in values if math.isfinite(float(v))]
-    if not finite:
-        return math.nan, math.nan
-    n = len(finite)
-    mean = sum(finite) / n
+    stat = mean_std(values)
+    n = stat["n"]
     if n < 2:
-        return mean, math.nan
-    std = math.sqrt(sum((v - mean) ** 2 for v in finite) / (n - 1))
-    return mean, float(stats.t.ppf(0.5 + confidence / 2.0, n - 1)) * std / math.sqrt(n)
+        return stat["mean"], math.nan
+    return stat["mean"], float(stats.t.ppf(0.5 + confidence / 2.0, n - 1)) * stat["std"] / math.sqrt(n)
 
 
 def _value(entry: Mapping[str, Any], column: str) -> float:
@@ -122,8 +120,8 @@ def comparison_table(
     seeds: Mapping[str, Sequence[str]] | None = None,
 ) -> str:
     """The Markdown table of ``summary`` (``summary.json``'s ``groups``) for ``scenario``
-    (None: the sweep's only one), with a row per ``seeds`` group after its first policy's
-    row, and policies shown as ``labels`` names them.
+    (None: the sweep's only one), with a row per ``seeds`` group after the row of its
+    policy that comes last, and policies shown as ``labels`` names them.
 
     Raises:
         CompareError: no such scenario, several and none chosen, or a group naming a
