@@ -10,8 +10,9 @@ Specs understood by :func:`load_policy`:
   rules allow; it needs the env's action masks, which its ``env_options`` ask for);
 * ``"random"``: ``agents.policies.RandomPolicy(seed)``;
 * a path: the output folder of ``moma-env train``
-  (:class:`agents.learned.LearnedPolicy`; it names the env options it fits in
-  ``env_options``);
+  (:class:`agents.learned.LearnedPolicy`, or with ``--backend rllib`` / ``torchrl``
+  :class:`agents.rllib_policy.RllibPolicy` / :class:`agents.torchrl_policy.TorchRLPolicy`;
+  each names the env options it fits in ``env_options``);
 * a name without a path separator that is published under ``policies/`` (or
   ``$MOMA_POLICIES_DIR``): :func:`agents.learned.load_published` (a policy of
   another env version is refused). A name that is both a published policy and a
@@ -77,6 +78,12 @@ def _load_trained_policy(path: Path, configuration: str, sample_actions: bool = 
     if rllib.is_rllib_run(path):
         try:
             return rllib.RllibPolicy.from_dir(path, configuration, deterministic=not sample_actions)
+        except learned.TrainingDirError as err:
+            raise PolicyLoadError(str(err)) from None
+    torchrl_runs = importlib.import_module("agents.torchrl_policy")  # a run of moma-env train --backend torchrl
+    if torchrl_runs.is_torchrl_run(path):
+        try:
+            return torchrl_runs.TorchRLPolicy.from_dir(path, configuration, deterministic=not sample_actions)
         except learned.TrainingDirError as err:
             raise PolicyLoadError(str(err)) from None
     try:

@@ -115,6 +115,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     from training.train.rllib_command import add_rllib_arguments
 
     add_rllib_arguments(tr)
+    from training.train.torchrl_command import add_torchrl_arguments
+
+    add_torchrl_arguments(tr)
     tr.set_defaults(handler=run_train)
     return tr
 
@@ -215,6 +218,10 @@ def run_train(args: argparse.Namespace) -> int:
         from training.train.rllib_command import run_rllib_train
 
         return run_rllib_train(args)
+    if getattr(args, "backend", "sb3") == "torchrl":
+        from training.train.torchrl_command import run_torchrl_train
+
+        return run_torchrl_train(args)
     config = config_from_args(args)  # ConfigError -> the CLI's exit status 2
     try:
         from training.train.run import train

@@ -27,14 +27,15 @@ if TYPE_CHECKING:
 __all__ = ["add_rllib_arguments", "run_rllib_train", "rllib_config_from_args", "BACKENDS", "RLLIB_ENVS"]
 
 #: ``--backend`` of ``moma-env train``.
-BACKENDS = ("sb3", "rllib")
+BACKENDS = ("sb3", "rllib", "torchrl")
 #: ``--rllib-env`` (:data:`training.train.rllib_config.RLLIB_ROUTES`; the parser imports no env module).
 RLLIB_ENVS = ("pettingzoo", "vector")
 
 
 def add_rllib_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--backend``, ``--num-env-runners``, ``--address``, ``--rllib-env`` on ``moma-env train``'s parser."""
-    parser.add_argument("--backend", choices=BACKENDS, default="sb3", help="sb3 (Stable-Baselines3, default) or rllib (PPO on Ray RLlib's new API stack)")
+    """``--backend`` (every backend of ``moma-env train``), ``--num-env-runners``, ``--address``, ``--rllib-env`` on ``moma-env train``'s parser."""
+    parser.add_argument("--backend", choices=BACKENDS, default="sb3", help="sb3 (Stable-Baselines3, default), rllib (PPO on Ray RLlib's new API stack) "
+                             "or torchrl (MAPPO or IPPO on TorchRL with the batched env)")
     parser.add_argument("--num-env-runners", type=int_at_least(0, "runner count"), default=0, help="with --backend rllib: remote env runners (default 0: sample in the driver)")
     parser.add_argument("--address", default=None, help="with --backend rllib: an existing Ray cluster's address (default: a local Ray)")
     parser.add_argument("--rllib-env", choices=RLLIB_ENVS, default="pettingzoo",

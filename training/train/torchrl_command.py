@@ -1,0 +1,91 @@
+"""``moma-env train --backend torchrl``: the option it adds to ``train`` and its handler.
+
+The other options of ``moma-env train`` keep their meaning where TorchRL's multi-agent
+PPO has one: ``--timesteps`` (env steps), ``--num-envs`` (copies of the batched env),
+``--seed``, ``--max-cycles``, ``--reward``, ``--net``, ``--n-steps`` (steps per copy
+between updates; an update trains on ``n_steps x num_envs`` env steps), ``--batch-size``
+(minibatch, env steps), ``--learning-rate``, ``--gamma``, ``--ent-coef``,
+``--checkpoint-every``, ``--eval-*``, ``--resume``, ``--out``, ``--json``. ``--critic``
+chooses MAPPO (centralised) or IPPO (independent). The actor is always one network
+shared by the UGVs in switching mode with the action masks (``--algo ppo`` or
+``maskable_ppo`` alike); ``--route centralised``, ``--subproc``, ``--network team``,
+``--pretrain`` and ``--action-mode velocity`` are refused with one line. Observations
+are not normalised.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from training.train.torchrl_config import CRITICS
+
+if TYPE_CHECKING:
+    from training.train.torchrl_config import TorchRLTrainConfig
+
+__all__ = ["add_torchrl_arguments", "run_torchrl_train", "torchrl_config_from_args"]
+
+
+def add_torchrl_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--critic`` on ``moma-env train``'s parser."""
+    parser.add_argument("--critic", choices=CRITICS, default="centralised",
+                        help="with --backend torchrl: centralised (MAPPO: each UGV's value from the whole team's observations) "
+                             "or independent (IPPO: from its own) (default %(default)s)")
+
+
+def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
+    """The :class:`TorchRLTrainConfig` of ``moma-env train --backend torchrl`` (ConfigError names a bad option)."""
+    from moma_env.config import ConfigError
+    from training.train.command import scenario_rewards
+    from training.train.torchrl_config import TORCHRL_ACTION_MODE, TorchRLTrainConfig
+
+    if args.algo not in ("ppo", "maskable_ppo"):
+        raise ConfigError("algo", f"--backend torchrl trains masked multi-agent PPO only (--algo ppo or maskable_ppo), got {args.algo!r}")
+    if args.route != "shared":
+        raise ConfigError("route", "--backend torchrl trains one actor shared by the UGVs: drop --route centralised (--critic chooses the critic)")
+    if args.subproc:
+        raise ConfigError("subproc", "--backend torchrl steps its copies in one batched env: drop --subproc")
+    if args.action_mode != TORCHRL_ACTION_MODE:
+        raise ConfigError("action_mode", f"--backend torchrl trains in {TORCHRL_ACTION_MODE} mode only, got {args.action_mode!r}")
+    if args.network != "mlp":
+        raise ConfigError("network", "--backend torchrl builds TorchRL's multi-agent MLPs: drop --network")
+    if args.pretrain is not None:
+        raise ConfigError("pretrain", "--backend torchrl does not clone a teacher: drop --pretrain (the sb3 backend does)")
+    return TorchRLTrainConfig(
+        scenario=args.scenario, steps=args.timesteps, envs=args.num_envs, seed=args.seed, critic=args.critic,
+        max_cycles=args.max_cycles, rewards=scenario_rewards(args.scenario, args.reward), net_arch=tuple(args.net),
+        n_steps=args.n_steps, minibatch_size=min(args.batch_size, args.n_steps * args.num_envs), learning_rate=args.learning_rate,
+        gamma=args.gamma, ent_coef=args.ent_coef, checkpoint_every=args.checkpoint_every, eval_every=args.eval_every,
+        eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, eval_sample_actions=args.eval_sample_actions,
+    )
+
+
+def run_torchrl_train(args: argparse.Namespace) -> int:
+    """Handler of ``moma-env train --backend torchrl``: exit status 0, or 2 with a one-line message."""
+    config = torchrl_config_from_args(args)  # ConfigError -> the CLI's exit status 2
+    try:
+        import torchrl  # noqa: F401
+
+        from training.train.torchrl_run import manifest_algorithm, train_torchrl
+    except ImportError as err:
+        print(f"moma-env train: --backend torchrl needs the 'torchrl' extra (pip install -e '.[torchrl]'): {err}", file=sys.stderr)
+        return 2
+    from agents.learned import TrainingDirError
+
+    try:
+        manifest = train_torchrl(config, args.out, resume=args.resume)
+    except TrainingDirError as err:
+        print(f"moma-env train: {err}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(manifest, indent=2, sort_keys=True))
+    else:
+        steps, collect, learn = manifest["num_timesteps"], manifest["collect_s"], manifest["learn_s"]
+        print(f"trained TorchRL {manifest_algorithm(config)} on {config.scenario}: {steps} env steps, "
+              f"{manifest['wall_time_s']:.1f} s of training wall time ({steps / max(collect + learn, 1e-9):.0f} env steps/s "
+              f"with the learner, {steps / max(collect, 1e-9):.0f} collecting alone)\n"
+              f"checkpoint: {Path(args.out) / manifest['checkpoint']}\nmanifest: {Path(args.out) / 'manifest.json'}")
+    return 0
