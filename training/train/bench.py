@@ -7,7 +7,12 @@ time of ``learn`` only (envs and model built beforehand): SB3 timesteps per seco
 (agent steps on the shared route, env steps on the centralised one) and joint env
 steps per second (each env step moves the whole team one control step). Rows:
 ``top_observer`` (2 UGVs) through each route, and the coordination task
-``top_observer_team4`` (4 UGVs, :mod:`moma_env.tasks`) with MaskablePPO on 8 copies.
+``top_observer_team4`` (4 UGVs, :mod:`moma_env.tasks`) with MaskablePPO on 8 copies and,
+when the ``torchrl`` extra is installed, with TorchRL's MAPPO on 8 copies of the batched env
+(``torchrl_training_fps``: the run's collecting and learning time, from its manifest; its
+timesteps are agent steps, as on the shared route). ``python -m training.train.bench``
+times those two on the four-UGV task in interleaved rounds and prints their ratio
+(:func:`compare_backends`).
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.models import build_model, training_logger
 
-__all__ = ["training_fps", "bench_training"]
+__all__ = ["training_fps", "torchrl_training_fps", "bench_training", "compare_backends", "main"]
 
 
 def training_fps(
@@ -45,23 +50,94 @@ def training_fps(
     }
 
 
+def torchrl_training_fps(steps: int, envs: int, scenario: str = "top_observer_team4", critic: str = "centralised") -> dict:
+    """One TorchRL measurement: ``moma-env train --backend torchrl`` for at least ``steps``
+    agent steps (whole batches of ``256 x envs`` env steps) in a temporary folder, timed
+    by the run's own collecting and learning clocks (the set-up and the save left out)."""
+    import tempfile
+    from pathlib import Path
+
+    from moma_env.env.factory import parallel_env
+    from training.train.torchrl_config import TorchRLTrainConfig
+    from training.train.torchrl_run import manifest_algorithm, train_torchrl
+
+    n_ugvs = len(parallel_env(scenario, observer_agent=False).possible_agents)
+    batch = 256 * envs
+    env_steps = max(1, -(-steps // (n_ugvs * batch))) * batch
+    config = TorchRLTrainConfig(scenario=scenario, steps=env_steps, envs=envs, critic=critic, minibatch_size=64, checkpoint_every=10**9)
+    with tempfile.TemporaryDirectory() as folder:
+        manifest = train_torchrl(config, Path(folder) / "run")
+    elapsed = manifest["collect_s"] + manifest["learn_s"]
+    timesteps = int(manifest["num_timesteps"]) * n_ugvs
+    return {
+        "scenario": scenario, "algo": f"{manifest_algorithm(config).lower()} (torchrl)", "route": "shared", "envs": envs, "subproc": False,
+        "timesteps": timesteps, "seconds": elapsed, "timesteps_per_s": timesteps / elapsed,
+        "env_steps_per_s": manifest["num_timesteps"] / elapsed,
+    }
+
+
 def bench_training(steps: int) -> list[dict]:
-    """PPO frames per second through the shared route (in-process and 2 workers) and the centralised route."""
-    return [
+    """PPO frames per second through the shared route (in-process and 2 workers) and the centralised route,
+    MaskablePPO on the four-UGV task, and TorchRL's MAPPO on it when TorchRL is installed."""
+    rows = [
         training_fps(steps, envs=2, route="shared"),
         training_fps(steps, envs=2, route="shared", subproc=True),
         training_fps(steps, envs=2, route="centralised"),
         training_fps(steps, envs=8, route="shared", scenario="top_observer_team4", algo="maskable_ppo"),
     ]
+    try:
+        import torchrl  # noqa: F401
+    except ImportError:
+        return rows
+    return [*rows, torchrl_training_fps(steps, envs=8)]
 
 
 def format_training(rows: list[dict]) -> list[str]:
     """Lines of the training rows of the benchmark table."""
     lines = [f"\ntraining (switching, geometric camera): about {rows[0]['timesteps']} timesteps per row",
-             f"{'scenario':<20}{'algo':<14}{'route':<13}{'envs':>5}{'workers':>8}{'timesteps/s':>13}{'env steps/s':>13}", "-" * 86]
+             f"{'scenario':<20}{'algo':<18}{'route':<13}{'envs':>5}{'workers':>8}{'timesteps/s':>13}{'env steps/s':>13}", "-" * 90]
     for r in rows:
         workers = r["envs"] if r["subproc"] else 0
         lines.append(
-            f"{r['scenario']:<20}{r.get('algo', 'ppo'):<14}{r['route']:<13}{r['envs']:>5}{workers:>8}{r['timesteps_per_s']:>13.0f}{r['env_steps_per_s']:>13.0f}"
+            f"{r['scenario']:<20}{r.get('algo', 'ppo'):<18}{r['route']:<13}{r['envs']:>5}{workers:>8}{r['timesteps_per_s']:>13.0f}{r['env_steps_per_s']:>13.0f}"
         )
     return lines
+
+
+def compare_backends(steps: int, rounds: int, envs: int = 8, scenario: str = "top_observer_team4") -> list[dict]:
+    """Interleaved rounds of MaskablePPO (SB3, shared route) and TorchRL's MAPPO on ``scenario``
+    with ``envs`` copies, at least ``steps`` agent steps each: one row per round and backend,
+    with ``round`` and, on the TorchRL rows, ``x_sb3`` (its env steps per second over the SB3
+    row's of the same round)."""
+    rows = []
+    for k in range(rounds):
+        sb3 = training_fps(steps, envs=envs, route="shared", scenario=scenario, algo="maskable_ppo") | {"round": k}
+        mappo = torchrl_training_fps(steps, envs=envs, scenario=scenario) | {"round": k}
+        mappo["x_sb3"] = mappo["env_steps_per_s"] / sb3["env_steps_per_s"]
+        rows += [sb3, mappo]
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m training.train.bench [--steps N] [--rounds R]``: SB3 MaskablePPO against TorchRL
+    MAPPO on the four-UGV task, interleaved; prints each round and the best and median ratio."""
+    import argparse
+    import statistics
+
+    from training.cli_args import int_at_least
+
+    parser = argparse.ArgumentParser(prog="python -m training.train.bench", description=main.__doc__)
+    parser.add_argument("--steps", type=int_at_least(1, "step count"), default=32768, help="agent steps per row (default %(default)s)")
+    parser.add_argument("--rounds", type=int_at_least(1, "round count"), default=3, help="interleaved rounds (default %(default)s)")
+    args = parser.parse_args(argv)
+    rows = compare_backends(args.steps, args.rounds)
+    for line in format_training(rows):
+        print(line)
+    ratios = [r["x_sb3"] for r in rows if "x_sb3" in r]
+    print(f"TorchRL MAPPO / SB3 MaskablePPO env steps per second: best {max(ratios):.2f}, median {statistics.median(ratios):.2f} "
+          f"over {len(ratios)} rounds")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

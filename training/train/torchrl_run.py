@@ -251,7 +251,8 @@ def train_torchrl(config: TorchRLTrainConfig, out: str | Path, resume: bool = Fa
             write_evaluations(out, config, records)
             write_curves(out, records, f"{config.scenario}: TorchRL {manifest_algorithm(config)}, seed {config.seed}")
 
-        collector = Collector(learner.env, learner.actor, frames_per_batch=config.batch_size, total_frames=-1)
+        collector = Collector(learner.env, learner.actor, frames_per_batch=config.batch_size, total_frames=-1,
+                              auto_register_policy_transforms=False)  # a feed-forward actor needs no InitTracker
         manifest_now = manifest
         try:
             batches = iter(collector)
