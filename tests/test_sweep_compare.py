@@ -90,3 +90,14 @@ def test_the_command_prints_the_table_or_names_what_is_wrong(tmp_path, capsys):
     assert "is not a sweep folder" in capsys.readouterr().err
     assert main([str(tmp_path), "--scenario", "top_observer_team6", "--seeds", "nameonly"]) == 2
     assert "expected NAME=VALUE" in capsys.readouterr().err
+
+
+def test_schedule_columns_split_the_time_to_goal_and_old_sweeps_are_refused():
+    from training.sweep.compare import SCHEDULE_COLUMNS
+
+    stat = lambda mean: {"mean": mean, "std": 0.5, "n": 10}  # noqa: E731
+    entry = _entry("greedy", 1.0, 23.0, 0.0065) | {"waiting_s": stat(5.0), "still_s": stat(4.0)}
+    row = comparison_table([entry], columns=SCHEDULE_COLUMNS).splitlines()[2]
+    assert row == "| greedy | 100 % | 23.0 ± 2.0 | 14.0 | 5.0 | 4.0 |"
+    with pytest.raises(CompareError, match="waiting_s"):
+        comparison_table([_entry("greedy", 1.0, 23.0, 0.0065)], columns=SCHEDULE_COLUMNS)

@@ -10,7 +10,7 @@ simulation clock (s), one sample at the reset and one after every step.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -20,7 +20,7 @@ from moma_env.env.agent_names import is_observer_agent
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, run_metrics
 from training.evaluation.policies import Policy
 
-__all__ = ["RobotEpisode", "EpisodeResult", "run_episode", "robot_agents"]
+__all__ = ["RobotEpisode", "EpisodeResult", "run_episode", "robot_agents", "schedule_split"]
 
 FrameSink = Callable[[np.ndarray], None]
 
@@ -70,6 +70,11 @@ class EpisodeResult:
         lost_track: some robot's estimator was ``lost`` at some step.
         goals: robot -> goal ``(x, y, yaw)`` of this episode's layout.
         robots: robot -> :class:`RobotEpisode`.
+        waiting_s: of the time until the last robot reached its goal, how long that
+            robot stood while another robot moved (s; NaN without success); see
+            :func:`schedule_split`.
+        still_s: of that time, how long no robot moved (dwells, settling) (s; NaN
+            without success).
     """
 
     index: int
@@ -85,6 +90,8 @@ class EpisodeResult:
     lost_track: bool
     goals: Mapping[str, tuple[float, float, float]]
     robots: Mapping[str, RobotEpisode]
+    waiting_s: float = math.nan
+    still_s: float = math.nan
 
     def row(self) -> dict[str, Any]:
         """The episode as one flat CSV row (distances in m, angles in deg, times in s)."""
@@ -100,6 +107,8 @@ class EpisodeResult:
             "n_switches": self.n_switches,
             "n_refused": self.n_refused,
             "lost_track": int(self.lost_track),
+            "waiting_s": self.waiting_s,
+            "still_s": self.still_s,
         }
         for name, r in self.robots.items():
             m = r.metrics
@@ -126,7 +135,7 @@ def robot_agents(env: Any) -> list[str]:
 class _RobotLog:
     """Per-step accumulation for one robot (recorders and counters)."""
 
-    __slots__ = ("truth", "moma", "switch_times", "n_switches", "n_refused", "lost", "goal_time")
+    __slots__ = ("truth", "moma", "switch_times", "n_switches", "n_refused", "lost", "goal_time", "mobile")
 
     def __init__(self, capacity: int):
         self.truth = TrajectoryRecorder(capacity=capacity)
@@ -136,10 +145,12 @@ class _RobotLog:
         self.n_refused = 0
         self.lost = False
         self.goal_time = math.nan
+        self.mobile: list[bool] = []
 
     def record(self, name: str, t: float, info: Mapping[str, Any]) -> None:
         self.truth.append(t, info["truth"][:3])
         self.moma.append(t, info["estimate"])
+        self.mobile.append(info.get("static") is False)
         if info["status"] == "lost":
             self.lost = True
         switched = False
@@ -173,6 +184,38 @@ class _RobotLog:
         )
 
 
+def schedule_split(times: Sequence[float], mobile: Mapping[str, Sequence[bool]], goal_times: Mapping[str, float]) -> tuple[float, float]:
+    """Where the time of a successful episode went, seen from its last robot to arrive.
+
+    The robot that reached its goal last (largest of ``goal_times``, s) sets the time to
+    goal ``T``. Each step ``k`` (from sample ``k - 1`` to ``k``, ``times`` in s) up to
+    ``T`` is counted by the robots' states after it (``mobile[robot][k]``): if that
+    robot stood, the step counts as *waiting* when some other robot moved, and as
+    *still* when none did. ``T`` minus both is the time the last robot moved, so
+    ``T = moving + waiting + still``: a schedule that spends less of ``T`` waiting or
+    still brings the team in sooner.
+
+    Returns:
+        ``(waiting_s, still_s)``; NaN for both if some robot has no goal time (NaN).
+    """
+    if not goal_times or any(math.isnan(t) for t in goal_times.values()):
+        return math.nan, math.nan
+    last = max(goal_times, key=lambda name: goal_times[name])
+    end = goal_times[last]
+    waiting = still = 0.0
+    for k in range(1, len(times)):
+        if times[k] > end + 1e-9:
+            break
+        if mobile[last][k]:
+            continue
+        dt = times[k] - times[k - 1]
+        if any(flags[k] for name, flags in mobile.items() if name != last):
+            waiting += dt
+        else:
+            still += dt
+    return waiting, still
+
+
 def _count_events(infos: Mapping[str, Mapping[str, Any]]) -> tuple[int, int]:
     switches = refused = 0
     for info in infos.values():
@@ -204,6 +247,7 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
     capacity = env.max_cycles + 1
     logs = {name: _RobotLog(capacity) for name in robots}
     t = env.frame.time
+    times = [t]
     for name in robots:
         logs[name].record(name, t, infos[name])
     if frame_sink is not None:
@@ -215,6 +259,7 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
         observations, rewards, terminations, truncations, infos = env.step(actions)
         steps += 1
         t = env.frame.time
+        times.append(t)
         total_reward += next(iter(rewards.values()), 0.0)
         s, r = _count_events(infos)
         n_switches += s
@@ -227,6 +272,8 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
             frame_sink(env.render())
     duration = float(env.frame.time)
     results = {name: log.result() for name, log in logs.items()}
+    waiting, still = schedule_split(times, {name: log.mobile for name, log in logs.items()},
+                                    {name: r.goal_time_s for name, r in results.items()}) if terminated and robots else (math.nan, math.nan)
     goals = {name: tuple(float(v) for v in goal) for name, goal in env.scenario.goals.items()}
     return EpisodeResult(
         index=index,
@@ -242,4 +289,6 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
         lost_track=any(r.lost for r in results.values()),
         goals=goals,
         robots=results,
+        waiting_s=waiting,
+        still_s=still,
     )

@@ -87,6 +87,8 @@ def episode_dict(ep: EpisodeResult) -> dict[str, Any]:
         "n_switches": ep.n_switches,
         "n_refused": ep.n_refused,
         "lost_track": ep.lost_track,
+        "waiting_s": ep.waiting_s,
+        "still_s": ep.still_s,
         "goals": {name: list(goal) for name, goal in ep.goals.items()},
         "robots": {
             name: {
@@ -120,8 +122,9 @@ def summarise(episodes: Sequence[EpisodeResult], robots: Sequence[str]) -> dict[
 
     Keys: ``n_episodes``, ``success_rate``, ``lost_track_rate``,
     ``time_to_goal_s`` (over successful episodes), ``duration_s``,
-    ``total_reward``, ``n_switches``, ``n_refused`` (each ``{"mean", "std",
-    "n"}``), and ``robots``: per robot ``distance_m``, ``n_switches``,
+    ``total_reward``, ``n_switches``, ``n_refused``, ``waiting_s`` and ``still_s``
+    (over successful episodes; :func:`training.evaluation.episode.schedule_split`)
+    (each ``{"mean", "std", "n"}``), and ``robots``: per robot ``distance_m``, ``n_switches``,
     ``mean_heading_error_deg``, ``final_heading_error_deg`` (mean/std) and
     ``moma``: :func:`moma_env.metrics.aggregate` of its runs (ME_f, its std,
     ME, % of path, best and worst, failures; m and %).
@@ -141,6 +144,8 @@ def summarise(episodes: Sequence[EpisodeResult], robots: Sequence[str]) -> dict[
         "total_reward": mean_std([ep.total_reward for ep in episodes]),
         "n_switches": mean_std([ep.n_switches for ep in episodes]),
         "n_refused": mean_std([ep.n_refused for ep in episodes]),
+        "waiting_s": mean_std([ep.waiting_s for ep in episodes]),
+        "still_s": mean_std([ep.still_s for ep in episodes]),
     }
     per_robot = {}
     for name in robots:

@@ -14,6 +14,13 @@ interval, Student's t with one degree of freedom fewer than the group has polici
 so the interval is over training seeds, not over episodes. Time to goal pools each
 policy's mean over its own successes.
 
+``--schedule`` prints where the time to goal went instead
+(:func:`training.evaluation.episode.schedule_split`): success, time to goal, and the
+part of it the last robot to arrive spent moving, waiting (standing while another
+robot moved) and still (no robot moving), means over the successful episodes, so a
+row's three parts add up to its time to goal. Sweeps written before those were
+recorded are refused with ``--schedule``.
+
 Units: time in s, errors in cm, rates in %, counts per episode. (The table of
 ``moma-env evaluate`` folders is :mod:`training.train.compare`.)
 """
@@ -33,7 +40,7 @@ from moma_env.io import read_json_in
 from training.evaluation.harness import mean_std
 from training.sweep.table import TABLE_FILES
 
-__all__ = ["COLUMNS", "CompareError", "seed_interval", "policy_cells", "group_cells", "comparison_table", "main"]
+__all__ = ["COLUMNS", "SCHEDULE_COLUMNS", "CompareError", "seed_interval", "policy_cells", "group_cells", "comparison_table", "main"]
 
 #: Column title -> (summary key, how a policy's value is read, scale to the shown unit).
 COLUMNS: Mapping[str, tuple[str, str, float]] = {
@@ -44,6 +51,15 @@ COLUMNS: Mapping[str, tuple[str, str, float]] = {
     "ME_f cm": ("e_f_m", "mean", 100.0),
     "ME cm": ("me_m", "mean", 100.0),
     "lost track": ("lost_track_rate", "rate", 100.0),
+}
+
+#: The columns of ``--schedule``; ``"moving"`` is the time to goal less waiting and still.
+SCHEDULE_COLUMNS: Mapping[str, tuple[str, str, float]] = {
+    "success": ("success_rate", "rate", 100.0),
+    "time to goal s": ("time_to_goal_s", "mean", 1.0),
+    "last robot moving s": ("time_to_goal_s", "moving", 1.0),
+    "waiting s": ("waiting_s", "mean", 1.0),
+    "team still s": ("still_s", "mean", 1.0),
 }
 
 _DIGITS = {"success": 0, "lost track": 0, "ME_f cm": 2, "ME cm": 2}
@@ -63,29 +79,40 @@ def seed_interval(values: Sequence[float], confidence: float = 0.95) -> tuple[fl
     return stat["mean"], float(stats.t.ppf(0.5 + confidence / 2.0, n - 1)) * stat["std"] / math.sqrt(n)
 
 
-def _value(entry: Mapping[str, Any], column: str) -> float:
-    key, kind, scale = COLUMNS[column]
-    value = entry[key] if kind == "rate" else entry[key]["mean"]
-    return math.nan if value is None else scale * float(value)
+def _mean(entry: Mapping[str, Any], key: str) -> float:
+    if key not in entry:
+        raise CompareError(f"the sweep's summary has no {key!r} (written before it was recorded): run the sweep again")
+    value = entry[key]["mean"]
+    return math.nan if value is None else float(value)
+
+
+def _value(entry: Mapping[str, Any], column: str, columns: Mapping[str, tuple[str, str, float]] = COLUMNS) -> float:
+    key, kind, scale = columns[column]
+    if kind == "rate":
+        value = entry[key]
+        return math.nan if value is None else scale * float(value)
+    if kind == "moving":
+        return scale * (_mean(entry, key) - _mean(entry, "waiting_s") - _mean(entry, "still_s"))
+    return scale * _mean(entry, key)
 
 
 def _number(value: float, column: str) -> str:
     return "-" if not math.isfinite(value) else f"{value:.{_DIGITS.get(column, 1)}f}"
 
 
-def _percent(column: str) -> str:
-    return " %" if COLUMNS[column][1] == "rate" else ""
+def _percent(column: str, columns: Mapping[str, tuple[str, str, float]] = COLUMNS) -> str:
+    return " %" if columns[column][1] == "rate" else ""
 
 
-def policy_cells(entry: Mapping[str, Any]) -> list[str]:
-    """The table cells of one policy's summary entry, in :data:`COLUMNS` order."""
+def policy_cells(entry: Mapping[str, Any], columns: Mapping[str, tuple[str, str, float]] = COLUMNS) -> list[str]:
+    """The table cells of one policy's summary entry, in ``columns`` order."""
     cells = []
-    for column in COLUMNS:
-        value = _value(entry, column)
+    for column in columns:
+        value = _value(entry, column, columns)
         if not math.isfinite(value):
             cells.append("-")
             continue
-        text = _number(value, column) + _percent(column)
+        text = _number(value, column) + _percent(column, columns)
         std = entry["time_to_goal_s"]["std"] if column == "time to goal s" else None
         if std is not None and math.isfinite(float(std)):
             text += f" ± {float(std):.1f}"
@@ -93,15 +120,15 @@ def policy_cells(entry: Mapping[str, Any]) -> list[str]:
     return cells
 
 
-def group_cells(entries: Sequence[Mapping[str, Any]]) -> list[str]:
+def group_cells(entries: Sequence[Mapping[str, Any]], columns: Mapping[str, tuple[str, str, float]] = COLUMNS) -> list[str]:
     """The cells of a group's row: each column's mean over ``entries`` ± its 95 % t half width."""
     cells = []
-    for column in COLUMNS:
-        mean, half = seed_interval([_value(e, column) for e in entries])
+    for column in columns:
+        mean, half = seed_interval([_value(e, column, columns) for e in entries])
         text = _number(mean, column)
         if math.isfinite(mean) and math.isfinite(half):
             text += f" ± {_number(half, column)}"
-        cells.append(text + (_percent(column) if math.isfinite(mean) else ""))
+        cells.append(text + (_percent(column, columns) if math.isfinite(mean) else ""))
     return cells
 
 
@@ -118,10 +145,12 @@ def comparison_table(
     scenario: str | None = None,
     labels: Mapping[str, str] | None = None,
     seeds: Mapping[str, Sequence[str]] | None = None,
+    columns: Mapping[str, tuple[str, str, float]] = COLUMNS,
 ) -> str:
     """The Markdown table of ``summary`` (``summary.json``'s ``groups``) for ``scenario``
     (None: the sweep's only one), with a row per ``seeds`` group after the row of its
-    policy that comes last, and policies shown as ``labels`` names them.
+    policy that comes last, and policies shown as ``labels`` names them, in ``columns``
+    (:data:`COLUMNS` or :data:`SCHEDULE_COLUMNS`).
 
     Raises:
         CompareError: no such scenario, several and none chosen, or a group naming a
@@ -145,13 +174,13 @@ def comparison_table(
     for name, policies in seeds.items():
         last = max(list(entries).index(p) for p in policies)
         after.setdefault(list(entries)[last], []).append(name)
-    lines = ["| policy | " + " | ".join(COLUMNS) + " |", "|---" * (len(COLUMNS) + 1) + "|"]
+    lines = ["| policy | " + " | ".join(columns) + " |", "|---" * (len(columns) + 1) + "|"]
     for policy, entry in entries.items():
-        lines.append(f"| {labels.get(policy, policy)} | " + " | ".join(policy_cells(entry)) + " |")
+        lines.append(f"| {labels.get(policy, policy)} | " + " | ".join(policy_cells(entry, columns)) + " |")
         for name in after.get(policy, ()):
             group = [entries[p] for p in seeds[name]]
             title = f"{name}, mean of {len(group)} ± 95 % interval (t, {len(group) - 1} dof)"
-            lines.append(f"| {title} | " + " | ".join(group_cells(group)) + " |")
+            lines.append(f"| {title} | " + " | ".join(group_cells(group, columns)) + " |")
     return "\n".join(lines)
 
 
@@ -174,10 +203,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="show POLICY (its spec in the sweep) as TEXT (default: the spec)")
     parser.add_argument("--seeds", action="append", default=[], metavar="TEXT=POLICY,POLICY,...",
                         help="a row TEXT pooling these policies (training seeds) with a 95 %% t interval (default: none)")
+    parser.add_argument("--schedule", action="store_true",
+                        help="where the time to goal went (moving, waiting, still) instead of the default columns")
     args = parser.parse_args(argv)
     try:
         seeds = {name: [p for p in value.split(",") if p] for name, value in _pairs(args.seeds, "--seeds")}
-        table = comparison_table(_read_summary(args.sweep), args.scenario, dict(_pairs(args.label, "--label")), seeds)
+        table = comparison_table(_read_summary(args.sweep), args.scenario, dict(_pairs(args.label, "--label")), seeds,
+                                 SCHEDULE_COLUMNS if args.schedule else COLUMNS)
     except (CompareError, OSError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

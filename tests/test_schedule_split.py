@@ -1,0 +1,43 @@
+"""``schedule_split``: where a successful episode's time went, seen from the last robot to arrive,
+and the harness's episodes carrying it (time to goal = moving + waiting + still)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from training.evaluation.episode import schedule_split
+from training.evaluation.harness import evaluate
+
+
+def test_split_counts_the_last_robots_standing_steps_by_what_the_others_did():
+    times = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    mobile = {
+        "a": [False, True, True, False, False, False, False],   # arrives at 3 s
+        "b": [False, False, False, False, True, True, False],   # arrives last, at 6 s
+        "c": [False, False, True, False, False, True, False],
+    }
+    waiting, still = schedule_split(times, mobile, {"a": 3.0, "b": 6.0, "c": 5.0})
+    # b stands in steps 1-2 while others move (waiting), in step 3 and 6 with everyone (still); it moves in 4-5
+    assert waiting == pytest.approx(2.0)
+    assert still == pytest.approx(2.0)
+    moving = 6.0 - waiting - still
+    assert moving == pytest.approx(sum(1.0 for k in range(1, 7) if mobile["b"][k]))
+
+
+def test_split_is_nan_when_some_robot_never_arrived():
+    waiting, still = schedule_split([0.0, 1.0], {"a": [False, True], "b": [False, False]}, {"a": 1.0, "b": math.nan})
+    assert math.isnan(waiting) and math.isnan(still)
+
+
+def test_evaluated_episodes_split_their_time_to_goal():
+    result = evaluate("top_observer_team4", "greedy", 2, 1_000_000)
+    for ep in result.episodes:
+        assert ep.success
+        moving = ep.time_to_goal_s - ep.waiting_s - ep.still_s
+        assert 0.0 < moving <= ep.time_to_goal_s
+        assert ep.waiting_s >= 0.0 and ep.still_s > 0.0  # every leg ends in a dwell
+        row = ep.row()
+        assert row["waiting_s"] == ep.waiting_s and row["still_s"] == ep.still_s
+    assert result.summary["waiting_s"]["n"] == 2
