@@ -18,17 +18,15 @@ RLlib (the ``ray`` extra) is imported only when a policy is loaded;
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agents.learned import MANIFEST, TrainingDirError
-from moma_env import ENV_VERSION
+from agents.learned import TrainingDirError
+from agents.run_manifest import is_backend_run, read_backend_manifest
 from moma_env.env.parallel import MomaParallelEnv
-from moma_env.io import read_json_in
 
 __all__ = ["RllibPolicy", "is_rllib_run", "read_rllib_manifest", "BACKEND", "UGV_MODULE_PATH"]
 
@@ -40,12 +38,7 @@ UGV_MODULE_PATH = ("learner_group", "learner", "rl_module", "ugv")
 
 def is_rllib_run(directory: str | Path) -> bool:
     """Whether ``directory`` holds a manifest of an RLlib run (False for any other or none)."""
-    path = Path(directory) / MANIFEST
-    try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return False
-    return isinstance(manifest, dict) and manifest.get("backend") == BACKEND
+    return is_backend_run(directory, BACKEND)
 
 
 def read_rllib_manifest(directory: str | Path) -> dict[str, Any]:
@@ -56,15 +49,7 @@ def read_rllib_manifest(directory: str | Path) -> dict[str, Any]:
             checkpoint, another env version.
     """
     directory = Path(directory)
-    path, manifest = read_json_in(directory, MANIFEST, TrainingDirError, "a folder of a training run",
-                                  "not a finished checkpoint of moma-env train --backend rllib")
-    if not isinstance(manifest, dict) or manifest.get("backend") != BACKEND:
-        raise TrainingDirError(f"{str(path)!r} is not the manifest of an RLlib run")
-    for key in ("checkpoint", "num_timesteps", "config", "env_version"):
-        if key not in manifest:
-            raise TrainingDirError(f"{str(path)!r} lacks the key {key!r}")
-    if manifest["env_version"] != ENV_VERSION:
-        raise TrainingDirError(f"{str(path)!r} was trained on env version {manifest['env_version']!r}, this code's is {ENV_VERSION!r}: retrain it")
+    path, manifest = read_backend_manifest(directory, BACKEND, "an RLlib")
     module = directory / manifest["checkpoint"] / Path(*UGV_MODULE_PATH)
     if not module.is_dir():
         raise TrainingDirError(f"{str(path)!r} names checkpoint {manifest['checkpoint']!r}, which holds no UGV module ({str(module)!r})")

@@ -25,17 +25,15 @@ torch and TorchRL (the ``torchrl`` extra) are imported only when networks are bu
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agents.learned import MANIFEST, TrainingDirError, torch_threads
-from moma_env import ENV_VERSION
+from agents.learned import TrainingDirError, torch_threads
+from agents.run_manifest import is_backend_run, read_backend_manifest
 from moma_env.env.parallel import MomaParallelEnv
-from moma_env.io import read_json_in
 
 __all__ = [
     "TorchRLPolicy",
@@ -76,12 +74,7 @@ def critic_network(n_agents: int, obs_dim: int, net_arch: Sequence[int], critic_
 
 def is_torchrl_run(directory: str | Path) -> bool:
     """Whether ``directory`` holds a manifest of a TorchRL run (False for any other or none)."""
-    path = Path(directory) / MANIFEST
-    try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return False
-    return isinstance(manifest, dict) and manifest.get("backend") == BACKEND
+    return is_backend_run(directory, BACKEND)
 
 
 def read_torchrl_manifest(directory: str | Path) -> dict[str, Any]:
@@ -92,15 +85,7 @@ def read_torchrl_manifest(directory: str | Path) -> dict[str, Any]:
             checkpoint file, another env version.
     """
     directory = Path(directory)
-    path, manifest = read_json_in(directory, MANIFEST, TrainingDirError, "a folder of a training run",
-                                  "not a finished checkpoint of moma-env train --backend torchrl")
-    if not isinstance(manifest, dict) or manifest.get("backend") != BACKEND:
-        raise TrainingDirError(f"{str(path)!r} is not the manifest of a TorchRL run")
-    for key in ("checkpoint", "num_timesteps", "config", "env_version"):
-        if key not in manifest:
-            raise TrainingDirError(f"{str(path)!r} lacks the key {key!r}")
-    if manifest["env_version"] != ENV_VERSION:
-        raise TrainingDirError(f"{str(path)!r} was trained on env version {manifest['env_version']!r}, this code's is {ENV_VERSION!r}: retrain it")
+    path, manifest = read_backend_manifest(directory, BACKEND, "a TorchRL")
     if not (directory / manifest["checkpoint"]).is_file():
         raise TrainingDirError(f"{str(path)!r} names checkpoint {manifest['checkpoint']!r}, which is not a file in {str(directory)!r}")
     return manifest

@@ -74,18 +74,14 @@ def _load_trained_policy(path: Path, configuration: str, sample_actions: bool = 
     """A policy trained by ``moma-env train`` in folder ``path`` (:class:`agents.learned.LearnedPolicy`),
     sampling its actions if ``sample_actions``."""
     learned = _learned()
-    rllib = importlib.import_module("agents.rllib_policy")  # a run of moma-env train --backend rllib
-    if rllib.is_rllib_run(path):
-        try:
-            return rllib.RllibPolicy.from_dir(path, configuration, deterministic=not sample_actions)
-        except learned.TrainingDirError as err:
-            raise PolicyLoadError(str(err)) from None
-    torchrl_runs = importlib.import_module("agents.torchrl_policy")  # a run of moma-env train --backend torchrl
-    if torchrl_runs.is_torchrl_run(path):
-        try:
-            return torchrl_runs.TorchRLPolicy.from_dir(path, configuration, deterministic=not sample_actions)
-        except learned.TrainingDirError as err:
-            raise PolicyLoadError(str(err)) from None
+    for module, is_run, policy_class in (("agents.rllib_policy", "is_rllib_run", "RllibPolicy"),  # moma-env train --backend rllib
+                                         ("agents.torchrl_policy", "is_torchrl_run", "TorchRLPolicy")):  # --backend torchrl
+        backend = importlib.import_module(module)
+        if getattr(backend, is_run)(path):
+            try:
+                return getattr(backend, policy_class).from_dir(path, configuration, deterministic=not sample_actions)
+            except learned.TrainingDirError as err:
+                raise PolicyLoadError(str(err)) from None
     try:
         return learned.LearnedPolicy.from_dir(path, configuration, deterministic=not sample_actions)
     except learned.TrainingDirError as err:

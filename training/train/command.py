@@ -11,6 +11,7 @@ import dataclasses
 import json
 import sys
 from pathlib import Path
+from collections.abc import Callable
 from types import MappingProxyType
 
 from typing import TYPE_CHECKING
@@ -32,7 +33,7 @@ TRAIN_EPILOG = """exit status:
   130  interrupted (Ctrl-C): --out keeps the last checkpoint; --resume continues from it
 """
 
-__all__ = ["add_train_parser", "run_train", "config_from_args", "train_command"]
+__all__ = ["add_train_parser", "run_train", "config_from_args", "train_command", "report_training", "scenario_rewards"]
 
 
 def _layers(text: str) -> tuple[int, ...]:
@@ -228,17 +229,24 @@ def run_train(args: argparse.Namespace) -> int:
     except ImportError as err:
         print(f"moma-env train: needs the 'train' extra (stable-baselines3, torch): {err}", file=sys.stderr)
         return 2
+    return report_training(
+        args, lambda: train(config, args.out, resume=args.resume),
+        lambda manifest: f"trained {config.algo} ({config.route}, {config.action_mode}) on {config.scenario}: "
+                         f"{manifest['num_timesteps']} timesteps, {manifest['wall_time_s']:.1f} s of training wall time\n"
+                         f"model: {Path(args.out) / manifest['model']}\nmanifest: {Path(args.out) / 'manifest.json'}",
+    )
+
+
+def report_training(args: argparse.Namespace, run: Callable[[], dict], summary: Callable[[dict], str]) -> int:
+    """Run a backend's training (``run`` returns its final manifest) and report it: the manifest
+    as JSON with ``--json``, else ``summary(manifest)``; exit status 0, or 2 with one line
+    when the run folder cannot be trained in or resumed (``TrainingDirError``)."""
     from agents.learned import TrainingDirError
 
     try:
-        manifest = train(config, args.out, resume=args.resume)
+        manifest = run()
     except TrainingDirError as err:
         print(f"moma-env train: {err}", file=sys.stderr)
         return 2
-    if args.json:
-        print(json.dumps(manifest, indent=2, sort_keys=True))
-    else:
-        print(f"trained {config.algo} ({config.route}, {config.action_mode}) on {config.scenario}: "
-              f"{manifest['num_timesteps']} timesteps, {manifest['wall_time_s']:.1f} s of training wall time\n"
-              f"model: {Path(args.out) / manifest['model']}\nmanifest: {Path(args.out) / 'manifest.json'}")
+    print(json.dumps(manifest, indent=2, sort_keys=True) if args.json else summary(manifest))
     return 0

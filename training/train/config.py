@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "NETWORKS", "TrainConfig", "reward_overrides",
-    "run_env_options", "config_to_dict", "config_from_dict",
+    "run_env_options", "config_to_dict", "config_from_dict", "BackendTrainConfig",
 ]
 
 #: Algorithms by CLI name -> Stable-Baselines3 (or sb3-contrib) class name.
@@ -231,6 +231,91 @@ def run_env_options(action_mode: str, max_cycles: int | None, rewards: RewardCon
     return options
 
 
+@dataclass(frozen=True)
+class BackendTrainConfig:
+    """The fields every run of ``moma-env train --backend rllib | torchrl`` has
+    (:class:`training.train.rllib_config.RllibTrainConfig`,
+    :class:`training.train.torchrl_config.TorchRLTrainConfig` add their own), validated
+    at construction (ConfigError names the first bad field).
+
+    Attributes:
+        scenario: configuration or task name.
+        steps: total env steps to collect.
+        envs: env copies (per env runner on RLlib).
+        seed: the run's seed.
+        max_cycles: training episode length in steps (None: the scenario's).
+        rewards: reward weights (None: the scenario's).
+        net_arch: hidden layer sizes of the policy and value networks.
+        n_steps: env steps per copy collected between updates (RLlib: the rollout fragment).
+        minibatch_size: minibatch size.
+        num_epochs: passes over each batch.
+        learning_rate, gamma, ent_coef: PPO's step size, discount, entropy bonus.
+        checkpoint_every: env steps between checkpoints (the last is always saved).
+        eval_every: env steps between held-out evaluations (0: never), also run at the end.
+        eval_episodes: episodes per evaluation.
+        eval_seed: seed of the first held-out episode.
+        eval_max_cycles: episode length of the evaluations (None: the scenario's).
+        eval_sample_actions: the evaluations sample actions instead of taking the mode.
+    """
+
+    scenario: str
+    steps: int = 100_000
+    envs: int = 2
+    seed: int = 0
+    max_cycles: int | None = None
+    rewards: RewardConfig | None = None
+    net_arch: tuple[int, ...] = (64, 64)
+    n_steps: int = 256
+    minibatch_size: int = 256
+    num_epochs: int = 4
+    learning_rate: float = 3e-4
+    gamma: float = 0.995
+    ent_coef: float = 0.01
+    checkpoint_every: int = 20_000
+    eval_every: int = 0
+    eval_episodes: int = 5
+    eval_seed: int = 10_000
+    eval_max_cycles: int | None = None
+    eval_sample_actions: bool = False
+
+    def __post_init__(self) -> None:
+        from moma_env.env.config import RewardConfig
+
+        check_choice("scenario", self.scenario, sorted(CONFIGURATION_NAMES) + sorted(TASKS))
+        check_count("steps", self.steps, 1)
+        check_count("envs", self.envs, 1)
+        check_count("seed", self.seed, 0)
+        for name in ("max_cycles", "eval_max_cycles"):
+            if getattr(self, name) is not None:
+                check_count(name, getattr(self, name), 1)
+        if self.rewards is not None and not isinstance(self.rewards, RewardConfig):
+            raise ConfigError("rewards", f"must be a RewardConfig or None, got {type(self.rewards).__name__}")
+        if not isinstance(self.net_arch, tuple) or not self.net_arch:
+            raise ConfigError("net_arch", f"must be a non-empty tuple of layer sizes, got {self.net_arch!r}")
+        for k, size in enumerate(self.net_arch):
+            check_count(f"net_arch[{k}]", size, 1)
+        check_count("n_steps", self.n_steps, 1)
+        check_count("minibatch_size", self.minibatch_size, 1)
+        check_count("num_epochs", self.num_epochs, 1)
+        check_positive("learning_rate", self.learning_rate)
+        check_range("gamma", self.gamma, 0.0, 1.0)
+        check_non_negative("ent_coef", self.ent_coef)
+        check_count("checkpoint_every", self.checkpoint_every, 1)
+        check_count("eval_every", self.eval_every, 0)
+        check_count("eval_episodes", self.eval_episodes, 1)
+        check_count("eval_seed", self.eval_seed, 0)
+        check_bool("eval_sample_actions", self.eval_sample_actions)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for the manifest (tuples as lists)."""
+        return config_to_dict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Any:
+        """Inverse of :meth:`to_dict`; unknown keys raise ConfigError."""
+        return config_from_dict(cls, data)
+
+
 def config_to_dict(config: Any) -> dict[str, Any]:
     """A run configuration (a dataclass with ``net_arch``) as plain data for its manifest."""
     out = dataclasses.asdict(config)
@@ -239,10 +324,15 @@ def config_to_dict(config: Any) -> dict[str, Any]:
 
 
 def config_from_dict(cls: type, data: Mapping[str, Any]) -> Any:
-    """Inverse of :func:`config_to_dict` for ``cls``; unknown keys raise ConfigError."""
+    """Inverse of :func:`config_to_dict` for ``cls`` (``rewards`` from its weights by name);
+    unknown keys raise ConfigError."""
+    from moma_env.env.config import RewardConfig
+
     data = dict(data)
     if isinstance(data.get("net_arch"), list):
         data["net_arch"] = tuple(data["net_arch"])
+    if isinstance(data.get("rewards"), Mapping):
+        data["rewards"] = from_mapping(RewardConfig, data["rewards"], name="train.rewards")
     return from_mapping(cls, data, name="train")
 
 

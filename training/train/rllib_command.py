@@ -13,13 +13,12 @@ always one shared UGV policy; ``--algo`` other than ppo, ``--route centralised``
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 from training.cli_args import int_at_least
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from training.train.rllib_config import RllibTrainConfig
@@ -42,21 +41,12 @@ def add_rllib_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --backend rllib: pettingzoo (RLlib's PettingZoo wrapper, default) or vector (the batched env)")
 
 
-def _rewards(scenario: str, pairs: list[str]) -> Any:
-    """None without ``--reward``, else a ``RewardConfig`` of those weights over the task's (or the defaults), as on the SB3 route."""
-    from moma_env.tasks import TASKS
-    from training.train.config import reward_overrides
-
-    if not pairs:
-        return None
-    task = TASKS.get(scenario)
-    return reward_overrides(pairs, None if task is None else task.options.get("rewards"))
-
-
 def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
     """The :class:`RllibTrainConfig` of ``moma-env train --backend rllib`` (ConfigError names a bad option)."""
     from moma_env.config import ConfigError
+    from training.train.command import scenario_rewards
     from training.train.rllib_config import RllibTrainConfig
+
     if args.algo != "ppo":
         raise ConfigError("algo", f"--backend rllib trains PPO only, got {args.algo!r}")
     if args.route != "shared":
@@ -66,7 +56,7 @@ def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
     train_batch = args.n_steps * args.num_envs * max(1, args.num_env_runners)
     return RllibTrainConfig(
         scenario=args.scenario, steps=args.timesteps, num_env_runners=args.num_env_runners, envs=args.num_envs, env_route=args.rllib_env,
-        seed=args.seed, action_mode=args.action_mode, max_cycles=args.max_cycles, rewards=_rewards(args.scenario, args.reward),
+        seed=args.seed, action_mode=args.action_mode, max_cycles=args.max_cycles, rewards=scenario_rewards(args.scenario, args.reward),
         net_arch=tuple(args.net), n_steps=args.n_steps, batch_size=train_batch, minibatch_size=min(args.batch_size, train_batch),
         learning_rate=args.learning_rate, gamma=args.gamma, ent_coef=args.ent_coef, checkpoint_every=args.checkpoint_every,
         eval_every=args.eval_every, eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, eval_sample_actions=args.eval_sample_actions,
@@ -82,17 +72,11 @@ def run_rllib_train(args: argparse.Namespace) -> int:
     except ImportError as err:
         print(f"moma-env train: --backend rllib needs the 'ray' extra (pip install -e '.[ray]'): {err}", file=sys.stderr)
         return 2
-    from agents.learned import TrainingDirError
+    from training.train.command import report_training
 
-    try:
-        manifest = train_rllib(config, args.out, resume=args.resume, address=args.address)
-    except TrainingDirError as err:
-        print(f"moma-env train: {err}", file=sys.stderr)
-        return 2
-    if args.json:
-        print(json.dumps(manifest, indent=2, sort_keys=True))
-    else:
-        print(f"trained RLlib PPO ({config.env_route}, {config.action_mode}) on {config.scenario}: {manifest['num_timesteps']} env steps, "
-              f"{manifest['wall_time_s']:.1f} s of training wall time\ncheckpoint: {Path(args.out) / manifest['checkpoint']}\n"
-              f"manifest: {Path(args.out) / 'manifest.json'}")
-    return 0
+    return report_training(
+        args, lambda: train_rllib(config, args.out, resume=args.resume, address=args.address),
+        lambda manifest: f"trained RLlib PPO ({config.env_route}, {config.action_mode}) on {config.scenario}: {manifest['num_timesteps']} env steps, "
+                         f"{manifest['wall_time_s']:.1f} s of training wall time\ncheckpoint: {Path(args.out) / manifest['checkpoint']}\n"
+                         f"manifest: {Path(args.out) / 'manifest.json'}",
+    )

@@ -20,10 +20,8 @@ from __future__ import annotations
 
 import contextlib
 import datetime
-import json
 import re
 import shutil
-import time
 import uuid
 from pathlib import Path
 from typing import Any
@@ -31,10 +29,8 @@ from typing import Any
 from agents.learned import MANIFEST
 from agents.rllib_policy import BACKEND, RllibPolicy, read_rllib_manifest
 from moma_env import ENV_VERSION
-from moma_env.config import ConfigError
-from moma_env.io import claim_run_folder, run_kind, write_json
-from training.train.callbacks import write_evaluations
-from training.train.curves import EVALUATIONS, write_curves
+from moma_env.io import write_json
+from training.train.backend_run import RunProgress, start_run
 from training.train.evaluation import headline
 from training.train.rllib_config import RllibTrainConfig
 
@@ -72,13 +68,6 @@ def algorithm_config(config: RllibTrainConfig):
 def env_steps(result: dict[str, Any]) -> int:
     """Env steps sampled over the run's lifetime, from an ``Algorithm.train()`` result."""
     return int(result["env_runners"]["num_env_steps_sampled_lifetime"])
-
-
-def _check_resumable(stored: RllibTrainConfig, config: RllibTrainConfig) -> None:
-    old, new = stored.to_dict(), config.to_dict()
-    for name in old:
-        if name not in RESUMABLE_CHANGES and old[name] != new[name]:
-            raise ConfigError(name, f"the run in this folder has {old[name]!r}, the command gives {new[name]!r}; resume with the run's own settings")
 
 
 def _checkpoints(out: Path) -> list[Path]:
@@ -144,21 +133,8 @@ def train_rllib(config: RllibTrainConfig, out: str | Path, resume: bool = False,
     from training.train.checkpoint import source_revision
 
     out = Path(out)
-    if resume:
-        if out.is_dir() and run_kind(out) not in (None, "train"):
-            claim_run_folder(out, "train")  # RunFolderError: another kind of run
-        manifest = read_rllib_manifest(out)
-        _check_resumable(RllibTrainConfig.from_dict(manifest["config"]), config)
-        wall_before = float(manifest["wall_time_s"])
-        records = []
-        if (out / EVALUATIONS).is_file():
-            records = [r for r in json.loads((out / EVALUATIONS).read_text(encoding="utf-8")).get("records", [])
-                       if r.get("num_timesteps", 0) <= manifest["num_timesteps"]]
-    else:
-        if out.exists() and ((out / MANIFEST).exists() or _checkpoints(out)):
-            raise ConfigError("out", f"{str(out)!r} already holds a training run; pass --resume to continue it or choose another folder")
-        claim_run_folder(out, "train")  # RunFolderError: another kind of run, or files that are not a run
-        manifest, wall_before, records = None, 0.0, []
+    start = start_run(out, resume, config, read_rllib_manifest, RESUMABLE_CHANGES, lambda folder: bool(_checkpoints(folder)))
+    manifest, steps = start.manifest, start.steps
     for path in out.iterdir():  # temporaries of a killed save
         if _TEMPORARY.match(path.name):
             shutil.rmtree(path, ignore_errors=True)
@@ -172,24 +148,15 @@ def train_rllib(config: RllibTrainConfig, out: str | Path, resume: bool = False,
     algo = None
     try:
         algo = algorithm_config(config).build_algo()
-        steps = 0
         if manifest is not None:
             algo.restore_from_path(str((out / manifest["checkpoint"]).resolve()))
-            steps = int(manifest["num_timesteps"])
         extra = {"git": source_revision()}
-        session_start = time.perf_counter()
+        progress = RunProgress(out, config, start, f"{config.scenario}: RLlib PPO, {config.env_route}, seed {config.seed}")
         last_saved = last_eval = steps
-
-        def wall() -> float:
-            return wall_before + time.perf_counter() - session_start
+        wall = progress.wall
 
         def evaluate_now() -> None:
-            start = time.perf_counter()
-            record = {"num_timesteps": steps, "wall_time_s": wall(), **_evaluate(algo, config),
-                      "eval_seconds": time.perf_counter() - start, "sample_actions": config.eval_sample_actions}
-            records.append(record)
-            write_evaluations(out, config, records)
-            write_curves(out, records, f"{config.scenario}: RLlib PPO, {config.env_route}, seed {config.seed}")
+            progress.evaluate(steps, lambda: _evaluate(algo, config))
 
         manifest_now = manifest
         while steps < config.steps:
@@ -200,7 +167,7 @@ def train_rllib(config: RllibTrainConfig, out: str | Path, resume: bool = False,
             if config.eval_every > 0 and steps - last_eval >= config.eval_every and steps < config.steps:
                 evaluate_now()
                 last_eval = steps
-        if config.eval_every > 0 and (not records or records[-1]["num_timesteps"] != steps):
+        if config.eval_every > 0 and not progress.evaluated_at(steps):
             evaluate_now()
         if manifest_now is None or manifest_now["num_timesteps"] != steps:
             manifest_now = _save(out, algo, config, steps, wall(), extra)

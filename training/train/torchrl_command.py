@@ -16,7 +16,6 @@ are not normalised.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -73,19 +72,13 @@ def run_torchrl_train(args: argparse.Namespace) -> int:
     except ImportError as err:
         print(f"moma-env train: --backend torchrl needs the 'torchrl' extra (pip install -e '.[torchrl]'): {err}", file=sys.stderr)
         return 2
-    from agents.learned import TrainingDirError
+    from training.train.command import report_training
 
-    try:
-        manifest = train_torchrl(config, args.out, resume=args.resume)
-    except TrainingDirError as err:
-        print(f"moma-env train: {err}", file=sys.stderr)
-        return 2
-    if args.json:
-        print(json.dumps(manifest, indent=2, sort_keys=True))
-    else:
+    def summary(manifest: dict) -> str:
         steps, collect, learn = manifest["num_timesteps"], manifest["collect_s"], manifest["learn_s"]
-        print(f"trained TorchRL {manifest_algorithm(config)} on {config.scenario}: {steps} env steps, "
-              f"{manifest['wall_time_s']:.1f} s of training wall time ({steps / max(collect + learn, 1e-9):.0f} env steps/s "
-              f"with the learner, {steps / max(collect, 1e-9):.0f} collecting alone)\n"
-              f"checkpoint: {Path(args.out) / manifest['checkpoint']}\nmanifest: {Path(args.out) / 'manifest.json'}")
-    return 0
+        return (f"trained TorchRL {manifest_algorithm(config)} on {config.scenario}: {steps} env steps, "
+                f"{manifest['wall_time_s']:.1f} s of training wall time ({steps / max(collect + learn, 1e-9):.0f} env steps/s "
+                f"with the learner, {steps / max(collect, 1e-9):.0f} collecting alone)\n"
+                f"checkpoint: {Path(args.out) / manifest['checkpoint']}\nmanifest: {Path(args.out) / 'manifest.json'}")
+
+    return report_training(args, lambda: train_torchrl(config, args.out, resume=args.resume), summary)

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import datetime
 import io
-import json
 import re
 import time
 from pathlib import Path
@@ -42,9 +41,8 @@ from agents.learned import MANIFEST, TrainingDirError, torch_threads
 from agents.torchrl_policy import BACKEND, TorchRLPolicy, actor_network, critic_network, load_checkpoint, read_torchrl_manifest
 from moma_env import ENV_VERSION
 from moma_env.config import ConfigError
-from moma_env.io import atomic_write_bytes, claim_run_folder, run_kind, write_json
-from training.train.callbacks import write_evaluations
-from training.train.curves import EVALUATIONS, write_curves
+from moma_env.io import atomic_write_bytes, write_json
+from training.train.backend_run import RunProgress, start_run
 from training.train.evaluation import headline
 from training.train.torchrl_config import TorchRLTrainConfig
 
@@ -56,13 +54,6 @@ RESUMABLE_CHANGES = frozenset({"steps", "checkpoint_every", "eval_every", "eval_
 #: The TorchRL group of the UGV agents (:data:`moma_env.vector.torchrl.UGV_GROUP`).
 GROUP = "ugv"
 _CHECKPOINT = re.compile(r"^checkpoint_\d{12}\.pt$")
-
-
-def _check_resumable(stored: TorchRLTrainConfig, config: TorchRLTrainConfig) -> None:
-    old, new = stored.to_dict(), config.to_dict()
-    for name in old:
-        if name not in RESUMABLE_CHANGES and old[name] != new[name]:
-            raise ConfigError(name, f"the run in this folder has {old[name]!r}, the command gives {new[name]!r}; resume with the run's own settings")
 
 
 class _Learner:
@@ -214,42 +205,21 @@ def train_torchrl(config: TorchRLTrainConfig, out: str | Path, resume: bool = Fa
     from training.train.checkpoint import source_revision
 
     out = Path(out)
-    if resume:
-        if out.is_dir() and run_kind(out) not in (None, "train"):
-            claim_run_folder(out, "train")  # RunFolderError: another kind of run
-        manifest = read_torchrl_manifest(out)
-        _check_resumable(TorchRLTrainConfig.from_dict(manifest["config"]), config)
-        steps = int(manifest["num_timesteps"])
-        wall_before = float(manifest["wall_time_s"])
-        timings = (float(manifest.get("collect_s", 0.0)), float(manifest.get("learn_s", 0.0)))
-        records = []
-        if (out / EVALUATIONS).is_file():
-            records = [r for r in json.loads((out / EVALUATIONS).read_text(encoding="utf-8")).get("records", [])
-                       if r.get("num_timesteps", 0) <= steps]
-    else:
-        if out.exists() and ((out / MANIFEST).exists() or _checkpoints(out)):
-            raise ConfigError("out", f"{str(out)!r} already holds a training run; pass --resume to continue it or choose another folder")
-        claim_run_folder(out, "train")  # RunFolderError: another kind of run, or files that are not a run
-        manifest, steps, wall_before, timings, records = None, 0, 0.0, (0.0, 0.0), []
+    start = start_run(out, resume, config, read_torchrl_manifest, RESUMABLE_CHANGES, lambda folder: bool(_checkpoints(folder)))
+    manifest, steps = start.manifest, start.steps
+    timings = (0.0, 0.0) if manifest is None else (float(manifest.get("collect_s", 0.0)), float(manifest.get("learn_s", 0.0)))
     with torch_threads(config.torch_threads):
         learner = _Learner(config, env_seed=config.seed + steps)
         if manifest is not None:
             learner.restore(load_checkpoint(out / manifest["checkpoint"]), str(out / manifest["checkpoint"]))
         learner.collect_s, learner.learn_s = timings
         extra = {"git": source_revision()}
-        session_start = time.perf_counter()
+        progress = RunProgress(out, config, start, f"{config.scenario}: TorchRL {manifest_algorithm(config)}, seed {config.seed}")
         last_saved = last_eval = steps
-
-        def wall() -> float:
-            return wall_before + time.perf_counter() - session_start
+        wall = progress.wall
 
         def evaluate_now() -> None:
-            start = time.perf_counter()
-            record = {"num_timesteps": steps, "wall_time_s": wall(), **_evaluate(learner, config),
-                      "eval_seconds": time.perf_counter() - start, "sample_actions": config.eval_sample_actions}
-            records.append(record)
-            write_evaluations(out, config, records)
-            write_curves(out, records, f"{config.scenario}: TorchRL {manifest_algorithm(config)}, seed {config.seed}")
+            progress.evaluate(steps, lambda: _evaluate(learner, config))
 
         collector = Collector(learner.env, learner.actor, frames_per_batch=config.batch_size, total_frames=-1,
                               auto_register_policy_transforms=False)  # a feed-forward actor needs no InitTracker
@@ -257,12 +227,12 @@ def train_torchrl(config: TorchRLTrainConfig, out: str | Path, resume: bool = Fa
         try:
             batches = iter(collector)
             while steps < config.steps:
-                start = time.perf_counter()
+                began = time.perf_counter()
                 batch = next(batches)
                 collected = time.perf_counter()
                 learner.update(batch)
                 collector.update_policy_weights_()
-                learner.collect_s += collected - start
+                learner.collect_s += collected - began
                 learner.learn_s += time.perf_counter() - collected
                 steps += int(batch.numel())
                 if steps - last_saved >= config.checkpoint_every and steps < config.steps:
@@ -273,7 +243,7 @@ def train_torchrl(config: TorchRLTrainConfig, out: str | Path, resume: bool = Fa
                     last_eval = steps
         finally:
             collector.shutdown()
-        if config.eval_every > 0 and (not records or records[-1]["num_timesteps"] != steps):
+        if config.eval_every > 0 and not progress.evaluated_at(steps):
             evaluate_now()
         if manifest_now is None or manifest_now["num_timesteps"] != steps:
             manifest_now = _save(out, learner, config, steps, wall(), extra)
