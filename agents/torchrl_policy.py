@@ -53,6 +53,8 @@ CHECKPOINT_KEYS = ("actor", "critic", "n_agents", "obs_dim", "n_actions", "net_a
 
 def _mlp(n_inputs: int, n_outputs: int, n_agents: int, centralised: bool, net_arch: Sequence[int]):
     import torch
+
+    import moma_env.vector.torchrl  # noqa: F401  (torchrl imported first there, multiprocessing's start method kept)
     from torchrl.modules import MultiAgentMLP
 
     return MultiAgentMLP(
@@ -160,7 +162,7 @@ class TorchRLPolicy:
         if configuration is not None and config.get("scenario") != configuration:
             raise TrainingDirError(f"{str(directory)!r} was trained on {config.get('scenario')!r}, not {configuration!r}")
         try:
-            import torchrl  # noqa: F401
+            import moma_env.vector.torchrl  # noqa: F401  (imports torchrl keeping multiprocessing's start method)
         except ImportError as err:
             raise TrainingDirError(f"loading a TorchRL policy needs the 'torchrl' extra: {err}") from None
         state = load_checkpoint(directory / manifest["checkpoint"])

@@ -101,7 +101,7 @@ def test_final_error_term_charges_the_mean_error_once_when_the_team_arrives():
 
 
 def test_training_config_takes_a_task_and_its_objective():
-    from training.train.command import scenario_rewards
+    from training.train.command_common import scenario_rewards
     from training.train.config import TrainConfig
     from moma_env.tasks import TEAM_REWARDS
 

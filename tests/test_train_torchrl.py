@@ -10,7 +10,9 @@ import json
 import numpy as np
 import pytest
 
-pytest.importorskip("torchrl", reason="needs the 'torchrl' extra")
+# through the adapter, which puts multiprocessing's start method back after importing torchrl
+# (torchrl's import sets it to "spawn", which other tests' AsyncVectorEnv workers would inherit)
+pytest.importorskip("moma_env.vector.torchrl", reason="needs the 'torchrl' extra")
 
 import torch  # noqa: E402
 

@@ -86,7 +86,7 @@ def bench_training(steps: int) -> list[dict]:
         training_fps(steps, envs=8, route="shared", scenario="top_observer_team4", algo="maskable_ppo"),
     ]
     try:
-        import torchrl  # noqa: F401
+        import moma_env.vector.torchrl  # noqa: F401  (imports torchrl keeping multiprocessing's start method)
     except ImportError:
         return rows
     return [*rows, torchrl_training_fps(steps, envs=8)]

@@ -8,10 +8,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import sys
 from pathlib import Path
-from collections.abc import Callable
 from types import MappingProxyType
 
 from typing import TYPE_CHECKING
@@ -19,7 +17,8 @@ from typing import TYPE_CHECKING
 from moma_env.config import ConfigError
 from moma_env.tasks import TASKS
 from training.cli_args import ACTION_MODE_NAMES, SCENARIO_NAMES, choice, int_at_least
-from training.train.config import ALGORITHMS, NETWORKS, ROUTES, TEACHERS, TrainConfig, reward_overrides
+from training.train.command_common import report_training, scenario_rewards
+from training.train.config import ALGORITHMS, NETWORKS, ROUTES, TEACHERS, TrainConfig
 
 if TYPE_CHECKING:
     from moma_env.env.config import RewardConfig
@@ -33,7 +32,7 @@ TRAIN_EPILOG = """exit status:
   130  interrupted (Ctrl-C): --out keeps the last checkpoint; --resume continues from it
 """
 
-__all__ = ["add_train_parser", "run_train", "config_from_args", "train_command", "report_training", "scenario_rewards"]
+__all__ = ["add_train_parser", "run_train", "config_from_args", "train_command"]
 
 
 def _layers(text: str) -> tuple[int, ...]:
@@ -121,15 +120,6 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     add_torchrl_arguments(tr)
     tr.set_defaults(handler=run_train)
     return tr
-
-
-def scenario_rewards(scenario: str, pairs: list[str]) -> RewardConfig | None:
-    """None without ``--reward`` (the scenario's own weights), else those pairs over a
-    task's weights (:data:`moma_env.tasks.TASKS`) or the defaults."""
-    if not pairs:
-        return None
-    task = TASKS.get(scenario)
-    return reward_overrides(pairs, None if task is None else task.options.get("rewards"))
 
 
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
@@ -235,18 +225,3 @@ def run_train(args: argparse.Namespace) -> int:
                          f"{manifest['num_timesteps']} timesteps, {manifest['wall_time_s']:.1f} s of training wall time\n"
                          f"model: {Path(args.out) / manifest['model']}\nmanifest: {Path(args.out) / 'manifest.json'}",
     )
-
-
-def report_training(args: argparse.Namespace, run: Callable[[], dict], summary: Callable[[dict], str]) -> int:
-    """Run a backend's training (``run`` returns its final manifest) and report it: the manifest
-    as JSON with ``--json``, else ``summary(manifest)``; exit status 0, or 2 with one line
-    when the run folder cannot be trained in or resumed (``TrainingDirError``)."""
-    from agents.learned import TrainingDirError
-
-    try:
-        manifest = run()
-    except TrainingDirError as err:
-        print(f"moma-env train: {err}", file=sys.stderr)
-        return 2
-    print(json.dumps(manifest, indent=2, sort_keys=True) if args.json else summary(manifest))
-    return 0

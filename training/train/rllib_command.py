@@ -44,7 +44,7 @@ def add_rllib_arguments(parser: argparse.ArgumentParser) -> None:
 def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
     """The :class:`RllibTrainConfig` of ``moma-env train --backend rllib`` (ConfigError names a bad option)."""
     from moma_env.config import ConfigError
-    from training.train.command import scenario_rewards
+    from training.train.command_common import scenario_rewards
     from training.train.rllib_config import RllibTrainConfig
 
     if args.algo != "ppo":
@@ -72,7 +72,7 @@ def run_rllib_train(args: argparse.Namespace) -> int:
     except ImportError as err:
         print(f"moma-env train: --backend rllib needs the 'ray' extra (pip install -e '.[ray]'): {err}", file=sys.stderr)
         return 2
-    from training.train.command import report_training
+    from training.train.command_common import report_training
 
     return report_training(
         args, lambda: train_rllib(config, args.out, resume=args.resume, address=args.address),

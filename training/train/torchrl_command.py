@@ -38,7 +38,7 @@ def add_torchrl_arguments(parser: argparse.ArgumentParser) -> None:
 def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
     """The :class:`TorchRLTrainConfig` of ``moma-env train --backend torchrl`` (ConfigError names a bad option)."""
     from moma_env.config import ConfigError
-    from training.train.command import scenario_rewards
+    from training.train.command_common import scenario_rewards
     from training.train.torchrl_config import TORCHRL_ACTION_MODE, TorchRLTrainConfig
 
     if args.algo not in ("ppo", "maskable_ppo"):
@@ -66,13 +66,13 @@ def run_torchrl_train(args: argparse.Namespace) -> int:
     """Handler of ``moma-env train --backend torchrl``: exit status 0, or 2 with a one-line message."""
     config = torchrl_config_from_args(args)  # ConfigError -> the CLI's exit status 2
     try:
-        import torchrl  # noqa: F401
+        import moma_env.vector.torchrl  # noqa: F401  (imports torchrl keeping multiprocessing's start method)
 
         from training.train.torchrl_run import manifest_algorithm, train_torchrl
     except ImportError as err:
         print(f"moma-env train: --backend torchrl needs the 'torchrl' extra (pip install -e '.[torchrl]'): {err}", file=sys.stderr)
         return 2
-    from training.train.command import report_training
+    from training.train.command_common import report_training
 
     def summary(manifest: dict) -> str:
         steps, collect, learn = manifest["num_timesteps"], manifest["collect_s"], manifest["learn_s"]

@@ -61,13 +61,13 @@ class _Learner:
 
     def __init__(self, config: TorchRLTrainConfig, env_seed: int):
         import torch
+
+        from moma_env.vector.torchrl import UGV_GROUP, MomaTorchRLEnv  # first: torchrl imported keeping the start method
         from tensordict.nn import TensorDictModule
         from torchrl.modules import MaskedCategorical, ProbabilisticActor
         from torchrl.modules.value_norm import PopArtValueNorm
         from torchrl.objectives import ValueEstimators
         from torchrl.objectives.multiagent import IPPOLoss, MAPPOLoss
-
-        from moma_env.vector.torchrl import UGV_GROUP, MomaTorchRLEnv
 
         assert UGV_GROUP == GROUP
         self.config = config
@@ -200,6 +200,7 @@ def train_torchrl(config: TorchRLTrainConfig, out: str | Path, resume: bool = Fa
             observer is an agent.
         agents.learned.TrainingDirError: ``resume`` without a loadable TorchRL run in ``out``.
     """
+    from moma_env.vector.torchrl import MomaTorchRLEnv  # noqa: F401  (imports torchrl keeping multiprocessing's start method)
     from torchrl.collectors import Collector
 
     from training.train.checkpoint import source_revision
