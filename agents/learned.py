@@ -66,6 +66,7 @@ from gymnasium import spaces
 
 from moma_env import ENV_VERSION
 from moma_env.env.centralised import CentralisedTeamEnv
+from agents.ugv_policy import TrainedUgvPolicy
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.io import read_json_in
 
@@ -313,7 +314,7 @@ def torch_threads(n: int) -> Iterator[None]:
         torch.set_num_threads(previous)
 
 
-class LearnedPolicy:
+class LearnedPolicy(TrainedUgvPolicy):
     """A trained model acting for every UGV agent (see the module docstring).
 
     Args:
@@ -359,11 +360,6 @@ class LearnedPolicy:
         self._masked = _uses_action_masks(model)
         self._env: MomaParallelEnv | None = None
 
-    @property
-    def env_options(self) -> dict[str, Any]:
-        """Options of ``parallel_env`` that build an env this policy fits."""
-        return {"action_mode": self.action_mode, "observer_agent": False}
-
     @classmethod
     def from_dir(cls, directory: str | Path, configuration: str | None = None, deterministic: bool = True) -> "LearnedPolicy":
         """Load the checkpoint named by ``directory``'s manifest.
@@ -407,11 +403,7 @@ class LearnedPolicy:
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
         """Check that ``env`` fits the model; read its agents (call after ``env.reset``);
         seed the action sampler with ``seed`` (0 if None)."""
-        self._sampler = np.random.default_rng(0 if seed is None else seed)
-        if env.config.action_mode != self.action_mode:
-            raise ValueError(f"the policy was trained in {self.action_mode!r} mode; the env is in {env.config.action_mode!r} mode")
-        if env.observer_agents:
-            raise ValueError("the policy was trained with the observer flown by its tracking controller: build the env with observer_agent=False")
+        self._begin_episode(env, seed)
         self._agents = list(env.possible_agents)
         self._env = env
         expected = self.model.observation_space.shape

@@ -26,6 +26,7 @@ import numpy as np
 
 from agents.learned import TrainingDirError
 from agents.run_manifest import is_backend_run, read_backend_manifest
+from agents.ugv_policy import TrainedUgvPolicy
 from moma_env.env.parallel import MomaParallelEnv
 
 __all__ = ["RllibPolicy", "is_rllib_run", "read_rllib_manifest", "BACKEND", "UGV_MODULE_PATH"]
@@ -56,7 +57,7 @@ def read_rllib_manifest(directory: str | Path) -> dict[str, Any]:
     return manifest
 
 
-class RllibPolicy:
+class RllibPolicy(TrainedUgvPolicy):
     """An RLlib module acting for every UGV agent (see the module docstring).
 
     Args:
@@ -77,11 +78,6 @@ class RllibPolicy:
         self._sampler = np.random.default_rng(0)
         self._env: MomaParallelEnv | None = None
         self._agents: list[str] = []
-
-    @property
-    def env_options(self) -> dict[str, Any]:
-        """Options of ``parallel_env`` that build an env this policy fits."""
-        return {"action_mode": self.action_mode, "observer_agent": False}
 
     @classmethod
     def from_dir(cls, directory: str | Path, configuration: str | None = None, deterministic: bool = True) -> "RllibPolicy":
@@ -111,11 +107,7 @@ class RllibPolicy:
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
         """Check that ``env`` fits the module (mode, no observer agent, observation shape);
         seed the action sampler with ``seed`` (0 if None). Call after ``env.reset``."""
-        self._sampler = np.random.default_rng(0 if seed is None else seed)
-        if env.config.action_mode != self.action_mode:
-            raise ValueError(f"the policy was trained in {self.action_mode!r} mode; the env is in {env.config.action_mode!r} mode")
-        if env.observer_agents:
-            raise ValueError("the policy was trained with the observer flown by its tracking controller: build the env with observer_agent=False")
+        self._begin_episode(env, seed)
         self._env = env
         self._agents = list(env.possible_agents)
         space = self.module.observation_space

@@ -33,6 +33,7 @@ import numpy as np
 
 from agents.learned import TrainingDirError, torch_threads
 from agents.run_manifest import is_backend_run, read_backend_manifest
+from agents.ugv_policy import TrainedUgvPolicy
 from moma_env.env.parallel import MomaParallelEnv
 
 __all__ = [
@@ -114,7 +115,7 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
     return state
 
 
-class TorchRLPolicy:
+class TorchRLPolicy(TrainedUgvPolicy):
     """The shared actor acting for every UGV agent (see the module docstring).
 
     Args:
@@ -142,11 +143,6 @@ class TorchRLPolicy:
         self._sampler = np.random.default_rng(0)
         self._env: MomaParallelEnv | None = None
         self._agents: list[str] = []
-
-    @property
-    def env_options(self) -> dict[str, Any]:
-        """Options of ``parallel_env`` that build an env this policy fits."""
-        return {"action_mode": self.action_mode, "observer_agent": False}
 
     @classmethod
     def from_dir(cls, directory: str | Path, configuration: str | None = None, deterministic: bool = True) -> "TorchRLPolicy":
@@ -180,11 +176,7 @@ class TorchRLPolicy:
         """Check that ``env`` fits the actor (switching mode, no observer agent, the
         UGV count and observation length); seed the action sampler with ``seed`` (0 if
         None). Call after ``env.reset``."""
-        self._sampler = np.random.default_rng(0 if seed is None else seed)
-        if env.config.action_mode != self.action_mode:
-            raise ValueError(f"the policy was trained in {self.action_mode!r} mode; the env is in {env.config.action_mode!r} mode")
-        if env.observer_agents:
-            raise ValueError("the policy was trained with the observer flown by its tracking controller: build the env with observer_agent=False")
+        self._begin_episode(env, seed)
         agents = list(env.possible_agents)
         if len(agents) != self.n_agents:
             raise ValueError(f"the policy was trained for {self.n_agents} UGVs; this env has {len(agents)}")
