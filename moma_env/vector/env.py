@@ -1,6 +1,7 @@
 """A batched multi-agent env: ``num_envs`` copies of one MOMA configuration stepped together.
 
-:func:`make` returns a :class:`MomaVectorEnv`. Every copy is the PettingZoo env's
+:func:`moma_env.vector.make` returns a :class:`MomaVectorEnv` (or, with ``workers``, a
+:class:`~moma_env.vector.sharded.ShardedVectorEnv` of them in worker processes). Every copy is the PettingZoo env's
 own step (:class:`~moma_env.env.parallel.MomaParallelEnv` over its
 :class:`~moma_env.sim.Simulation`): one implementation of the camera, the
 estimator, the rules, the rewards and the observations, whatever ``num_envs`` is.
@@ -36,7 +37,6 @@ episode's simulated duration, s) and, in switching mode, ``"final_action_masks"`
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from numbers import Integral
 from typing import Any
 
 import numpy as np
@@ -44,18 +44,13 @@ from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
+from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_seeds, random_actions
 from moma_env.camera import MeasureRequest, measure_batch
 
-__all__ = ["FINAL_KEYS", "MomaVectorEnv", "make"]
+__all__ = ["FINAL_KEYS", "MomaVectorEnv"]
 
 #: The keys the autoreset adds to a copy's infos (see the module docstring).
 FINAL_KEYS = ("final_observation", "final_info", "final_state", "final_time", "final_action_masks")
-
-
-def make(name: str, num_envs: int, **options: Any) -> MomaVectorEnv:
-    """``num_envs`` copies of configuration ``name``; ``options`` are every option of
-    :func:`moma_env.env.factory.parallel_env` (env options and configuration fields)."""
-    return MomaVectorEnv(name, num_envs, **options)
 
 
 def _stack(values: Sequence[Any]) -> Any:
@@ -74,15 +69,15 @@ class MomaVectorEnv:
     """
 
     def __init__(self, name: str, num_envs: int, **options: Any):
-        if isinstance(num_envs, bool) or not isinstance(num_envs, Integral) or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        self.num_envs = int(num_envs)
+        self.num_envs = checked_count("num_envs", num_envs)
         self.envs: tuple[MomaParallelEnv, ...] = tuple(parallel_env(name, **options) for _ in range(self.num_envs))
         first = self.envs[0]
         self.possible_agents = list(first.possible_agents)
         self.agents = list(self.possible_agents)
         self.metadata = dict(first.metadata)
         self.render_mode = first.render_mode
+        #: One copy's ``state()`` space (float32 ``(state_dim,)``).
+        self.state_space: spaces.Box = first.state_space
         self._masks = first.config.action_mode == "switching"
         self._started = False
         #: The batch measurement of a step: every copy's camera requests -> that copy's
@@ -91,6 +86,11 @@ class MomaVectorEnv:
         self.measure: Callable[[Sequence[Sequence[MeasureRequest]]], list[list[Any]]] = measure_copies
 
     # ------------------------------------------------------------------ spaces
+    @property
+    def spec_env(self) -> MomaParallelEnv:
+        """A parallel env of the configuration, for its spaces and layout (copy 0: read it, do not step it)."""
+        return self.envs[0]
+
     def single_observation_space(self, agent: str) -> spaces.Space:
         """One copy's observation space of ``agent``."""
         return self.envs[0].observation_space(agent)
@@ -100,75 +100,23 @@ class MomaVectorEnv:
         return self.envs[0].action_space(agent)
 
     # ------------------------------------------------------------------ reset
-    def _seeds(self, seed: int | Sequence[int] | None) -> list[int | None]:
-        if seed is None:
-            return [None] * self.num_envs
-        if isinstance(seed, Sequence) and not isinstance(seed, str):
-            if len(seed) != self.num_envs:
-                raise ValueError(f"seed: a sequence must hold num_envs={self.num_envs} seeds, got {len(seed)}")
-            return [checked_seed(s) for s in seed]
-        base = checked_seed(seed)
-        return [base + i for i in range(self.num_envs)]
-
     def reset(self, seed: int | Sequence[int] | None = None, options: dict | None = None) -> tuple[dict[str, Any], tuple[dict, ...]]:
         """Reset every copy (see the module docstring for the seeds)."""
-        results = [env.reset(seed=s, options=options) for env, s in zip(self.envs, self._seeds(seed))]
+        results = [env.reset(seed=s, options=options) for env, s in zip(self.envs, copy_seeds(seed, self.num_envs))]
         self._started = True
         observations = {a: _stack([obs[a] for obs, _ in results]) for a in self.possible_agents}
         return observations, tuple(infos for _, infos in results)
 
     def reset_at(self, index: int, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, Any], dict]:
         """Reset copy ``index`` alone; its observations (agent -> one copy's observation) and infos."""
-        return self.envs[self._checked_index(index)].reset(seed=checked_seed(seed), options=options)
-
-    def _checked_index(self, index: object) -> int:
-        if isinstance(index, bool) or not isinstance(index, Integral) or not 0 <= index < self.num_envs:
-            raise IndexError(f"copy index must be an integer in [0, {self.num_envs}), got {index!r}")
-        return int(index)
+        return self.envs[checked_index(index, self.num_envs)].reset(seed=checked_seed(seed), options=options)
 
     # ------------------------------------------------------------------ step
-    def _checked_actions(self, actions: Mapping[str, Any]) -> dict[str, np.ndarray]:
-        if not isinstance(actions, Mapping):
-            raise TypeError(f"actions must be a mapping agent -> array of shape (num_envs, ...), got {type(actions).__name__}")
-        unknown = sorted(set(actions) - set(self.possible_agents))
-        if unknown:
-            raise KeyError(f"actions for unknown agent(s) {unknown}; agents are {self.possible_agents}")
-        out = {}
-        for agent in self.possible_agents:
-            space = self.single_action_space(agent)
-            if agent not in actions:
-                raise KeyError(f"no action for agent {agent!r}: every agent acts in every copy")
-            if isinstance(space, spaces.Discrete):
-                shape, what = (self.num_envs,), f"integers in [0, {space.n})"
-            else:
-                shape, what = (self.num_envs, *space.shape), "finite real numbers"
-            try:
-                a = np.asarray(actions[agent])
-            except Exception:  # noqa: BLE001 - whatever numpy refuses is refused below
-                a = np.asarray(None)
-            expected = f"an array of shape {shape} of {what} (space {space})"
-            if a.shape != shape:
-                raise ValueError(f"actions of {agent!r} must be {expected}, got shape {a.shape}")
-            if isinstance(space, spaces.Discrete):
-                if a.dtype.kind not in "iu":
-                    raise ValueError(f"actions of {agent!r} must be {expected}, got dtype {a.dtype}")
-                bad = np.flatnonzero((a < 0) | (a >= space.n))
-                if bad.size:
-                    raise ValueError(f"actions of {agent!r} must be {expected}; copy {int(bad[0])} has {a[bad[0]].item()!r}")
-            else:
-                if a.dtype.kind not in "iuf":
-                    raise ValueError(f"actions of {agent!r} must be {expected}, got dtype {a.dtype}")
-                finite = np.isfinite(a).reshape(self.num_envs, -1).all(axis=1)
-                if not finite.all():
-                    raise ValueError(f"actions of {agent!r} must be {expected}; copy {int(np.flatnonzero(~finite)[0])} is not finite")
-            out[agent] = a
-        return out
-
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
         """Step every copy with its row of ``actions``; a copy whose episode ends resets (``SAME_STEP``)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        checked = self._checked_actions(actions)
+        checked = checked_actions(actions, self.possible_agents, self.single_action_space, self.num_envs)
         agents = self.possible_agents
         n = self.num_envs
         obs_rows: list[dict] = []
@@ -196,16 +144,9 @@ class MomaVectorEnv:
         return observations, rewards, terminations, truncations, tuple(infos)
 
     def sample_actions(self, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        """Uniform random actions of every agent for every copy, drawn from ``rng``: integers
-        ``(num_envs,)`` for a Discrete agent, float32 ``(num_envs, *shape)`` in [-1, 1] for a Box one."""
-        out = {}
-        for agent in self.possible_agents:
-            space = self.single_action_space(agent)
-            if isinstance(space, spaces.Discrete):
-                out[agent] = rng.integers(0, space.n, size=self.num_envs)
-            else:
-                out[agent] = rng.uniform(-1.0, 1.0, size=(self.num_envs, *space.shape)).astype(np.float32)
-        return out
+        """Uniform random actions of every agent for every copy, drawn from ``rng``
+        (:func:`~moma_env.vector.batch_checks.random_actions`)."""
+        return random_actions(self.possible_agents, self.single_action_space, self.num_envs, rng)
 
     # ------------------------------------------------------------------ the rest
     def action_masks(self) -> dict[str, np.ndarray]:
@@ -219,7 +160,13 @@ class MomaVectorEnv:
 
     def render(self, index: int = 0) -> np.ndarray | None:
         """Copy ``index``'s ``render()``."""
-        return self.envs[self._checked_index(index)].render()
+        return self.envs[checked_index(index, self.num_envs)].render()
+
+    def call_at(self, index: int, function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        """``function(env, *args, **kwargs)`` on copy ``index``'s parallel env ``env``, and its
+        result (what :class:`~moma_env.vector.sharded.ShardedVectorEnv` runs in the copy's
+        worker; there ``function`` must be picklable: a module-level function)."""
+        return function(self.envs[checked_index(index, self.num_envs)], *args, **kwargs)
 
     def close(self) -> None:
         for env in self.envs:

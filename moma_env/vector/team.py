@@ -42,7 +42,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from moma_env.env.centralised import TeamLayout
-from moma_env.vector.env import FINAL_KEYS, MomaVectorEnv
+from moma_env.vector.env import FINAL_KEYS
+from moma_env.vector.make import make
 
 __all__ = ["TeamVectorEnv"]
 
@@ -52,21 +53,25 @@ class TeamVectorEnv(VectorEnv):
     Args:
         configuration: configuration name (``"top_observer"``, ...).
         num_envs: number of copies ``K`` >= 1.
+        workers: None steps the copies in this process; ``W`` splits them over ``W``
+            worker processes (:func:`moma_env.vector.make`; the same episodes).
         options: options of :func:`moma_env.env.factory.parallel_env` (env options
             and configuration fields), as ``gymnasium.make(id, **options)`` takes.
 
     Attributes:
-        vector: the :class:`MomaVectorEnv` stepped (per-agent arrays, ``state()``, ``reset_at``).
+        vector: the batched env stepped (per-agent arrays, ``state()``, ``reset_at``): a
+            :class:`~moma_env.vector.env.MomaVectorEnv`, or with ``workers`` a
+            :class:`~moma_env.vector.sharded.ShardedVectorEnv`.
         layout: the team layout shared with :class:`CentralisedTeamEnv`.
 
     Raises:
         ValueError: ``num_envs`` < 1, or an observation that is not a vector (``observer_image``).
     """
 
-    def __init__(self, configuration: str, num_envs: int = 1, **options: Any):
-        self.vector = MomaVectorEnv(configuration, num_envs, **options)
+    def __init__(self, configuration: str, num_envs: int = 1, *, workers: int | None = None, **options: Any):
+        self.vector = make(configuration, num_envs, workers=workers, **options)
         self.num_envs = self.vector.num_envs
-        first = self.vector.envs[0]
+        first = self.vector.spec_env
         self.layout = TeamLayout.of(first)
         self.single_observation_space = self.layout.observation_space
         self.single_action_space = self.layout.action_space

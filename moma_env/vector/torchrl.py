@@ -66,7 +66,7 @@ if multiprocessing.get_start_method(allow_none=True) != _START_METHOD_BEFORE:
     multiprocessing.set_start_method(_START_METHOD_BEFORE, force=True)
 
 from moma_env.env.agent_names import is_observer_agent
-from moma_env.vector.env import MomaVectorEnv
+from moma_env.vector.make import BatchedEnv, make
 
 __all__ = ["MomaTorchRLEnv", "UGV_GROUP", "OBSERVER_GROUP"]
 
@@ -76,7 +76,7 @@ UGV_GROUP = "ugv"
 OBSERVER_GROUP = "observer"
 
 
-def _group_specs(vector: MomaVectorEnv, agents: list[str], batch: torch.Size) -> tuple[Composite, Composite, bool]:
+def _group_specs(vector: BatchedEnv, agents: list[str], batch: torch.Size) -> tuple[Composite, Composite, bool]:
     """``(observation spec, action spec, discrete)`` of one group of agents with equal spaces.
 
     Raises:
@@ -124,18 +124,29 @@ class MomaTorchRLEnv(EnvBase):
         num_envs: number of copies ``B`` >= 1.
         seed: if given, :meth:`set_seed` with it.
         device: the tensors' device.
+        workers: None steps the copies in this process; ``W`` splits them over ``W``
+            worker processes (:func:`moma_env.vector.make`; the same episodes).
         options: options of :func:`moma_env.env.factory.parallel_env`.
 
     Attributes:
-        vector: the :class:`MomaVectorEnv` stepped.
+        vector: the batched env stepped (:func:`moma_env.vector.make`).
         group_map: group name -> its agents (``possible_agents`` order).
 
     Raises:
         ValueError: the UGVs' spaces differ, or an observation is not a vector.
     """
 
-    def __init__(self, configuration: str, num_envs: int, *, seed: int | None = None, device: str | torch.device = "cpu", **options: Any):
-        self.vector = MomaVectorEnv(configuration, num_envs, **options)
+    def __init__(
+        self,
+        configuration: str,
+        num_envs: int,
+        *,
+        seed: int | None = None,
+        device: str | torch.device = "cpu",
+        workers: int | None = None,
+        **options: Any,
+    ):
+        self.vector = make(configuration, num_envs, workers=workers, **options)
         super().__init__(device=device, batch_size=torch.Size([self.vector.num_envs]))
         agents = self.vector.possible_agents
         self.group_map: dict[str, list[str]] = {UGV_GROUP: [a for a in agents if not is_observer_agent(a)]}
@@ -157,7 +168,7 @@ class MomaTorchRLEnv(EnvBase):
             done_spec[group] = Composite(_done_spec(group_shape), shape=group_shape)
             if discrete:
                 self._masked.append(group)
-        state_shape = self.vector.envs[0].state_space.shape
+        state_shape = self.vector.state_space.shape
         observation_spec["state"] = Unbounded(shape=(*batch, *state_shape), dtype=torch.float32)
         self.observation_spec = observation_spec
         self.action_spec = action_spec

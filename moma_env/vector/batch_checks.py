@@ -1,0 +1,105 @@
+"""The boundary checks every batched env shares: seeds, copy indices and action arrays.
+
+:class:`~moma_env.vector.env.MomaVectorEnv` (copies in this process) and
+:class:`~moma_env.vector.sharded.ShardedVectorEnv` (copies in worker processes)
+take the same arguments and refuse the same bad ones with the same messages,
+before any copy is touched.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from numbers import Integral
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from moma_env.env.parallel import checked_seed
+
+__all__ = ["checked_actions", "checked_count", "checked_index", "copy_seeds", "random_actions"]
+
+
+def checked_count(name: str, value: object) -> int:
+    """``value`` as an int if it is an integer >= 1, else ValueError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, Integral) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
+def copy_seeds(seed: int | Sequence[int] | None, num_envs: int) -> list[int | None]:
+    """Each copy's reset seed (Gymnasium's vector rule): ``seed + i`` for copy ``i``,
+    the sequence itself if ``seed`` is one of ``num_envs`` seeds, or None for every copy."""
+    if seed is None:
+        return [None] * num_envs
+    if isinstance(seed, Sequence) and not isinstance(seed, str):
+        if len(seed) != num_envs:
+            raise ValueError(f"seed: a sequence must hold num_envs={num_envs} seeds, got {len(seed)}")
+        return [checked_seed(s) for s in seed]
+    base = checked_seed(seed)
+    return [base + i for i in range(num_envs)]  # type: ignore[operator]
+
+
+def checked_index(index: object, num_envs: int) -> int:
+    """``index`` as an int if it names a copy (``0 <= index < num_envs``), else IndexError."""
+    if isinstance(index, (bool, np.bool_)) or not isinstance(index, Integral) or not 0 <= index < num_envs:
+        raise IndexError(f"copy index must be an integer in [0, {num_envs}), got {index!r}")
+    return int(index)
+
+
+def checked_actions(
+    actions: Mapping[str, Any], agents: Sequence[str], action_space: Callable[[str], spaces.Space], num_envs: int
+) -> dict[str, np.ndarray]:
+    """``actions`` (agent -> ``(num_envs, *act_shape)``) as arrays, every agent's checked:
+    a Discrete agent's integers in range, a Box agent's finite reals. Errors name the
+    agent, the expected shape and dtype and, for a bad value, the first bad copy."""
+    if not isinstance(actions, Mapping):
+        raise TypeError(f"actions must be a mapping agent -> array of shape (num_envs, ...), got {type(actions).__name__}")
+    unknown = sorted(set(actions) - set(agents))
+    if unknown:
+        raise KeyError(f"actions for unknown agent(s) {unknown}; agents are {list(agents)}")
+    out = {}
+    for agent in agents:
+        space = action_space(agent)
+        if agent not in actions:
+            raise KeyError(f"no action for agent {agent!r}: every agent acts in every copy")
+        if isinstance(space, spaces.Discrete):
+            shape, what = (num_envs,), f"integers in [0, {space.n})"
+        else:
+            shape, what = (num_envs, *space.shape), "finite real numbers"
+        try:
+            a = np.asarray(actions[agent])
+        except Exception:  # noqa: BLE001 - whatever numpy refuses is refused below
+            a = np.asarray(None)
+        expected = f"an array of shape {shape} of {what} (space {space})"
+        if a.shape != shape:
+            raise ValueError(f"actions of {agent!r} must be {expected}, got shape {a.shape}")
+        if isinstance(space, spaces.Discrete):
+            if a.dtype.kind not in "iu":
+                raise ValueError(f"actions of {agent!r} must be {expected}, got dtype {a.dtype}")
+            bad = np.flatnonzero((a < 0) | (a >= space.n))
+            if bad.size:
+                raise ValueError(f"actions of {agent!r} must be {expected}; copy {int(bad[0])} has {a[bad[0]].item()!r}")
+        else:
+            if a.dtype.kind not in "iuf":
+                raise ValueError(f"actions of {agent!r} must be {expected}, got dtype {a.dtype}")
+            finite = np.isfinite(a).reshape(num_envs, -1).all(axis=1)
+            if not finite.all():
+                raise ValueError(f"actions of {agent!r} must be {expected}; copy {int(np.flatnonzero(~finite)[0])} is not finite")
+        out[agent] = a
+    return out
+
+
+def random_actions(
+    agents: Sequence[str], action_space: Callable[[str], spaces.Space], num_envs: int, rng: np.random.Generator
+) -> dict[str, np.ndarray]:
+    """Uniform random actions of every agent for every copy, drawn from ``rng``: integers
+    ``(num_envs,)`` for a Discrete agent, float32 ``(num_envs, *shape)`` in [-1, 1] for a Box one."""
+    out = {}
+    for agent in agents:
+        space = action_space(agent)
+        if isinstance(space, spaces.Discrete):
+            out[agent] = rng.integers(0, space.n, size=num_envs)
+        else:
+            out[agent] = rng.uniform(-1.0, 1.0, size=(num_envs, *space.shape)).astype(np.float32)
+    return out

@@ -1,0 +1,299 @@
+"""A batched env whose copies are split over worker processes: :class:`ShardedVectorEnv`.
+
+``make(name, num_envs, workers=W)`` splits the ``num_envs`` copies into ``W``
+contiguous shards (sizes differing by at most one, the first ones larger), each a
+:class:`~moma_env.vector.env.MomaVectorEnv` in its own process. A step sends
+every shard its rows of the actions, the shards step at the same time, and their
+results are joined in copy order, so the batch has the interface and the
+episodes of one :class:`MomaVectorEnv` of ``num_envs`` copies, bit for bit: copy
+``i`` is reset with the seed it would get there (``s + i``) and runs the same
+code on its own generator. What changes is the wall time: on a machine with
+``W`` free cores the copies' Python runs ``W`` at a time.
+
+The actions, seeds and indices are checked here, before a worker is asked
+(:mod:`moma_env.vector.batch_checks`: the same errors as the in-process batch).
+An error inside a worker is raised here with its own type and the worker's
+traceback as a note; after an error in :meth:`step` the shards may be at
+different steps, so reset before stepping on.
+
+The workers start with the ``forkserver`` method where the platform has it (else
+``spawn``): a script that makes a sharded env must guard its main code with
+``if __name__ == "__main__":``, as for any multiprocessing pool.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import traceback
+import weakref
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from moma_env.env.factory import parallel_env
+from moma_env.env.parallel import MomaParallelEnv, checked_seed
+from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_seeds, random_actions
+from moma_env.vector.env import MomaVectorEnv
+
+__all__ = ["ShardedVectorEnv", "default_start_method", "shard_sizes"]
+
+
+def default_start_method() -> str:
+    """forkserver where the platform has it (workers start from a clean server process), else spawn."""
+    return "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
+
+
+def shard_sizes(num_envs: int, workers: int) -> list[int]:
+    """How many copies each of ``workers`` shards holds: contiguous, differing by at most one."""
+    base, extra = divmod(num_envs, workers)
+    return [base + (1 if k < extra else 0) for k in range(workers)]
+
+
+def _run(vector: MomaVectorEnv, command: str, payload: Any) -> Any:
+    """One command of the protocol on a worker's batch."""
+    if command == "step":
+        return vector.step(payload)
+    if command == "reset":
+        seeds, options = payload
+        return vector.reset(seed=seeds, options=options)
+    if command == "reset_at":
+        index, seed, options = payload
+        return vector.reset_at(index, seed=seed, options=options)
+    if command == "action_masks":
+        return vector.action_masks()
+    if command == "state":
+        return vector.state()
+    if command == "render":
+        return vector.render(payload)
+    if command == "call":
+        index, function, args, kwargs = payload
+        return vector.call_at(index, function, *args, **kwargs)
+    raise ValueError(f"unknown command {command!r}")
+
+
+def _error_message(error: BaseException) -> tuple[str, Any, str]:
+    """The reply of a failed command: the exception itself when it pickles, and its traceback."""
+    text = traceback.format_exc()
+    try:
+        import pickle
+
+        pickle.dumps(error)
+    except Exception:  # noqa: BLE001 - an exception that does not pickle goes as its text
+        return ("error", None, text)
+    return ("error", error, text)
+
+
+def _serve(connection, name: str, num_envs: int, options: dict[str, Any]) -> None:
+    """A worker's main loop: build its batch, then answer commands until ``close``."""
+    try:
+        vector = MomaVectorEnv(name, num_envs, **options)
+    except Exception as error:  # the parent raises it
+        connection.send(_error_message(error))
+        connection.close()
+        return
+    connection.send(("ok", None, ""))
+    while True:
+        try:
+            command, payload = connection.recv()
+        except (EOFError, OSError):  # the parent is gone
+            break
+        if command == "close":
+            vector.close()
+            connection.send(("ok", None, ""))
+            break
+        try:
+            result = _run(vector, command, payload)
+        except Exception as error:  # noqa: BLE001 - every error goes back to the parent
+            connection.send(_error_message(error))
+        else:
+            connection.send(("ok", result, ""))
+    connection.close()
+
+
+class _Shard:
+    """Copies ``first .. first + size - 1`` in one worker process."""
+
+    def __init__(self, index: int, first: int, size: int, name: str, options: dict[str, Any], context: mp.context.BaseContext):
+        self.index, self.first, self.size = index, first, size
+        self.connection, child = context.Pipe()
+        self.process = context.Process(target=_serve, args=(child, name, size, options), daemon=True, name=f"moma-shard-{index}")
+        self.process.start()
+        child.close()
+
+    def what(self) -> str:
+        return f"worker {self.index} (copies {self.first}..{self.first + self.size - 1})"
+
+    def send(self, command: str, payload: Any = None) -> None:
+        self.connection.send((command, payload))
+
+    def receive(self) -> tuple[str, Any, str]:
+        try:
+            return self.connection.recv()
+        except (EOFError, OSError):
+            return ("error", None, f"{self.what()} exited (exit code {self.process.exitcode})")
+
+
+def _raise_first(shards: Sequence[_Shard], replies: Sequence[tuple[str, Any, str]]) -> None:
+    """Raise the first failed reply's error (its own type, the worker's traceback as a note)."""
+    for shard, (status, value, text) in zip(shards, replies):
+        if status == "ok":
+            continue
+        if isinstance(value, BaseException):
+            value.add_note(f"raised in {shard.what()}:\n{text}")
+            raise value
+        raise RuntimeError(f"{shard.what()} failed:\n{text}")
+
+
+def _stop(shards: Sequence[_Shard]) -> None:
+    """End every worker: ask it to close, then terminate what is still running."""
+    for shard in shards:
+        try:
+            shard.send("close")
+        except (BrokenPipeError, OSError):
+            pass
+    for shard in shards:
+        shard.process.join(timeout=5)
+        if shard.process.is_alive():
+            shard.process.terminate()
+            shard.process.join(timeout=5)
+        shard.connection.close()
+
+
+def _join(parts: Sequence[Any]) -> Any:
+    """Per-shard ``(n_k, ...)`` arrays (or dicts of them) joined along the copies."""
+    if isinstance(parts[0], dict):
+        return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+    return np.concatenate(parts)
+
+
+class ShardedVectorEnv:
+    """``num_envs`` copies of one configuration in ``workers`` processes; see the module docstring.
+
+    Args:
+        name: configuration name (``"top_observer"``, ...).
+        num_envs: number of copies (>= 1).
+        workers: number of worker processes (1 <= workers <= num_envs).
+        start_method: multiprocessing start method (default :func:`default_start_method`).
+        options: options of :func:`moma_env.env.factory.parallel_env` (must pickle).
+
+    Attributes:
+        spec_env: a parallel env of the configuration in this process, for its spaces
+            and layout only (never stepped).
+    """
+
+    def __init__(self, name: str, num_envs: int, workers: int, *, start_method: str | None = None, **options: Any):
+        self.num_envs = checked_count("num_envs", num_envs)
+        workers = checked_count("workers", workers)
+        if workers > self.num_envs:
+            raise ValueError(f"workers must be at most num_envs={self.num_envs}, got {workers}")
+        self.workers = workers
+        self.spec_env: MomaParallelEnv = parallel_env(name, **options)  # options checked here, before any worker
+        self.possible_agents = list(self.spec_env.possible_agents)
+        self.agents = list(self.possible_agents)
+        self.metadata = dict(self.spec_env.metadata)
+        self.render_mode = self.spec_env.render_mode
+        self.state_space: spaces.Box = self.spec_env.state_space
+        self._started = False
+        context = mp.get_context(start_method or default_start_method())
+        self._shards: list[_Shard] = []
+        first = 0
+        for k, size in enumerate(shard_sizes(self.num_envs, workers)):
+            self._shards.append(_Shard(k, first, size, name, dict(options), context))
+            first += size
+        self._closed = False
+        self._finalizer = weakref.finalize(self, _stop, self._shards)
+        _raise_first(self._shards, [shard.receive() for shard in self._shards])
+
+    # ------------------------------------------------------------------ spaces
+    def single_observation_space(self, agent: str) -> spaces.Space:
+        """One copy's observation space of ``agent``."""
+        return self.spec_env.observation_space(agent)
+
+    def single_action_space(self, agent: str) -> spaces.Space:
+        """One copy's action space of ``agent``."""
+        return self.spec_env.action_space(agent)
+
+    # ------------------------------------------------------------------ protocol
+    def _broadcast(self, command: str, payloads: Sequence[Any]) -> list[Any]:
+        """Send each shard its payload, then collect every reply (raising the first error)."""
+        if self._closed:
+            raise RuntimeError("the env is closed")
+        for shard, payload in zip(self._shards, payloads):
+            shard.send(command, payload)
+        replies = [shard.receive() for shard in self._shards]
+        _raise_first(self._shards, replies)
+        return [value for _, value, _ in replies]
+
+    def _at(self, index: object, command: str, payload: Callable[[int], Any]) -> Any:
+        """One command on the shard holding copy ``index`` (``payload(local index)``)."""
+        if self._closed:
+            raise RuntimeError("the env is closed")
+        i = checked_index(index, self.num_envs)
+        shard = next(s for s in self._shards if s.first <= i < s.first + s.size)
+        shard.send(command, payload(i - shard.first))
+        reply = shard.receive()
+        _raise_first([shard], [reply])
+        return reply[1]
+
+    def _rows(self, values: Sequence[Any]) -> list[list[Any]]:
+        return [list(values[s.first : s.first + s.size]) for s in self._shards]
+
+    # ------------------------------------------------------------------ reset and step
+    def reset(self, seed: int | Sequence[int] | None = None, options: dict | None = None) -> tuple[dict[str, Any], tuple[dict, ...]]:
+        """Reset every copy; copy ``i`` gets the seed of :class:`MomaVectorEnv` (``seed + i``)."""
+        seeds = self._rows(copy_seeds(seed, self.num_envs))
+        results = self._broadcast("reset", [(s, options) for s in seeds])
+        self._started = True
+        observations = {a: _join([obs[a] for obs, _ in results]) for a in self.possible_agents}
+        return observations, tuple(info for _, infos in results for info in infos)
+
+    def reset_at(self, index: int, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, Any], dict]:
+        """Reset copy ``index`` alone; its observations (agent -> one copy's observation) and infos."""
+        seed = checked_seed(seed)
+        return self._at(index, "reset_at", lambda local: (local, seed, options))
+
+    def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
+        """Step every copy with its row of ``actions`` (the shards at the same time); autoreset as
+        :class:`MomaVectorEnv` (``SAME_STEP``)."""
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        checked = checked_actions(actions, self.possible_agents, self.single_action_space, self.num_envs)
+        payloads = [{a: rows[s.first : s.first + s.size] for a, rows in checked.items()} for s in self._shards]
+        results = self._broadcast("step", payloads)
+        agents = self.possible_agents
+        observations = {a: _join([r[0][a] for r in results]) for a in agents}
+        rewards, terminations, truncations = ({a: np.concatenate([r[j][a] for r in results]) for a in agents} for j in (1, 2, 3))
+        return observations, rewards, terminations, truncations, tuple(info for r in results for info in r[4])
+
+    def sample_actions(self, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """Uniform random actions of every agent for every copy, drawn from ``rng``
+        (:func:`~moma_env.vector.batch_checks.random_actions`)."""
+        return random_actions(self.possible_agents, self.single_action_space, self.num_envs, rng)
+
+    # ------------------------------------------------------------------ the rest
+    def action_masks(self) -> dict[str, np.ndarray]:
+        """Switching mode: agent -> ``(num_envs, n)`` int8, each copy's ``action_masks()``."""
+        parts = self._broadcast("action_masks", [None] * self.workers)
+        return {a: np.concatenate([p[a] for p in parts]) for a in parts[0]}
+
+    def state(self) -> np.ndarray:
+        """``(num_envs, state_dim)`` float32: each copy's ``state()``."""
+        return np.concatenate(self._broadcast("state", [None] * self.workers))
+
+    def render(self, index: int = 0) -> np.ndarray | None:
+        """Copy ``index``'s ``render()`` (made in its worker)."""
+        return self._at(index, "render", lambda local: local)
+
+    def call_at(self, index: int, function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        """``function(env, *args, **kwargs)`` on copy ``index``'s parallel env, run in its worker
+        (``function``, the arguments and the result must pickle)."""
+        return self._at(index, "call", lambda local: (local, function, args, kwargs))
+
+    def close(self) -> None:
+        """End the workers (idempotent)."""
+        if not self._closed:
+            self._closed = True
+            self._finalizer()
+            self.spec_env.close()
