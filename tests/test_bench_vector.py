@@ -7,11 +7,14 @@ from training.cli import main
 
 
 def test_the_vector_bench_reports_every_row_and_stage():
-    result = run_vector_bench([1, 3], rounds=2, min_env_steps=6)
+    result = run_vector_bench([1, 3], rounds=2, min_env_steps=6, workers=[2])
     for label in CASES:
         for n in (1, 3):
             rates = result["rates"][f"{label}, num_envs={n}"]
             assert len(rates) == 2 and all(r > 0 for r in rates)
+    # the sharded row only where there is a copy per worker
+    assert len(result["rates"]["top_observer switching, 2 workers, num_envs=3"]) == 2
+    assert not any(key.endswith("2 workers, num_envs=1") for key in result["rates"])
     stages = result["breakdown_ms"]
     assert set(stages) == {"batch step", "camera", "estimator", "world", "rest"}
     assert 0 < stages["camera"] + stages["estimator"] + stages["world"] <= stages["batch step"]
@@ -22,6 +25,10 @@ def test_the_vector_bench_reports_every_row_and_stage():
 def test_the_vector_bench_refuses_bad_sizes():
     with pytest.raises(ValueError, match="num_envs >= 1"):
         run_vector_bench([0])
+    with pytest.raises(ValueError, match="workers >= 2"):
+        run_vector_bench([4], workers=[1])
+    with pytest.raises(SystemExit):
+        main(["bench", "--vector", "--workers", "1"])
     with pytest.raises(SystemExit):
         main(["bench", "--vector", "--num-envs", "0"])
 

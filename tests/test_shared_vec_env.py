@@ -59,11 +59,17 @@ def test_same_seed_same_first_rollout_and_another_seed_another():
         b.close()
 
 
-def test_worker_processes_give_the_same_rollout_as_in_process():
-    local, remote = SharedPolicyVecEnv(SPEC, 2), SharedPolicyVecEnv(SPEC, 2, subproc=True)
+#: The two ways of running copies in worker processes: one per copy, or the batch split in two.
+REMOTE = [{"subproc": True}, {"workers": 2}]
+
+
+@pytest.mark.parametrize("remote_kind", REMOTE)
+def test_worker_processes_give_the_same_rollout_as_in_process(remote_kind):
+    local, remote = SharedPolicyVecEnv(SPEC, 2), SharedPolicyVecEnv(SPEC, 2, **remote_kind)
     try:
         assert _same(_rollout(local, 11, 15), _rollout(remote, 11, 15))
         assert remote.get_attr("max_cycles", indices=[3]) == [12]
+        assert np.array_equal(remote.env_method("action_masks", indices=[0, 3]), local.env_method("action_masks", indices=[0, 3]))
     finally:
         local.close()
         remote.close()
@@ -75,10 +81,11 @@ def _text(value) -> str:
     return "|".join(out)
 
 
+@pytest.mark.parametrize("remote_kind", REMOTE)
 @pytest.mark.parametrize("mode", ["switching", "velocity"])
-def test_the_in_process_engine_is_the_vector_env_and_gives_the_workers_slots_infos_included(mode):
+def test_the_in_process_engine_is_the_vector_env_and_gives_the_workers_slots_infos_included(mode, remote_kind):
     spec = EnvSpec("caterpillar_multi", {"max_cycles": 9, "random_scenarios": True, "action_mode": mode})
-    local, remote = SharedPolicyVecEnv(spec, 2), SharedPolicyVecEnv(spec, 2, subproc=True)
+    local, remote = SharedPolicyVecEnv(spec, 2), SharedPolicyVecEnv(spec, 2, **remote_kind)
     try:
         assert isinstance(local.engine.vector, MomaVectorEnv) and local.engine.vector.num_envs == 2
         records = []
@@ -192,3 +199,8 @@ def test_ppo_with_a_seed_trains_reproducibly_on_the_adapter(one_torch_thread):
     first, again, other = learn(3), learn(3), learn(4)
     assert all(np.array_equal(a.numpy(), b.numpy()) for a, b in zip(first, again))
     assert not all(np.array_equal(a.numpy(), b.numpy()) for a, b in zip(first, other))
+
+
+def test_subproc_and_workers_exclude_each_other():
+    with pytest.raises(ValueError, match="exclude each other"):
+        SharedPolicyVecEnv(SPEC, 2, subproc=True, workers=2)

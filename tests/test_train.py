@@ -182,6 +182,18 @@ def test_evaluate_cli_runs_a_trained_policy_through_the_harness(tmp_path, capsys
     assert code == 2 and "trained in 'switching' mode, not 'velocity'" in capsys.readouterr().err
 
 
+def test_workers_are_checked_against_the_copies_the_route_and_subproc():
+    assert tiny(envs=4, workers=2).workers == 2
+    with pytest.raises(ConfigError, match="^workers: must be at most the number of env copies \\(2\\), got 3"):
+        tiny(envs=2, workers=3)
+    with pytest.raises(ConfigError, match="^workers: must be >= 1, got 0"):
+        tiny(envs=2, workers=0)
+    with pytest.raises(ConfigError, match="^workers: subproc runs a process per copy"):
+        tiny(envs=2, workers=2, subproc=True)
+    with pytest.raises(ConfigError, match="^workers: splits the shared route's batched env"):
+        tiny(envs=2, workers=2, route="centralised")
+
+
 def test_learned_policy_refuses_an_env_it_does_not_fit(tmp_path):
     train(tiny(steps=64), tmp_path / "run")
     policy = LearnedPolicy.from_dir(tmp_path / "run")
@@ -345,16 +357,27 @@ def test_sb3_metrics_go_to_one_csv_per_session_in_the_run_folder(tmp_path, monke
         assert rows and int(rows[-1][header.index("time/total_timesteps")]) == end
 
 
-@pytest.mark.parametrize("route", ["shared", "centralised"])
-def test_worker_processes_train_the_same_weights_as_one_process(tmp_path, route):
+@pytest.mark.parametrize("route,remote_kind", [("shared", {"subproc": True}), ("centralised", {"subproc": True}), ("shared", {"workers": 2})])
+def test_worker_processes_train_the_same_weights_as_one_process(tmp_path, route, remote_kind):
     import torch
 
     weights, rewards = [], []
-    for subproc in (False, True):
+    for k, kind in enumerate(({}, remote_kind)):
         keep = KeepModel()
-        train(tiny(route=route, envs=2, subproc=subproc, steps=128), tmp_path / f"run_{subproc}", callbacks=[keep])
+        train(tiny(route=route, envs=2, steps=128, **kind), tmp_path / f"run_{k}", callbacks=[keep])
         weights.append([p.detach().clone() for p in keep.model.policy.parameters()])
         rewards.append(keep.model.rollout_buffer.rewards.copy())
     assert len(weights[0]) == len(weights[1]) > 0
     assert all(torch.equal(a, b) for a, b in zip(*weights))
     assert np.array_equal(rewards[0], rewards[1]) and np.abs(rewards[0]).sum() > 0
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--backend", "rllib", "--workers", "2"], "use --num-env-runners instead of --workers"),
+    (["--backend", "torchrl", "--num-envs", "2", "--workers", "3"], "workers: must be at most the number of env copies (2)"),
+    (["--num-envs", "2", "--workers", "2", "--subproc"], "workers: subproc runs a process per copy"),
+])
+def test_train_refuses_workers_it_cannot_honour(tmp_path, capsys, extra, message):
+    assert main(["train", "--scenario", "top_observer", "--timesteps", "64", *extra, "--out", str(tmp_path / "run")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()

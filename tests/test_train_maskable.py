@@ -61,9 +61,10 @@ def test_shared_vec_env_gives_each_slot_its_robots_mask():
     venv.close()
 
 
-def test_worker_processes_give_the_same_masks():
+@pytest.mark.parametrize("remote_kind", [{"subproc": True}, {"workers": 2}])
+def test_worker_processes_give_the_same_masks(remote_kind):
     spec = EnvSpec("top_observer", {"random_scenarios": True, "max_cycles": 30})
-    local, remote = SharedPolicyVecEnv(spec, 2), SharedPolicyVecEnv(spec, 2, subproc=True)
+    local, remote = SharedPolicyVecEnv(spec, 2), SharedPolicyVecEnv(spec, 2, **remote_kind)
     try:
         for venv in (local, remote):
             venv.seed(7)

@@ -110,6 +110,17 @@ def test_same_seed_same_weights_other_seed_other_weights(tmp_path):
     assert json.loads((tmp_path / "a" / "manifest.json").read_text())["algorithm"] == "IPPO"
 
 
+def test_workers_train_the_same_weights_as_one_process(tmp_path):
+    train_torchrl(small_config(seed=3), tmp_path / "local")
+    train_torchrl(small_config(seed=3, workers=2), tmp_path / "sharded")
+    a, b = _weights(tmp_path / "local"), _weights(tmp_path / "sharded")
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    manifest = json.loads((tmp_path / "sharded" / "manifest.json").read_text())
+    assert manifest["config"]["workers"] == 2
+    with pytest.raises(ConfigError, match="workers: must be at most the number of env copies"):
+        small_config(workers=small_config().envs + 1)
+
+
 def test_policy_obeys_the_masks_and_refuses_envs_it_does_not_fit(tmp_path):
     out = tmp_path / "run"
     train_torchrl(small_config(steps=64), out)

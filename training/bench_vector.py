@@ -7,6 +7,8 @@ interleaved rounds of one run:
   drawn before the clock starts) at each ``num_envs`` of ``--num-envs``, for
   ``top_observer`` (2 UGVs) in switching and velocity mode, ``caterpillar_multi``
   and ``top_observer`` with 8 UGVs (switching);
+* with ``--workers W``, ``top_observer`` switching split over ``W`` worker processes
+  (``moma_env.vector.make(..., workers=W)``) at each ``num_envs`` >= ``W``;
 * MPE2 ``simple_spread`` (N=3, one env, parallel API, random actions), the
   single-env reference;
 * VMAS ``navigation`` (its default agents, CPU, one torch thread) at the same
@@ -125,13 +127,22 @@ def stage_breakdown(envs, batches: Sequence[dict[str, np.ndarray]], batch_steps:
     return out
 
 
-def run_vector_bench(num_envs: Sequence[int], rounds: int = 3, min_env_steps: int = 2000, seed: int = 0) -> dict:
-    """Every row in ``rounds`` interleaved rounds (see the module docstring)."""
+#: The row split over worker processes (``--workers``).
+SHARDED_CASE = "top_observer switching"
+
+
+def run_vector_bench(
+    num_envs: Sequence[int], rounds: int = 3, min_env_steps: int = 2000, seed: int = 0, workers: Sequence[int] = ()
+) -> dict:
+    """Every row in ``rounds`` interleaved rounds (see the module docstring); ``workers``: the
+    worker counts (each >= 2) of the sharded rows."""
     from moma_env import vector
     from training.bench_common import mpe2_reference, steps_per_second
 
     if rounds < 1 or min_env_steps < 1 or not num_envs or min(num_envs) < 1:
         raise ValueError(f"need rounds >= 1, min_env_steps >= 1 and num_envs >= 1, got {rounds}, {min_env_steps}, {list(num_envs)}")
+    if any(w < 2 for w in workers):
+        raise ValueError(f"need workers >= 2 (one worker is the in-process row's work plus a pipe), got {list(workers)}")
     make_mpe2 = mpe2_reference()
     moma: dict[tuple[str, int], Any] = {}
     for label, (name, options) in CASES.items():
@@ -139,6 +150,13 @@ def run_vector_bench(num_envs: Sequence[int], rounds: int = 3, min_env_steps: in
             envs = vector.make(name, n, **options)
             envs.reset(seed=seed)
             moma[(label, n)] = (envs, _random_batches(envs, 16, seed))
+    name, options = CASES[SHARDED_CASE]
+    for w in workers:
+        for n in num_envs:
+            if n >= w:
+                envs = vector.make(name, n, workers=w, **options)
+                envs.reset(seed=seed)
+                moma[(f"{SHARDED_CASE}, {w} workers", n)] = (envs, _random_batches(envs, 16, seed))
     vmas = {n: vmas_factory(n, seed) for n in num_envs}
     rates: dict[str, list[float]] = {}
     ratios: dict[str, list[float]] = {}
@@ -224,6 +242,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Env-steps per second of the batched env against MPE2 and VMAS.")
     parser.add_argument("--num-envs", type=int, nargs="+", default=[1, 64, 256, 1024], help="batch sizes (default 1 64 256 1024)")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (default 3)")
+    parser.add_argument(
+        "--workers", type=int, nargs="*", default=[2],
+        help="worker counts of the sharded top_observer rows (default 2; --workers alone: none)",
+    )
     parser.add_argument("--min-env-steps", type=int, default=2000, help="env-steps per row and round (default 2000)")
     parser.add_argument(
         "--memory-steps", type=int, default=0,
@@ -232,12 +254,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.rounds < 1 or args.min_env_steps < 1 or min(args.num_envs) < 1 or args.memory_steps < 0:
         parser.error("--rounds, --min-env-steps and --num-envs must be >= 1, --memory-steps >= 0")
+    if any(w < 2 for w in args.workers):
+        parser.error("--workers must be >= 2")
     if args.memory_steps:
         n = max(args.num_envs)
         for done, mb in vector_memory(n, args.memory_steps, samples=5):
             print(f"num_envs={n}  after {done:>9} env-steps  RSS {mb:8.1f} MB")
         return 0
-    print(format_vector_bench(run_vector_bench(args.num_envs, args.rounds, args.min_env_steps)))
+    print(format_vector_bench(run_vector_bench(args.num_envs, args.rounds, args.min_env_steps, workers=args.workers)))
     return 0
 
 

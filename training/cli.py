@@ -303,6 +303,10 @@ def _add_bench(sub) -> None:
         "--num-envs", type=int_at_least(1, "env count"), nargs="+", default=[1, 64, 256, 1024],
         help="with --vector: the batch sizes, env copies stepped together (default 1 64 256 1024)",
     )
+    bench.add_argument(
+        "--workers", type=int_at_least(2, "worker count"), nargs="*", default=[2],
+        help="with --vector: worker counts of the top_observer rows split over processes (default 2; --workers alone: none)",
+    )
     bench.add_argument("--json", action="store_true", help="print the results as JSON")
     bench.set_defaults(handler=_run_bench)
 
@@ -435,7 +439,7 @@ def _run_bench(args: argparse.Namespace) -> int:
     if args.vector:
         from training.bench_vector import format_vector_bench, run_vector_bench
 
-        result = run_vector_bench(args.num_envs, args.rounds, min_env_steps=args.steps)
+        result = run_vector_bench(args.num_envs, args.rounds, min_env_steps=args.steps, workers=args.workers)
         print(json.dumps(result, indent=2) if args.json else format_vector_bench(result))
         return 0
     from training.bench import format_bench, run_bench

@@ -63,7 +63,10 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
                     help="total training timesteps: env steps (centralised) or agent steps (shared) (default %(default)s)")
     tr.add_argument("--num-envs", type=int_at_least(1, "env count"), default=defaults["envs"], metavar="K",
                     help="env copies K stepped together (default %(default)s)")
-    tr.add_argument("--subproc", action="store_true", help="run the env copies in worker processes (default: in this process)")
+    tr.add_argument("--subproc", action="store_true", help="run each env copy in its own worker process (default: in this process)")
+    tr.add_argument("--workers", type=int_at_least(1, "worker count"), default=None, metavar="W",
+                    help="split the batched env's copies over W worker processes: the same rollouts, faster with a free core "
+                         "per worker and enough copies (shared route and --backend torchrl; default: in this process)")
     tr.add_argument("--seed", type=int_at_least(0, "seed"), default=defaults["seed"], help="seed of the model and the envs (default %(default)s)")
     tr.add_argument("--out", type=Path, required=True,
                     help="output folder, one run: checkpoints, manifest.json, evaluations.json (required; a folder holding another run is refused)")
@@ -130,6 +133,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         steps=args.timesteps,
         envs=args.num_envs,
         subproc=args.subproc,
+        workers=args.workers,
         seed=args.seed,
         action_mode=args.action_mode,
         route=args.route,
@@ -160,7 +164,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
 
 #: TrainConfig fields -> their ``moma-env train`` option (value options; flags are handled apart).
 _VALUE_OPTIONS = MappingProxyType({
-    "algo": "--algo", "steps": "--timesteps", "envs": "--num-envs", "seed": "--seed", "action_mode": "--action-mode",
+    "algo": "--algo", "steps": "--timesteps", "envs": "--num-envs", "workers": "--workers", "seed": "--seed", "action_mode": "--action-mode",
     "route": "--route", "max_cycles": "--max-cycles", "n_steps": "--n-steps", "batch_size": "--batch-size",
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",

@@ -27,7 +27,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv,
 
 from moma_env.env.factory import centralised_env
 from training.train.config import TrainConfig
-from training.train.shared_vec_env import SharedPolicyVecEnv, default_start_method
+from moma_env.vector.sharded import default_start_method
+from training.train.shared_vec_env import SharedPolicyVecEnv
 from training.train.team_slots import EnvSpec
 
 __all__ = ["env_spec", "make_vec_env", "wrap_normalisation"]
@@ -53,7 +54,7 @@ def make_vec_env(config: TrainConfig, seed: int) -> VecEnv:
     """The run's K env copies through its route, seeded with ``seed`` (without normalisation)."""
     spec = env_spec(config)
     if config.route == "shared":
-        venv: VecEnv = SharedPolicyVecEnv(spec, config.envs, subproc=config.subproc)
+        venv: VecEnv = SharedPolicyVecEnv(spec, config.envs, subproc=config.subproc, workers=config.workers)
     else:
         fns = [functools.partial(_monitored_team_env, spec) for _ in range(config.envs)]
         venv = SubprocVecEnv(fns, start_method=default_start_method()) if config.subproc else DummyVecEnv(fns)

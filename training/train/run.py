@@ -38,7 +38,7 @@ PRETRAINING = "pretrain.json"
 
 #: Fields of the configuration that a resumed run may change; every other must match the run's.
 RESUMABLE_CHANGES = frozenset(
-    {"steps", "subproc", "checkpoint_every", "eval_every", "eval_episodes", "eval_seed", "eval_max_cycles", "eval_sample_actions", "progress_bar", "torch_threads"}
+    {"steps", "subproc", "workers", "checkpoint_every", "eval_every", "eval_episodes", "eval_seed", "eval_max_cycles", "eval_sample_actions", "progress_bar", "torch_threads"}
 )
 
 

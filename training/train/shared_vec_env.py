@@ -39,9 +39,10 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
+from moma_env.vector.sharded import default_start_method
 from training.train.team_slots import EnvSpec, VectorSlots, worker
 
-__all__ = ["ACTION_MASKS", "SharedPolicyVecEnv", "default_start_method"]
+__all__ = ["ACTION_MASKS", "SharedPolicyVecEnv"]
 
 #: The method through which sb3-contrib's MaskablePPO asks a VecEnv for every slot's mask.
 ACTION_MASKS = "action_masks"
@@ -144,12 +145,6 @@ class _Workers:
             copy.close()
 
 
-def default_start_method() -> str:
-    """forkserver where the platform has it (workers start from a clean server process), else spawn."""
-    methods = mp.get_all_start_methods()
-    return "forkserver" if "forkserver" in methods else "spawn"
-
-
 class SharedPolicyVecEnv(VecEnv):
     """K copies of a parallel env, one slot per UGV agent (see the module docstring).
 
@@ -159,23 +154,30 @@ class SharedPolicyVecEnv(VecEnv):
         n_copies: K >= 1.
         subproc: one worker process per copy (default: every copy in this
             process, on one :class:`moma_env.vector.MomaVectorEnv`).
-        start_method: multiprocessing start method of the workers (default
-            forkserver, else spawn).
+        start_method: multiprocessing start method of the ``subproc`` workers
+            (default forkserver, else spawn).
+        workers: instead of ``subproc``: the copies on one batched env split over
+            ``workers`` processes (:func:`moma_env.vector.make`); the same slots bit
+            for bit.
 
     Attributes:
         engine: :class:`VectorSlots` (in this process; its ``vector`` is the
             batched env) or the workers.
     """
 
-    def __init__(self, spec: EnvSpec, n_copies: int, subproc: bool = False, start_method: str | None = None):
+    def __init__(
+        self, spec: EnvSpec, n_copies: int, subproc: bool = False, start_method: str | None = None, workers: int | None = None
+    ):
         if isinstance(n_copies, bool) or not isinstance(n_copies, int) or n_copies < 1:
             raise ValueError(f"n_copies must be an integer >= 1, got {n_copies!r}")
+        if subproc and workers is not None:
+            raise ValueError("subproc (a process per copy) and workers (the batch split over processes) exclude each other")
         self.spec = spec
         self.subproc = subproc
         if subproc:
             self.engine: VectorSlots | _Workers = _Workers(spec, n_copies, mp.get_context(start_method or default_start_method()))
         else:
-            self.engine = VectorSlots(spec, n_copies)
+            self.engine = VectorSlots(spec, n_copies, workers)
         self._closed = False
         self.n_copies = n_copies
         self.agents = list(self.engine.agents)

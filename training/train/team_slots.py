@@ -48,7 +48,7 @@ from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv
-from moma_env.vector import MomaVectorEnv
+from moma_env.vector import make
 
 __all__ = ["EnvSpec", "TeamSlots", "VectorSlots", "worker", "slot_spaces", "slot_infos", "env_command"]
 
@@ -112,6 +112,12 @@ def slot_infos(
             info["episode"] = dict(episode)
         out.append(info)
     return out
+
+
+def control_step(env: MomaParallelEnv) -> float:
+    """The control step (s) of a parallel env's current episode (module level: it runs in
+    a batch's worker process)."""
+    return env.world.dt
 
 
 def env_command(env: MomaParallelEnv, command: str, payload: Any) -> Any:
@@ -201,20 +207,22 @@ class TeamSlots:
 
 
 class VectorSlots:
-    """K copies in this process as ``K * N`` slots, on one :class:`MomaVectorEnv`
+    """K copies as ``K * N`` slots, on one batched env (in this process, or split over workers)
     (see the module docstring; the same slots as K :class:`TeamSlots`).
 
     Args:
         spec: how to build a copy (the observer must not be an agent).
         n_copies: K >= 1.
+        workers: None: every copy in this process; ``W``: the copies split over ``W``
+            worker processes (:func:`moma_env.vector.make`; the same slots bit for bit).
 
     Attributes:
-        vector: the batched env (its ``envs[k]`` is copy k's parallel env).
+        vector: the batched env (:func:`moma_env.vector.make`).
     """
 
-    def __init__(self, spec: EnvSpec, n_copies: int):
-        self.vector = MomaVectorEnv(spec.configuration, n_copies, **spec.options)
-        self.agents, self.observation_space, self.action_space = slot_spaces(self.vector.envs[0])
+    def __init__(self, spec: EnvSpec, n_copies: int, workers: int | None = None):
+        self.vector = make(spec.configuration, n_copies, workers=workers, **spec.options)
+        self.agents, self.observation_space, self.action_space = slot_spaces(self.vector.spec_env)
         self._discrete = isinstance(self.action_space, spaces.Discrete)
         k = self.vector.num_envs
         self._returns = [0.0] * k
@@ -232,7 +240,7 @@ class VectorSlots:
 
     def _episode_started(self, k: int) -> None:
         self._returns[k], self._lengths[k] = 0.0, 0
-        self._dt[k] = float(self.vector.envs[k].world.dt)
+        self._dt[k] = float(self.vector.call_at(k, control_step))
 
     def reset(self, seeds: Sequence[int | None], options: dict | None = None) -> tuple[np.ndarray, list[dict]]:
         """Reset copy k with ``seeds[k]`` (None: its generator continues): ``(observations
@@ -284,7 +292,7 @@ class VectorSlots:
 
     def command(self, k: int, command: str, payload: Any) -> Any:
         """:func:`env_command` on copy ``k``'s parallel env."""
-        return env_command(self.vector.envs[k], command, payload)
+        return self.vector.call_at(k, env_command, command, payload)
 
     def close(self) -> None:
         self.vector.close()

@@ -50,7 +50,7 @@ __all__ = ["train_torchrl", "manifest_algorithm", "RESUMABLE_CHANGES", "GROUP"]
 
 #: Fields a resumed run may change; every other must match the run's.
 RESUMABLE_CHANGES = frozenset({"steps", "checkpoint_every", "eval_every", "eval_episodes", "eval_seed", "eval_max_cycles",
-                               "eval_sample_actions", "torch_threads"})
+                               "eval_sample_actions", "torch_threads", "workers"})
 #: The TorchRL group of the UGV agents (:data:`moma_env.vector.torchrl.UGV_GROUP`).
 GROUP = "ugv"
 _CHECKPOINT = re.compile(r"^checkpoint_\d{12}\.pt$")
@@ -72,7 +72,7 @@ class _Learner:
         assert UGV_GROUP == GROUP
         self.config = config
         torch.manual_seed(config.seed)
-        self.env = MomaTorchRLEnv(config.scenario, config.envs, seed=env_seed, **config.env_options)
+        self.env = MomaTorchRLEnv(config.scenario, config.envs, seed=env_seed, workers=config.workers, **config.env_options)
         if list(self.env.group_map) != [GROUP]:
             raise ConfigError("scenario", f"{config.scenario!r} has agents outside the UGV group ({sorted(self.env.group_map)}); "
                                           "TorchRL runs train the UGVs with the observer flown by its controller")
