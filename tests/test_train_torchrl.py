@@ -205,3 +205,14 @@ def test_backend_comparison_prints_each_round_and_the_ratio(capsys):
     out = capsys.readouterr().out
     assert "maskable_ppo" in out and "mappo (torchrl)" in out
     assert "TorchRL MAPPO / SB3 MaskablePPO env steps per second: best" in out
+
+
+def test_backend_comparison_with_workers_prints_their_ratio_to_in_process(capsys):
+    from training.train.bench import main as bench_main
+
+    assert bench_main(["--steps", "256", "--rounds", "1", "--num-envs", "2", "--workers", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "maskable_ppo with 2 workers / in this process: best" in out
+    assert "mappo (torchrl) with 2 workers / in this process: best" in out
+    with pytest.raises(SystemExit):
+        bench_main(["--num-envs", "2", "--workers", "3"])

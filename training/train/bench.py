@@ -28,10 +28,14 @@ __all__ = ["training_fps", "torchrl_training_fps", "bench_training", "compare_ba
 
 
 def training_fps(
-    steps: int, envs: int, route: str = "shared", subproc: bool = False, scenario: str = "top_observer", algo: str = "ppo"
+    steps: int, envs: int, route: str = "shared", subproc: bool = False, scenario: str = "top_observer", algo: str = "ppo",
+    workers: int | None = None,
 ) -> dict:
-    """One training measurement (see the module docstring)."""
-    config = TrainConfig(scenario=scenario, algo=algo, steps=steps, envs=envs, route=route, subproc=subproc, checkpoint_every=10**9)
+    """One training measurement (see the module docstring); ``workers``: the batched env split
+    over that many processes (``moma-env train --workers``)."""
+    config = TrainConfig(
+        scenario=scenario, algo=algo, steps=steps, envs=envs, route=route, subproc=subproc, workers=workers, checkpoint_every=10**9
+    )
     with torch_threads(config.torch_threads):
         venv = wrap_normalisation(make_vec_env(config, config.seed), config)
         try:
@@ -45,12 +49,15 @@ def training_fps(
         finally:
             venv.close()
     return {
-        "scenario": scenario, "algo": algo, "route": route, "envs": envs, "subproc": subproc, "timesteps": timesteps, "seconds": elapsed,
+        "scenario": scenario, "algo": algo, "route": route, "envs": envs, "subproc": subproc, "workers": workers,
+        "timesteps": timesteps, "seconds": elapsed,
         "timesteps_per_s": timesteps / elapsed, "env_steps_per_s": timesteps / slots_per_env_step / elapsed,
     }
 
 
-def torchrl_training_fps(steps: int, envs: int, scenario: str = "top_observer_team4", critic: str = "centralised") -> dict:
+def torchrl_training_fps(
+    steps: int, envs: int, scenario: str = "top_observer_team4", critic: str = "centralised", workers: int | None = None
+) -> dict:
     """One TorchRL measurement: ``moma-env train --backend torchrl`` for at least ``steps``
     agent steps (whole batches of ``256 x envs`` env steps) in a temporary folder, timed
     by the run's own collecting and learning clocks (the set-up and the save left out)."""
@@ -64,14 +71,16 @@ def torchrl_training_fps(steps: int, envs: int, scenario: str = "top_observer_te
     n_ugvs = len(parallel_env(scenario, observer_agent=False).possible_agents)
     batch = 256 * envs
     env_steps = max(1, -(-steps // (n_ugvs * batch))) * batch
-    config = TorchRLTrainConfig(scenario=scenario, steps=env_steps, envs=envs, critic=critic, minibatch_size=64, checkpoint_every=10**9)
+    config = TorchRLTrainConfig(
+        scenario=scenario, steps=env_steps, envs=envs, critic=critic, minibatch_size=64, checkpoint_every=10**9, workers=workers
+    )
     with tempfile.TemporaryDirectory() as folder:
         manifest = train_torchrl(config, Path(folder) / "run")
     elapsed = manifest["collect_s"] + manifest["learn_s"]
     timesteps = int(manifest["num_timesteps"]) * n_ugvs
     return {
         "scenario": scenario, "algo": f"{manifest_algorithm(config).lower()} (torchrl)", "route": "shared", "envs": envs, "subproc": False,
-        "timesteps": timesteps, "seconds": elapsed, "timesteps_per_s": timesteps / elapsed,
+        "workers": workers, "timesteps": timesteps, "seconds": elapsed, "timesteps_per_s": timesteps / elapsed,
         "env_steps_per_s": manifest["num_timesteps"] / elapsed,
     }
 
@@ -97,24 +106,33 @@ def format_training(rows: list[dict]) -> list[str]:
     lines = [f"\ntraining (switching, geometric camera): about {rows[0]['timesteps']} timesteps per row",
              f"{'scenario':<20}{'algo':<18}{'route':<13}{'envs':>5}{'workers':>8}{'timesteps/s':>13}{'env steps/s':>13}", "-" * 90]
     for r in rows:
-        workers = r["envs"] if r["subproc"] else 0
+        workers = r["envs"] if r["subproc"] else (r.get("workers") or 0)
         lines.append(
             f"{r['scenario']:<20}{r.get('algo', 'ppo'):<18}{r['route']:<13}{r['envs']:>5}{workers:>8}{r['timesteps_per_s']:>13.0f}{r['env_steps_per_s']:>13.0f}"
         )
     return lines
 
 
-def compare_backends(steps: int, rounds: int, envs: int = 8, scenario: str = "top_observer_team4") -> list[dict]:
+def compare_backends(
+    steps: int, rounds: int, envs: int = 8, scenario: str = "top_observer_team4", workers: int | None = None
+) -> list[dict]:
     """Interleaved rounds of MaskablePPO (SB3, shared route) and TorchRL's MAPPO on ``scenario``
     with ``envs`` copies, at least ``steps`` agent steps each: one row per round and backend,
     with ``round`` and, on the TorchRL rows, ``x_sb3`` (its env steps per second over the SB3
-    row's of the same round)."""
+    row's of the same round). With ``workers``, each backend also runs with its batched env
+    split over that many processes, and those rows carry ``x_in_process`` (over the same
+    backend's in-process row of the round)."""
     rows = []
     for k in range(rounds):
         sb3 = training_fps(steps, envs=envs, route="shared", scenario=scenario, algo="maskable_ppo") | {"round": k}
         mappo = torchrl_training_fps(steps, envs=envs, scenario=scenario) | {"round": k}
         mappo["x_sb3"] = mappo["env_steps_per_s"] / sb3["env_steps_per_s"]
         rows += [sb3, mappo]
+        if workers is not None:
+            sb3_w = training_fps(steps, envs=envs, route="shared", scenario=scenario, algo="maskable_ppo", workers=workers)
+            mappo_w = torchrl_training_fps(steps, envs=envs, scenario=scenario, workers=workers)
+            for row, reference in ((sb3_w, sb3), (mappo_w, mappo)):
+                rows.append(row | {"round": k, "x_in_process": row["env_steps_per_s"] / reference["env_steps_per_s"]})
     return rows
 
 
@@ -129,13 +147,22 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m training.train.bench", description=main.__doc__)
     parser.add_argument("--steps", type=int_at_least(1, "step count"), default=32768, help="agent steps per row (default %(default)s)")
     parser.add_argument("--rounds", type=int_at_least(1, "round count"), default=3, help="interleaved rounds (default %(default)s)")
+    parser.add_argument("--num-envs", type=int_at_least(1, "env count"), default=8, help="env copies (default %(default)s)")
+    parser.add_argument("--workers", type=int_at_least(1, "worker count"), default=None,
+                        help="also time both backends with the copies split over this many processes (default: not)")
     args = parser.parse_args(argv)
-    rows = compare_backends(args.steps, args.rounds)
+    if args.workers is not None and args.workers > args.num_envs:
+        parser.error(f"--workers must be at most --num-envs ({args.num_envs})")
+    rows = compare_backends(args.steps, args.rounds, envs=args.num_envs, workers=args.workers)
     for line in format_training(rows):
         print(line)
     ratios = [r["x_sb3"] for r in rows if "x_sb3" in r]
     print(f"TorchRL MAPPO / SB3 MaskablePPO env steps per second: best {max(ratios):.2f}, median {statistics.median(ratios):.2f} "
           f"over {len(ratios)} rounds")
+    for algo in sorted({r["algo"] for r in rows if "x_in_process" in r}):
+        split = [r["x_in_process"] for r in rows if r.get("algo") == algo and "x_in_process" in r]
+        print(f"{algo} with {args.workers} workers / in this process: best {max(split):.2f}, median {statistics.median(split):.2f} "
+              f"over {len(split)} rounds")
     return 0
 
 
