@@ -99,6 +99,22 @@ def test_bad_input_is_refused_before_the_workers_and_their_errors_come_back():
         envs.reset(seed=0)
 
 
+def test_one_worker_is_this_process_alone_and_its_errors_say_so():
+    import multiprocessing
+
+    before = len(multiprocessing.active_children())
+    envs = vector.make("top_observer", 2, workers=1, max_cycles=20)
+    try:
+        assert len(multiprocessing.active_children()) == before  # no worker process
+        local = vector.make("top_observer", 2, max_cycles=20)
+        assert text(envs.reset(seed=8)) == text(local.reset(seed=8))
+        with pytest.raises(KeyError, match="no such thing") as raised:
+            envs.call_at(1, failing)
+        assert any("this process (copies 0..1)" in note for note in raised.value.__notes__)
+    finally:
+        envs.close()
+
+
 def test_bad_workers_and_options_are_refused_without_starting_workers():
     with pytest.raises(ValueError, match="workers must be an integer >= 1, got 0"):
         vector.make("top_observer", 4, workers=0)

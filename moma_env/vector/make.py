@@ -20,7 +20,8 @@ def make(name: str, num_envs: int, *, workers: int | None = None, **options: Any
         name: configuration name (``"top_observer"``, ...).
         num_envs: number of copies (>= 1).
         workers: None (default) steps every copy in this process
-            (:class:`MomaVectorEnv`); an integer ``W`` splits the copies over ``W``
+            (:class:`MomaVectorEnv`); an integer ``W`` splits the copies into ``W``
+            shards stepped at the same time, one here and the others in ``W - 1``
             worker processes (:class:`~moma_env.vector.sharded.ShardedVectorEnv`),
             the same episodes bit for bit.
         options: every option of :func:`moma_env.env.factory.parallel_env` (env

@@ -1,24 +1,26 @@
-"""A batched env whose copies are split over worker processes: :class:`ShardedVectorEnv`.
+"""A batched env whose copies are stepped by several processes: :class:`ShardedVectorEnv`.
 
 ``make(name, num_envs, workers=W)`` splits the ``num_envs`` copies into ``W``
 contiguous shards (sizes differing by at most one, the first ones larger), each a
-:class:`~moma_env.vector.env.MomaVectorEnv` in its own process. A step sends
-every shard its rows of the actions, the shards step at the same time, and their
-results are joined in copy order, so the batch has the interface and the
-episodes of one :class:`MomaVectorEnv` of ``num_envs`` copies, bit for bit: copy
-``i`` is reset with the seed it would get there (``s + i``) and runs the same
-code on its own generator. What changes is the wall time: on a machine with
-``W`` free cores the copies' Python runs ``W`` at a time.
+:class:`~moma_env.vector.env.MomaVectorEnv`: the first in this process, the
+others in ``W - 1`` worker processes. A step sends every worker its rows of the
+actions, steps the first shard here meanwhile, and joins the results in copy
+order, so the batch has the interface and the episodes of one
+:class:`MomaVectorEnv` of ``num_envs`` copies, bit for bit: copy ``i`` is reset
+with the seed it would get there (``s + i``) and runs the same code on its own
+generator. What changes is the wall time: on a machine with ``W`` free cores the
+copies' Python runs ``W`` at a time, and a step waits for the slowest shard and
+one pipe round trip.
 
 The actions, seeds and indices are checked here, before a worker is asked
 (:mod:`moma_env.vector.batch_checks`: the same errors as the in-process batch).
-An error inside a worker is raised here with its own type and the worker's
-traceback as a note; after an error in :meth:`step` the shards may be at
-different steps, so reset before stepping on.
+An error in a shard is raised here with its own type and, as a note, where it was
+raised (the worker and its traceback); after an error in :meth:`step` the shards
+may be at different steps, so reset before stepping on.
 
 The workers start with the ``forkserver`` method where the platform has it (else
-``spawn``): a script that makes a sharded env must guard its main code with
-``if __name__ == "__main__":``, as for any multiprocessing pool.
+``spawn``): a script that makes a sharded env with ``W > 1`` must guard its main
+code with ``if __name__ == "__main__":``, as for any multiprocessing pool.
 """
 
 from __future__ import annotations
@@ -32,7 +34,6 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_seeds, random_actions
 from moma_env.vector.env import MomaVectorEnv
@@ -134,8 +135,53 @@ class _Shard:
         except (EOFError, OSError):
             return ("error", None, f"{self.what()} exited (exit code {self.process.exitcode})")
 
+    def stop(self) -> None:
+        """Ask the worker to close (joined by :func:`_stop`)."""
+        try:
+            self.send("close")
+        except (BrokenPipeError, OSError):
+            pass
 
-def _raise_first(shards: Sequence[_Shard], replies: Sequence[tuple[str, Any, str]]) -> None:
+    def join(self) -> None:
+        self.process.join(timeout=5)
+        if self.process.is_alive():
+            self.process.terminate()
+            self.process.join(timeout=5)
+        self.connection.close()
+
+
+class _LocalShard:
+    """The first copies, stepped in this process while the workers step theirs: a command
+    is held at :meth:`send` and run at :meth:`receive`, after every worker got its own."""
+
+    def __init__(self, size: int, name: str, options: dict[str, Any]):
+        self.index, self.first, self.size = 0, 0, size
+        self.vector = MomaVectorEnv(name, size, **options)
+        self._command: tuple[str, Any] | None = None
+
+    def what(self) -> str:
+        return f"this process (copies 0..{self.size - 1})"
+
+    def send(self, command: str, payload: Any = None) -> None:
+        self._command = (command, payload)
+
+    def receive(self) -> tuple[str, Any, str]:
+        assert self._command is not None
+        command, payload = self._command
+        self._command = None
+        try:
+            return ("ok", _run(self.vector, command, payload), "")
+        except Exception as error:  # noqa: BLE001 - raised after the workers answered
+            return ("error", error, traceback.format_exc())
+
+    def stop(self) -> None:
+        self.vector.close()
+
+    def join(self) -> None:
+        pass
+
+
+def _raise_first(shards: Sequence[_Shard | _LocalShard], replies: Sequence[tuple[str, Any, str]]) -> None:
     """Raise the first failed reply's error (its own type, the worker's traceback as a note)."""
     for shard, (status, value, text) in zip(shards, replies):
         if status == "ok":
@@ -146,19 +192,12 @@ def _raise_first(shards: Sequence[_Shard], replies: Sequence[tuple[str, Any, str
         raise RuntimeError(f"{shard.what()} failed:\n{text}")
 
 
-def _stop(shards: Sequence[_Shard]) -> None:
-    """End every worker: ask it to close, then terminate what is still running."""
+def _stop(shards: Sequence[_Shard | _LocalShard]) -> None:
+    """End every shard: ask the workers to close, then terminate what is still running."""
     for shard in shards:
-        try:
-            shard.send("close")
-        except (BrokenPipeError, OSError):
-            pass
+        shard.stop()
     for shard in shards:
-        shard.process.join(timeout=5)
-        if shard.process.is_alive():
-            shard.process.terminate()
-            shard.process.join(timeout=5)
-        shard.connection.close()
+        shard.join()
 
 
 def _join(parts: Sequence[Any]) -> Any:
@@ -169,18 +208,20 @@ def _join(parts: Sequence[Any]) -> Any:
 
 
 class ShardedVectorEnv:
-    """``num_envs`` copies of one configuration in ``workers`` processes; see the module docstring.
+    """``num_envs`` copies of one configuration stepped by ``workers`` processes, this one
+    included; see the module docstring.
 
     Args:
         name: configuration name (``"top_observer"``, ...).
         num_envs: number of copies (>= 1).
-        workers: number of worker processes (1 <= workers <= num_envs).
+        workers: processes that step copies, this one included (1 <= workers <=
+            num_envs; 1: no worker process).
         start_method: multiprocessing start method (default :func:`default_start_method`).
         options: options of :func:`moma_env.env.factory.parallel_env` (must pickle).
 
     Attributes:
         spec_env: a parallel env of the configuration in this process, for its spaces
-            and layout only (never stepped).
+            and layout (copy 0: read it, do not step it).
     """
 
     def __init__(self, name: str, num_envs: int, workers: int, *, start_method: str | None = None, **options: Any):
@@ -189,22 +230,24 @@ class ShardedVectorEnv:
         if workers > self.num_envs:
             raise ValueError(f"workers must be at most num_envs={self.num_envs}, got {workers}")
         self.workers = workers
-        self.spec_env: MomaParallelEnv = parallel_env(name, **options)  # options checked here, before any worker
+        sizes = shard_sizes(self.num_envs, workers)
+        local = _LocalShard(sizes[0], name, options)  # options checked here, before any worker starts
+        self.spec_env: MomaParallelEnv = local.vector.spec_env
+        self._shards: list[_Shard | _LocalShard] = [local]
+        context = mp.get_context(start_method or default_start_method())
+        first = sizes[0]
+        for k, size in enumerate(sizes[1:], start=1):
+            self._shards.append(_Shard(k, first, size, name, dict(options), context))
+            first += size
+        self._closed = False
+        self._finalizer = weakref.finalize(self, _stop, self._shards)
+        _raise_first(self._shards[1:], [shard.receive() for shard in self._shards[1:]])
         self.possible_agents = list(self.spec_env.possible_agents)
         self.agents = list(self.possible_agents)
         self.metadata = dict(self.spec_env.metadata)
         self.render_mode = self.spec_env.render_mode
         self.state_space: spaces.Box = self.spec_env.state_space
         self._started = False
-        context = mp.get_context(start_method or default_start_method())
-        self._shards: list[_Shard] = []
-        first = 0
-        for k, size in enumerate(shard_sizes(self.num_envs, workers)):
-            self._shards.append(_Shard(k, first, size, name, dict(options), context))
-            first += size
-        self._closed = False
-        self._finalizer = weakref.finalize(self, _stop, self._shards)
-        _raise_first(self._shards, [shard.receive() for shard in self._shards])
 
     # ------------------------------------------------------------------ spaces
     def single_observation_space(self, agent: str) -> spaces.Space:
@@ -227,7 +270,8 @@ class ShardedVectorEnv:
         return [value for _, value, _ in replies]
 
     def _at(self, index: object, command: str, payload: Callable[[int], Any]) -> Any:
-        """One command on the shard holding copy ``index`` (``payload(local index)``)."""
+        """One command on the shard holding copy ``index`` (``payload(local index)``), in
+        this process or its worker."""
         if self._closed:
             raise RuntimeError("the env is closed")
         i = checked_index(index, self.num_envs)
@@ -296,4 +340,3 @@ class ShardedVectorEnv:
         if not self._closed:
             self._closed = True
             self._finalizer()
-            self.spec_env.close()
