@@ -11,15 +11,9 @@ import pytest
 import moma_env  # noqa: F401 - registers the Gymnasium ids
 from moma_env.env.factory import parallel_env
 from moma_env.registration import GYMNASIUM_IDS
-from training.fingerprint import serialise
+from serialised import text
 
 CONFIGURATIONS = ("top_observer", "caterpillar", "caterpillar_sled", "caterpillar_multi")
-
-
-def text(value) -> str:
-    out: list[str] = []
-    serialise(value, out)
-    return "|".join(out)
 
 
 def run(env, actions) -> str:

@@ -5,15 +5,9 @@ import pytest
 
 from moma_env import vector
 from moma_env.env.factory import parallel_env
-from training.fingerprint import serialise
+from serialised import text
 
 CASES = [(name, mode) for name in ("top_observer", "caterpillar", "caterpillar_sled", "caterpillar_multi") for mode in ("switching", "velocity")]
-
-
-def text(value) -> str:
-    out: list[str] = []
-    serialise(value, out)
-    return "|".join(out)
 
 
 def batch_actions(envs, steps, seed):

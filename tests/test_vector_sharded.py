@@ -7,24 +7,7 @@ import pytest
 
 from moma_env import vector
 from moma_env.vector.sharded import shard_sizes
-from training.fingerprint import serialise
-
-
-def plain(value):
-    """``value`` with object arrays (Gymnasium's info arrays) as lists, for :func:`text`."""
-    if isinstance(value, np.ndarray) and value.dtype == object:
-        return [plain(v) for v in value.tolist()]
-    if isinstance(value, dict):
-        return {k: plain(v) for k, v in value.items()}
-    if isinstance(value, (tuple, list)):
-        return type(value)(plain(v) for v in value)
-    return value
-
-
-def text(value) -> str:
-    out: list[str] = []
-    serialise(plain(value), out)
-    return "|".join(out)
+from serialised import text
 
 
 def copy_dt(env, scale):

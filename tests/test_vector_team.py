@@ -12,7 +12,7 @@ from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
 from moma_env.registration import GYMNASIUM_IDS
 from moma_env.scenarios import SCENARIO_SPECS
 from moma_env.vector import TeamVectorEnv
-from training.fingerprint import serialise
+from serialised import text
 
 ID = {name: SCENARIO_SPECS[name].gymnasium_id for name in SCENARIO_SPECS}
 #: (configuration, options): the MultiDiscrete and Box team actions, and a Box with discrete slots.
@@ -23,23 +23,6 @@ CASES = [
     ("caterpillar_multi", {"action_mode": "switching", "random_scenarios": True}),
     ("caterpillar_sled", {"action_mode": "velocity"}),
 ]
-
-
-def plain(value):
-    """``value`` with object arrays as lists (their bytes are pointers), for :func:`text`."""
-    if isinstance(value, np.ndarray) and value.dtype == object:
-        return [plain(v) for v in value]
-    if isinstance(value, dict):
-        return {k: plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return type(value)(plain(v) for v in value)
-    return value
-
-
-def text(value) -> str:
-    out: list[str] = []
-    serialise(plain(value), out)
-    return "|".join(out)
 
 
 def team_actions(space, steps: int, seed: int) -> list[np.ndarray]:

@@ -26,6 +26,7 @@ code with ``if __name__ == "__main__":``, as for any multiprocessing pool.
 from __future__ import annotations
 
 import multiprocessing as mp
+import pickle
 import traceback
 import weakref
 from collections.abc import Callable, Mapping, Sequence
@@ -78,8 +79,6 @@ def _error_message(error: BaseException) -> tuple[str, Any, str]:
     """The reply of a failed command: the exception itself when it pickles, and its traceback."""
     text = traceback.format_exc()
     try:
-        import pickle
-
         pickle.dumps(error)
     except Exception:  # noqa: BLE001 - an exception that does not pickle goes as its text
         return ("error", None, text)
