@@ -148,3 +148,33 @@ def test_torchrl_adapter_with_workers_passes_the_spec_check_and_rolls_out_the_sa
     finally:
         sharded.close()
         local.close()
+
+
+def interrupt_next_step(env):
+    """For call_at on a copy in this process: its next step raises KeyboardInterrupt (Ctrl-C)."""
+
+    def interrupted(actions):
+        raise KeyboardInterrupt
+
+    env.begin_step = interrupted
+
+
+def restore_step(env):
+    del env.begin_step
+
+
+def test_a_call_interrupted_by_ctrl_c_leaves_no_stale_reply_behind():
+    envs = vector.make("top_observer", 4, workers=2, max_cycles=20)
+    local = vector.make("top_observer", 4, max_cycles=20)
+    try:
+        envs.reset(seed=1)
+        envs.call_at(0, interrupt_next_step)  # copy 0 is stepped in this process
+        with pytest.raises(KeyboardInterrupt):
+            envs.step(envs.sample_actions(np.random.default_rng(0)))  # the worker's reply is left unread
+        envs.call_at(0, restore_step)
+        assert text(envs.reset(seed=2)) == text(local.reset(seed=2))
+        actions = local.sample_actions(np.random.default_rng(1))
+        assert text(envs.step(actions)) == text(local.step(actions))
+    finally:
+        envs.close()
+        local.close()

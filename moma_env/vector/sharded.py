@@ -15,8 +15,10 @@ one pipe round trip.
 The actions, seeds and indices are checked here, before a worker is asked
 (:mod:`moma_env.vector.batch_checks`: the same errors as the in-process batch).
 An error in a shard is raised here with its own type and, as a note, where it was
-raised (the worker and its traceback); after an error in :meth:`step` the shards
-may be at different steps, so reset before stepping on.
+raised (the worker and its traceback). Ctrl-C interrupts this process only (the
+workers ignore SIGINT), and the next call first reads the replies the interrupted one
+left. After an error or an interrupt in :meth:`step` the shards may be at different
+steps, so reset before stepping on.
 
 The workers start with the ``forkserver`` method where the platform has it (else
 ``spawn``): a script that makes a sharded env with ``W > 1`` must guard its main
@@ -27,6 +29,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import pickle
+import signal
 import traceback
 import weakref
 from collections.abc import Callable, Mapping, Sequence
@@ -86,7 +89,9 @@ def _error_message(error: BaseException) -> tuple[str, Any, str]:
 
 
 def _serve(connection, name: str, num_envs: int, options: dict[str, Any]) -> None:
-    """A worker's main loop: build its batch, then answer commands until ``close``."""
+    """A worker's main loop: build its batch, then answer commands until ``close``. Ctrl-C
+    (SIGINT, sent to the whole process group) is left to the parent, which may go on."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         vector = MomaVectorEnv(name, num_envs, **options)
     except Exception as error:  # the parent raises it
@@ -121,18 +126,29 @@ class _Shard:
         self.process = context.Process(target=_serve, args=(child, name, size, options), daemon=True, name=f"moma-shard-{index}")
         self.process.start()
         child.close()
+        self.pending = 1  # commands sent and not yet answered: first, the start's reply
 
     def what(self) -> str:
         return f"worker {self.index} (copies {self.first}..{self.first + self.size - 1})"
 
     def send(self, command: str, payload: Any = None) -> None:
         self.connection.send((command, payload))
+        self.pending += 1
 
     def receive(self) -> tuple[str, Any, str]:
         try:
-            return self.connection.recv()
+            reply = self.connection.recv()
         except (EOFError, OSError):
+            self.pending = 0  # nothing more will come
             return ("error", None, f"{self.what()} exited (exit code {self.process.exitcode})")
+        self.pending -= 1
+        return reply
+
+    def drain(self) -> None:
+        """Read the replies still owed to a call that was interrupted (Ctrl-C between the
+        send and the receive), so that the next call reads its own."""
+        while self.pending > 0:
+            self.receive()
 
     def stop(self) -> None:
         """Ask the worker to close (joined by :func:`_stop`)."""
@@ -163,6 +179,9 @@ class _LocalShard:
 
     def send(self, command: str, payload: Any = None) -> None:
         self._command = (command, payload)
+
+    def drain(self) -> None:
+        self._command = None  # a command held when the call was interrupted is dropped
 
     def receive(self) -> tuple[str, Any, str]:
         assert self._command is not None
@@ -258,10 +277,16 @@ class ShardedVectorEnv:
         return self.spec_env.action_space(agent)
 
     # ------------------------------------------------------------------ protocol
-    def _broadcast(self, command: str, payloads: Sequence[Any]) -> list[Any]:
-        """Send each shard its payload, then collect every reply (raising the first error)."""
+    def _ready(self) -> None:
+        """Refuse a closed env; read what an interrupted call left unread."""
         if self._closed:
             raise RuntimeError("the env is closed")
+        for shard in self._shards:
+            shard.drain()
+
+    def _broadcast(self, command: str, payloads: Sequence[Any]) -> list[Any]:
+        """Send each shard its payload, then collect every reply (raising the first error)."""
+        self._ready()
         for shard, payload in zip(self._shards, payloads):
             shard.send(command, payload)
         replies = [shard.receive() for shard in self._shards]
@@ -271,8 +296,7 @@ class ShardedVectorEnv:
     def _at(self, index: object, command: str, payload: Callable[[int], Any]) -> Any:
         """One command on the shard holding copy ``index`` (``payload(local index)``), in
         this process or its worker."""
-        if self._closed:
-            raise RuntimeError("the env is closed")
+        self._ready()
         i = checked_index(index, self.num_envs)
         shard = next(s for s in self._shards if s.first <= i < s.first + s.size)
         shard.send(command, payload(i - shard.first))
