@@ -118,19 +118,21 @@ def test_copy_k_resets_with_its_first_slots_seed():
         for k in range(3):
             single, _ = parallel_env("top_observer", max_cycles=12).reset(seed=20 + 2 * k)
             np.testing.assert_array_equal(obs[2 * k : 2 * k + 2], np.stack([single["ugv_0"], single["ugv_1"]]))
-        venv.set_options([{"a": 1}] * 2 + [None] * 4)
-        with pytest.raises(ValueError, match="one options dict"):
-            venv.reset()
+        venv.set_options([{"a": 1}] * 2 + [None] * 4)  # one options dict per copy (the env reads none)
+        assert venv.reset().shape == (6, *venv.observation_space.shape)
     finally:
         venv.close()
 
 
-def test_a_worker_error_is_raised_with_its_traceback():
-    remote = SharedPolicyVecEnv(SPEC, 1, subproc=True)
+def test_a_bad_action_is_refused_naming_the_robot_and_a_worker_error_comes_back_with_its_traceback():
+    remote = SharedPolicyVecEnv(SPEC, 2, subproc=True)
     try:
         remote.reset()
-        with pytest.raises(RuntimeError, match="(?s)env worker failed:.*must be an integer in"):
-            remote.step(np.array([0, 7]))
+        with pytest.raises(ValueError, match=r"actions of 'ugv_1' must be an array of shape \(2,\) of integers in \[0, 2\).*copy 1 has 7"):
+            remote.step(np.array([0, 0, 0, 7]))
+        with pytest.raises(AttributeError, match="no_such_method") as raised:
+            remote.env_method("no_such_method", indices=[3])
+        assert any("worker 1 (copies 1..1)" in note for note in raised.value.__notes__)
     finally:
         remote.close()
 

@@ -17,7 +17,7 @@ from gymnasium import spaces
 
 from moma_env.env.parallel import checked_seed
 
-__all__ = ["checked_actions", "checked_count", "checked_index", "copy_seeds", "random_actions"]
+__all__ = ["checked_actions", "checked_count", "checked_index", "copy_options", "copy_seeds", "random_actions"]
 
 
 def checked_count(name: str, value: object) -> int:
@@ -38,6 +38,21 @@ def copy_seeds(seed: int | Sequence[int] | None, num_envs: int) -> list[int | No
         return [checked_seed(s) for s in seed]
     base = checked_seed(seed)
     return [base + i for i in range(num_envs)]  # type: ignore[operator]
+
+
+def copy_options(options: Mapping[str, Any] | Sequence[Mapping[str, Any] | None] | None, num_envs: int) -> list[Any]:
+    """Each copy's reset options: ``options`` itself for every copy (None or a mapping), or
+    the sequence of ``num_envs`` per-copy options (each None or a mapping)."""
+    if options is None or isinstance(options, Mapping):
+        return [options] * num_envs
+    if isinstance(options, Sequence) and not isinstance(options, (str, bytes)):
+        if len(options) != num_envs:
+            raise ValueError(f"options: a sequence must hold num_envs={num_envs} entries (one per copy), got {len(options)}")
+        for i, entry in enumerate(options):
+            if entry is not None and not isinstance(entry, Mapping):
+                raise TypeError(f"options[{i}] must be None or a mapping, got {type(entry).__name__}")
+        return list(options)
+    raise TypeError(f"options must be None, a mapping or a sequence of num_envs of them, got {type(options).__name__}")
 
 
 def checked_index(index: object, num_envs: int) -> int:

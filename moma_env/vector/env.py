@@ -44,7 +44,7 @@ from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
-from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_seeds, random_actions
+from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.camera import MeasureRequest, measure_batch
 
 __all__ = ["FINAL_KEYS", "MomaVectorEnv"]
@@ -100,9 +100,13 @@ class MomaVectorEnv:
         return self.envs[0].action_space(agent)
 
     # ------------------------------------------------------------------ reset
-    def reset(self, seed: int | Sequence[int] | None = None, options: dict | None = None) -> tuple[dict[str, Any], tuple[dict, ...]]:
-        """Reset every copy (see the module docstring for the seeds)."""
-        results = [env.reset(seed=s, options=options) for env, s in zip(self.envs, copy_seeds(seed, self.num_envs))]
+    def reset(
+        self, seed: int | Sequence[int] | None = None, options: dict | Sequence[dict | None] | None = None
+    ) -> tuple[dict[str, Any], tuple[dict, ...]]:
+        """Reset every copy (see the module docstring for the seeds); ``options``: one dict for
+        every copy or a sequence of ``num_envs``, one per copy."""
+        seeds, per_copy = copy_seeds(seed, self.num_envs), copy_options(options, self.num_envs)
+        results = [env.reset(seed=s, options=o) for env, s, o in zip(self.envs, seeds, per_copy)]
         self._started = True
         observations = {a: _stack([obs[a] for obs, _ in results]) for a in self.possible_agents}
         return observations, tuple(infos for _, infos in results)

@@ -39,7 +39,7 @@ import numpy as np
 from gymnasium import spaces
 
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
-from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_seeds, random_actions
+from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.vector.env import MomaVectorEnv
 
 __all__ = ["ShardedVectorEnv", "default_start_method", "shard_sizes"]
@@ -308,10 +308,14 @@ class ShardedVectorEnv:
         return [list(values[s.first : s.first + s.size]) for s in self._shards]
 
     # ------------------------------------------------------------------ reset and step
-    def reset(self, seed: int | Sequence[int] | None = None, options: dict | None = None) -> tuple[dict[str, Any], tuple[dict, ...]]:
-        """Reset every copy; copy ``i`` gets the seed of :class:`MomaVectorEnv` (``seed + i``)."""
+    def reset(
+        self, seed: int | Sequence[int] | None = None, options: dict | Sequence[dict | None] | None = None
+    ) -> tuple[dict[str, Any], tuple[dict, ...]]:
+        """Reset every copy; copy ``i`` gets the seed of :class:`MomaVectorEnv` (``seed + i``);
+        ``options``: one dict for every copy or a sequence of ``num_envs``, one per copy."""
         seeds = self._rows(copy_seeds(seed, self.num_envs))
-        results = self._broadcast("reset", [(s, options) for s in seeds])
+        per_copy = self._rows(copy_options(options, self.num_envs))
+        results = self._broadcast("reset", list(zip(seeds, per_copy)))
         self._started = True
         observations = {a: _join([obs[a] for obs, _ in results]) for a in self.possible_agents}
         return observations, tuple(info for _, infos in results for info in infos)

@@ -3,11 +3,11 @@
 Every UGV agent of every copy is one slot (``num_envs = K * N`` for N UGVs), so
 one policy is shared by all the robots (parameter sharing): the observations are
 each robot's own (egocentric, from its estimates), the reward is the team's.
-The K copies run in this process on one :class:`moma_env.vector.MomaVectorEnv`
-(the default) or, with ``subproc=True``, one per worker process;
-:mod:`training.train.team_slots` holds both engines (:class:`VectorSlots`,
-:class:`TeamSlots`) and the pipe protocol, and the workers import neither SB3
-nor torch. Both give the same slots bit for bit.
+The K copies are one batched env (:func:`moma_env.vector.make`, driven as slots by
+:class:`training.train.team_slots.VectorSlots`): in this process (the default),
+split over ``workers`` processes, or with ``subproc=True`` one copy per process
+(``workers=K``). The workers import neither SB3 nor torch. All give the same
+slots bit for bit.
 
 Contract (Stable-Baselines3 ``VecEnv``): ``reset()`` returns the stacked
 observations ``(K*N, D)`` and stores the infos in ``reset_infos``;
@@ -31,7 +31,6 @@ not need.
 
 from __future__ import annotations
 
-import multiprocessing as mp
 from collections.abc import Sequence
 from typing import Any
 
@@ -39,110 +38,12 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
-from moma_env.vector.sharded import default_start_method
-from training.train.team_slots import EnvSpec, VectorSlots, worker
+from training.train.team_slots import EnvSpec, VectorSlots
 
 __all__ = ["ACTION_MASKS", "SharedPolicyVecEnv"]
 
 #: The method through which sb3-contrib's MaskablePPO asks a VecEnv for every slot's mask.
 ACTION_MASKS = "action_masks"
-
-
-class _RemoteCopy:
-    """A copy in a worker process, driven over a pipe (:func:`training.train.team_slots.worker`)."""
-
-    def __init__(self, spec: EnvSpec, context: mp.context.BaseContext):
-        self.pending = 0  # commands sent and not yet answered
-        self._conn, child = context.Pipe()
-        self._process = context.Process(target=worker, args=(child, spec), daemon=True)
-        self._process.start()
-        child.close()
-        self.agents, self.observation_space, self.action_space = self._result(self._conn.recv())
-
-    @staticmethod
-    def _result(message: tuple[str, Any]) -> Any:
-        status, value = message
-        if status != "ok":
-            raise RuntimeError(f"env worker failed:\n{value}")
-        return value
-
-    def send(self, command: str, payload: Any) -> None:
-        self._conn.send((command, payload))
-        self.pending += 1
-
-    def receive(self) -> Any:
-        message = self._conn.recv()
-        self.pending -= 1
-        return self._result(message)
-
-    def drain(self) -> None:
-        """Read the answers still owed (after an error elsewhere), ignoring their content."""
-        while self.pending > 0:
-            try:
-                self.receive()
-            except RuntimeError:
-                pass
-
-    def close(self) -> None:
-        self._process.join(timeout=5)
-        if self._process.is_alive():
-            self._process.terminate()
-        self._conn.close()
-
-
-class _Workers:
-    """K copies, one per worker process (the same interface as :class:`VectorSlots`)."""
-
-    def __init__(self, spec: EnvSpec, n_copies: int, context: mp.context.BaseContext):
-        self.copies: list[_RemoteCopy] = []
-        try:
-            for _ in range(n_copies):
-                self.copies.append(_RemoteCopy(spec, context))
-        except BaseException:
-            self.close()
-            raise
-        first = self.copies[0]
-        self.agents, self.observation_space, self.action_space = first.agents, first.observation_space, first.action_space
-
-    def _all(self, command: str, payloads: Sequence[Any]) -> list[Any]:
-        """Send one command to every worker (they run in parallel), then read every answer."""
-        for copy, payload in zip(self.copies, payloads):
-            copy.send(command, payload)
-        try:
-            return [copy.receive() for copy in self.copies]
-        except RuntimeError:
-            for copy in self.copies:
-                copy.drain()
-            raise
-
-    def reset(self, seeds: Sequence[int | None], options: Sequence[dict | None]) -> tuple[np.ndarray, list[dict]]:
-        results = self._all("reset", list(zip(seeds, options)))
-        return np.concatenate([obs for obs, _ in results]), [info for _, infos in results for info in infos]
-
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
-        n = len(self.agents)
-        results = self._all("step", [actions[k * n : (k + 1) * n] for k in range(len(self.copies))])
-        obs, rewards, dones, infos = zip(*results)
-        return np.concatenate(obs), np.concatenate(rewards), np.concatenate(dones), [i for part in infos for i in part]
-
-    def command(self, k: int, command: str, payload: Any) -> Any:
-        """One command to worker ``k`` and its answer (one at a time: an error leaves no answer owed)."""
-        self.copies[k].send(command, payload)
-        return self.copies[k].receive()
-
-    def action_masks(self) -> np.ndarray:
-        return np.concatenate([self.command(k, "masks", None) for k in range(len(self.copies))])
-
-    def close(self) -> None:
-        for copy in self.copies:
-            copy.drain()
-        for copy in self.copies:
-            try:
-                copy.send("close", None)
-                copy.receive()
-            except (EOFError, BrokenPipeError, RuntimeError):
-                pass
-            copy.close()
 
 
 class SharedPolicyVecEnv(VecEnv):
@@ -152,17 +53,15 @@ class SharedPolicyVecEnv(VecEnv):
         spec: how to build a copy (configuration and env options; the observer
             must not be an agent).
         n_copies: K >= 1.
-        subproc: one worker process per copy (default: every copy in this
-            process, on one :class:`moma_env.vector.MomaVectorEnv`).
-        start_method: multiprocessing start method of the ``subproc`` workers
-            (default forkserver, else spawn).
-        workers: instead of ``subproc``: the copies on one batched env split over
-            ``workers`` processes (:func:`moma_env.vector.make`); the same slots bit
-            for bit.
+        subproc: one process per copy (``workers=n_copies``; default: every copy
+            in this process).
+        start_method: multiprocessing start method of the worker processes
+            (default :func:`moma_env.vector.sharded.default_start_method`).
+        workers: instead of ``subproc``: the copies split over ``workers``
+            processes, this one included (:func:`moma_env.vector.make`).
 
     Attributes:
-        engine: :class:`VectorSlots` (in this process; its ``vector`` is the
-            batched env) or the workers.
+        engine: the :class:`VectorSlots` over the batched env (its ``vector``).
     """
 
     def __init__(
@@ -174,10 +73,7 @@ class SharedPolicyVecEnv(VecEnv):
             raise ValueError("subproc (a process per copy) and workers (the batch split over processes) exclude each other")
         self.spec = spec
         self.subproc = subproc
-        if subproc:
-            self.engine: VectorSlots | _Workers = _Workers(spec, n_copies, mp.get_context(start_method or default_start_method()))
-        else:
-            self.engine = VectorSlots(spec, n_copies, workers)
+        self.engine = VectorSlots(spec, n_copies, n_copies if subproc else workers, start_method=start_method)
         self._closed = False
         self.n_copies = n_copies
         self.agents = list(self.engine.agents)
@@ -190,15 +86,7 @@ class SharedPolicyVecEnv(VecEnv):
         firsts = range(0, self.num_envs, self.n_agents)
         seeds = [self._seeds[i] for i in firsts]
         options = [self._options[i] or None for i in firsts]
-        if self.subproc:
-            observations, infos = self.engine.reset(seeds, options)
-        else:
-            if any(o != options[0] for o in options):
-                raise ValueError(
-                    "the copies in this process reset together with one options dict; "
-                    f"set_options gave different options per copy: {options}"
-                )
-            observations, infos = self.engine.reset(seeds, options[0])
+        observations, infos = self.engine.reset(seeds, options)
         self.reset_infos = infos
         self._reset_seeds()
         self._reset_options()

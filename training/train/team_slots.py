@@ -1,11 +1,10 @@
-"""MOMA env copies seen as slots (one per UGV agent), in this process or in a worker.
+"""K MOMA env copies seen as slots (one per UGV agent): :class:`VectorSlots`.
 
-These are the engines of :class:`training.train.shared_vec_env.SharedPolicyVecEnv`
-and deliberately import neither Stable-Baselines3 nor torch, so that worker
-processes stay light. :class:`VectorSlots` runs K copies in this process on one
-:class:`moma_env.vector.MomaVectorEnv` (the default); :class:`TeamSlots` runs one
-copy, in a worker process. Both implement the VecEnv contract of
-Stable-Baselines3 for their slots (slot ``k * N + j`` is UGV ``j`` of copy ``k``):
+The engine of :class:`training.train.shared_vec_env.SharedPolicyVecEnv`: one batched
+env (:func:`moma_env.vector.make`, in this process or split over worker processes),
+driven with the VecEnv contract of Stable-Baselines3 for its slots (slot ``k * N + j``
+is UGV ``j`` of copy ``k``). It deliberately imports neither Stable-Baselines3 nor
+torch, so that the worker processes stay light.
 
 * ``step`` returns per slot the observation, the team reward, ``done``
   (terminated or truncated) and the agent's info dict (a new plain ``dict``)
@@ -14,31 +13,16 @@ Stable-Baselines3 for their slots (slot ``k * N + j`` is UGV ``j`` of copy ``k``
   episode's last observation of that slot) and ``"episode"`` (``r``: return,
   ``l``: length in steps, ``t``: simulated duration in s), and the copy resets
   itself at once, so the returned observation is the next episode's first;
-* ``reset(seed)`` reseeds the env's generator (every later random layout comes
+* ``reset(seeds)`` reseeds each copy's generator (every later random layout comes
   from it, so a seed fixes the whole run).
 
-The two engines give the same slots bit for bit (``tests/test_shared_vec_env.py``).
-
-Worker protocol (:func:`worker`, over a ``multiprocessing`` pipe): the parent
-sends ``(command, payload)`` tuples and receives ``("ok", result)`` or
-``("error", traceback text)``:
-
-=============  ==========================  ===========================================
-command        payload                     result
-=============  ==========================  ===========================================
-``reset``      ``(seed, options)``         ``(observations, infos)``
-``step``       actions, one row per slot   ``(observations, rewards, dones, infos)``
-``getattr``    attribute name              that attribute of the parallel env
-``setattr``    ``(name, value)``           None
-``call``       ``(method, args, kwargs)``  the parallel env method's return value
-``masks``      None                        :meth:`TeamSlots.action_masks`
-``close``      None                        None; then the worker exits
-=============  ==========================  ===========================================
+In one process or several, the slots are the same bit for bit
+(``tests/test_shared_vec_env.py``). :func:`env_command` is what ``get_attr``,
+``set_attr`` and ``env_method`` run on a copy's parallel env, where the copy lives.
 """
 
 from __future__ import annotations
 
-import traceback
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -50,7 +34,7 @@ from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.vector import make
 
-__all__ = ["EnvSpec", "TeamSlots", "VectorSlots", "worker", "slot_spaces", "slot_infos", "env_command"]
+__all__ = ["EnvSpec", "VectorSlots", "slot_spaces", "slot_infos", "env_command", "control_step"]
 
 
 @dataclass(frozen=True)
@@ -134,94 +118,26 @@ def env_command(env: MomaParallelEnv, command: str, payload: Any) -> Any:
     raise ValueError(f"unknown command {command!r}")
 
 
-class TeamSlots:
-    """One env copy as ``len(agents)`` slots with auto-reset (see the module docstring)."""
-
-    def __init__(self, spec: EnvSpec):
-        self.env = spec.make()
-        self.agents, self.observation_space, self.action_space = slot_spaces(self.env)
-        self._discrete = isinstance(self.action_space, spaces.Discrete)
-        self._return = 0.0
-        self._length = 0
-
-    @property
-    def n_slots(self) -> int:
-        return len(self.agents)
-
-    def _stack(self, observations: dict[str, np.ndarray]) -> np.ndarray:
-        return np.stack([np.asarray(observations[a], dtype=np.float32) for a in self.agents])
-
-    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, list[dict]]:
-        """Reset the copy: ``(observations (N, D) float32, infos: N plain dicts)``."""
-        observations, infos = self.env.reset(seed=seed, options=options or None)
-        self._return, self._length = 0.0, 0
-        return self._stack(observations), [dict(infos[a]) for a in self.agents]
-
-    def _action(self, row: Any) -> Any:
-        if self._discrete:
-            return int(np.asarray(row).reshape(()))
-        return np.asarray(row, dtype=np.float32).reshape(self.action_space.shape)
-
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
-        """One env step with one action row per slot (auto-reset at the episode's end)."""
-        actions = np.asarray(actions)
-        if actions.shape[0] != self.n_slots:
-            raise ValueError(f"expected {self.n_slots} action rows (one per UGV slot), got {actions.shape[0]}")
-        observations, rewards, terminations, truncations, infos = self.env.step(
-            {agent: self._action(actions[k]) for k, agent in enumerate(self.agents)}
-        )
-        obs = self._stack(observations)
-        reward = float(rewards[self.agents[0]])
-        terminated = any(terminations.values())
-        truncated = any(truncations.values())
-        done = terminated or truncated
-        self._return += reward
-        self._length += 1
-        episode = {"r": self._return, "l": self._length, "t": float(self.env.frame.time)} if done else None
-        out_infos = slot_infos(self.agents, infos, terminated, truncated, obs, episode)
-        if done:
-            obs, _ = self.reset()
-        rewards_out = np.full(self.n_slots, reward, dtype=np.float32)
-        dones = np.full(self.n_slots, done, dtype=bool)
-        return obs, rewards_out, dones, out_infos
-
-    def action_masks(self) -> np.ndarray:
-        """(N, n_actions) bool, one row per slot: the actions the motion rules would
-        grant its robot at the next step (``MomaParallelEnv.action_mask``; switching mode)."""
-        masks = self.env.action_masks()
-        return np.stack([masks[agent] for agent in self.agents]).astype(bool)
-
-    def handle(self, command: str, payload: Any) -> Any:
-        """Execute one protocol command (see the module docstring)."""
-        if command == "step":
-            return self.step(payload)
-        if command == "reset":
-            seed, options = payload
-            return self.reset(seed, options)
-        if command == "masks":
-            return self.action_masks()
-        if command == "close":
-            self.env.close()
-            return None
-        return env_command(self.env, command, payload)
-
-
 class VectorSlots:
     """K copies as ``K * N`` slots, on one batched env (in this process, or split over workers)
-    (see the module docstring; the same slots as K :class:`TeamSlots`).
+    (see the module docstring).
 
     Args:
         spec: how to build a copy (the observer must not be an agent).
         n_copies: K >= 1.
         workers: None: every copy in this process; ``W``: the copies split over ``W``
-            worker processes (:func:`moma_env.vector.make`; the same slots bit for bit).
+            processes, this one included (:func:`moma_env.vector.make`; the same slots
+            bit for bit).
+        start_method: with ``workers``, the multiprocessing start method (default
+            :func:`moma_env.vector.sharded.default_start_method`).
 
     Attributes:
         vector: the batched env (:func:`moma_env.vector.make`).
     """
 
-    def __init__(self, spec: EnvSpec, n_copies: int, workers: int | None = None):
-        self.vector = make(spec.configuration, n_copies, workers=workers, **spec.options)
+    def __init__(self, spec: EnvSpec, n_copies: int, workers: int | None = None, start_method: str | None = None):
+        extra = {} if start_method is None or workers is None else {"start_method": start_method}
+        self.vector = make(spec.configuration, n_copies, workers=workers, **extra, **spec.options)
         self.agents, self.observation_space, self.action_space = slot_spaces(self.vector.spec_env)
         self._discrete = isinstance(self.action_space, spaces.Discrete)
         k = self.vector.num_envs
@@ -242,10 +158,10 @@ class VectorSlots:
         self._returns[k], self._lengths[k] = 0.0, 0
         self._dt[k] = float(self.vector.call_at(k, control_step))
 
-    def reset(self, seeds: Sequence[int | None], options: dict | None = None) -> tuple[np.ndarray, list[dict]]:
-        """Reset copy k with ``seeds[k]`` (None: its generator continues): ``(observations
-        (K * N, D) float32, infos: K * N plain dicts)``."""
-        observations, infos = self.vector.reset(seed=list(seeds), options=options or None)
+    def reset(self, seeds: Sequence[int | None], options: Sequence[dict | None] | None = None) -> tuple[np.ndarray, list[dict]]:
+        """Reset copy k with ``seeds[k]`` (None: its generator continues) and ``options[k]``:
+        ``(observations (K * N, D) float32, infos: K * N plain dicts)``."""
+        observations, infos = self.vector.reset(seed=list(seeds), options=None if options is None else list(options))
         for k in range(self.n_copies):
             self._episode_started(k)
         return self._slots(observations), [dict(info[a]) for info in infos for a in self.agents]
@@ -296,27 +212,3 @@ class VectorSlots:
 
     def close(self) -> None:
         self.vector.close()
-
-
-def worker(connection, spec: EnvSpec) -> None:
-    """Worker process main loop: build the copy, then serve commands until ``close``."""
-    try:
-        slots = TeamSlots(spec)
-        connection.send(("ok", (slots.agents, slots.observation_space, slots.action_space)))
-    except Exception:  # the parent raises it with the traceback
-        connection.send(("error", traceback.format_exc()))
-        connection.close()
-        return
-    while True:
-        try:
-            command, payload = connection.recv()
-        except (EOFError, KeyboardInterrupt):
-            break
-        try:
-            result = slots.handle(command, payload)
-            connection.send(("ok", result))
-        except Exception:
-            connection.send(("error", traceback.format_exc()))
-        if command == "close":
-            break
-    connection.close()
