@@ -68,6 +68,10 @@ def test_bad_input_is_refused_before_the_workers_and_their_errors_come_back():
             envs.reset_at(0, seed=-1)
         with pytest.raises(ValueError, match="a sequence must hold num_envs=3 seeds"):
             envs.reset(seed=[1, 2])
+        with pytest.raises(ValueError, match=r"options: a sequence must hold num_envs=3 entries \(one per copy\), got 2"):
+            envs.reset(seed=0, options=[None, None])
+        with pytest.raises(TypeError, match="options\\[1\\] must be None or a mapping, got int"):
+            envs.reset(seed=0, options=[None, 1, None])
         # an error raised in a worker comes back with its own type and the worker named
         with pytest.raises(KeyError, match="no such thing") as raised:
             envs.call_at(2, failing)
