@@ -46,7 +46,7 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
     if args.route != "shared":
         raise ConfigError("route", "--backend torchrl trains one actor shared by the UGVs: drop --route centralised (--critic chooses the critic)")
     if args.subproc:
-        raise ConfigError("subproc", "--backend torchrl steps its copies in one batched env: drop --subproc")
+        raise ConfigError("subproc", "--backend torchrl steps its copies in one batched env: drop --subproc (--workers W splits it over W processes)")
     if args.action_mode != TORCHRL_ACTION_MODE:
         raise ConfigError("action_mode", f"--backend torchrl trains in {TORCHRL_ACTION_MODE} mode only, got {args.action_mode!r}")
     if args.network != "mlp":
