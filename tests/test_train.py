@@ -376,8 +376,18 @@ def test_worker_processes_train_the_same_weights_as_one_process(tmp_path, route,
     (["--backend", "rllib", "--workers", "2"], "use --num-env-runners instead of --workers"),
     (["--backend", "torchrl", "--num-envs", "2", "--workers", "3"], "workers: must be at most the number of env copies (2)"),
     (["--num-envs", "2", "--workers", "2", "--subproc"], "workers: subproc runs a process per copy"),
+    (["--backend", "rllib", "--torch-threads", "2"], "--backend rllib does not take --torch-threads"),
 ])
 def test_train_refuses_workers_it_cannot_honour(tmp_path, capsys, extra, message):
     assert main(["train", "--scenario", "top_observer", "--timesteps", "64", *extra, "--out", str(tmp_path / "run")]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "run").exists()
+
+
+def test_torch_threads_is_an_option_and_lands_in_the_manifest(tmp_path):
+    with pytest.raises(SystemExit):
+        main(["train", "--scenario", "top_observer", "--torch-threads", "0", "--out", str(tmp_path / "bad")])
+    out = tmp_path / "run"
+    assert main(["train", "--scenario", "top_observer", "--timesteps", "64", "--n-steps", "32", "--batch-size", "32", "--net", "8",
+                 "--max-cycles", "20", "--torch-threads", "2", "--no-progress", "--out", str(out)]) == 0
+    assert json.loads((out / "manifest.json").read_text())["config"]["torch_threads"] == 2

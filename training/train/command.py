@@ -68,6 +68,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
                     help="split the batched env's copies over W worker processes: the same rollouts, faster with a free core "
                          "per worker and enough copies (shared route and --backend torchrl; default: in this process)")
     tr.add_argument("--seed", type=int_at_least(0, "seed"), default=defaults["seed"], help="seed of the model and the envs (default %(default)s)")
+    tr.add_argument("--torch-threads", type=int_at_least(1, "thread count"), default=defaults["torch_threads"], metavar="N",
+                    help="torch's intra-op threads while training (default %(default)s: the networks are small, more threads "
+                         "contend with the envs for the cores; training is deterministic for a seed and a thread count)")
     tr.add_argument("--out", type=Path, required=True,
                     help="output folder, one run: checkpoints, manifest.json, evaluations.json (required; a folder holding another run is refused)")
     tr.add_argument("--resume", action="store_true",
@@ -134,6 +137,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         envs=args.num_envs,
         subproc=args.subproc,
         workers=args.workers,
+        torch_threads=args.torch_threads,
         seed=args.seed,
         action_mode=args.action_mode,
         route=args.route,
@@ -164,7 +168,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
 
 #: TrainConfig fields -> their ``moma-env train`` option (value options; flags are handled apart).
 _VALUE_OPTIONS = MappingProxyType({
-    "algo": "--algo", "steps": "--timesteps", "envs": "--num-envs", "workers": "--workers", "seed": "--seed", "action_mode": "--action-mode",
+    "algo": "--algo", "steps": "--timesteps", "envs": "--num-envs", "workers": "--workers", "torch_threads": "--torch-threads", "seed": "--seed", "action_mode": "--action-mode",
     "route": "--route", "max_cycles": "--max-cycles", "n_steps": "--n-steps", "batch_size": "--batch-size",
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
@@ -179,8 +183,8 @@ _FLAGS = MappingProxyType({"subproc": ("--subproc", True), "normalize": ("--no-n
 def train_command(config: TrainConfig, out: str | Path) -> tuple[list[str], list[str]]:
     """``(argv, fields)``: the ``moma-env train`` command line of ``config`` writing to ``out``
     (options at their defaults left out), and the fields that differ from the defaults but
-    have no option (``buffer_size``, ``eval_max_cycles``, ``torch_threads``: a run made from
-    Python), which the command cannot reproduce."""
+    have no option (``buffer_size``, ``eval_max_cycles``: a run made from Python), which the
+    command cannot reproduce."""
     defaults = TrainConfig(scenario=config.scenario)
     argv = ["moma-env", "train", "--scenario", config.scenario]
     for name, option in _VALUE_OPTIONS.items():

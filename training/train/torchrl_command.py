@@ -59,7 +59,7 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
         n_steps=args.n_steps, minibatch_size=min(args.batch_size, args.n_steps * args.num_envs), learning_rate=args.learning_rate,
         gamma=args.gamma, ent_coef=args.ent_coef, checkpoint_every=args.checkpoint_every, eval_every=args.eval_every,
         eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, eval_sample_actions=args.eval_sample_actions,
-        workers=args.workers,
+        workers=args.workers, torch_threads=args.torch_threads,
     )
 
 
