@@ -52,6 +52,19 @@ def test_a_copy_continues_bit_for_bit(name, mode, duplicate):
     assert run(middle, actions[40:]) == run(env, actions[40:]) == run(fresh, actions[40:])
 
 
+@pytest.mark.parametrize("duplicate", [copy.deepcopy, pickle_copy], ids=["deepcopy", "pickle"])
+@pytest.mark.parametrize("estimator", ["graph", "graph_vision"])
+def test_a_graph_estimator_env_copied_mid_episode_continues_bit_for_bit(estimator, duplicate):
+    pytest.importorskip("gtsam")
+    env = parallel_env("top_observer", action_mode="switching", max_cycles=80, localiser=estimator)
+    env.reset(seed=3)
+    actions = sampled_actions(env, 70, seed=3)
+    run(env, actions[:30])
+    assert env.simulation.localiser.size[0] > 0  # the graph holds variables: iSAM2 has state to rebuild
+    middle = duplicate(env)
+    assert run(middle, actions[30:]) == run(env, actions[30:])
+
+
 def test_a_copy_of_a_random_layout_env_keeps_drawing_the_same_layouts():
     env = parallel_env("top_observer", random_scenarios=True, max_cycles=20)
     env.reset(seed=2)

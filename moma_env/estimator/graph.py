@@ -133,10 +133,10 @@ class GraphLocaliser(BookkeptLocaliser):
         if not isinstance(graph, GraphConfig):
             raise TypeError(f"graph must be a GraphConfig, got {type(graph).__name__}")
         self.graph = graph
-        params = gtsam.ISAM2Params()
-        params.setRelinearizeThreshold(graph.relinearize_threshold)
-        params.relinearizeSkip = 1
-        self._isam = gtsam.ISAM2(params)
+        self._isam = self._new_isam()
+        # Every iSAM2 update so far: its factors, its new values and the variables read after it
+        # (iSAM2 does not pickle; a copy replays these into a new one, see __setstate__).
+        self._history: list[tuple[gtsam.NonlinearFactorGraph, gtsam.Values, tuple[int, ...]]] = []
         self._factors = gtsam.NonlinearFactorGraph()
         self._values = gtsam.Values()
         self._next_key = 0
@@ -156,6 +156,30 @@ class GraphLocaliser(BookkeptLocaliser):
         self._last_key: dict[str, int] = {}  # the robot's latest variable, whatever its kind
         self._motion: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # odometry since it: (T, GTSAM covariance)
         self._chained = False  # an odometry factor was added (see update)
+
+    def _new_isam(self) -> gtsam.ISAM2:
+        params = gtsam.ISAM2Params()
+        params.setRelinearizeThreshold(self.graph.relinearize_threshold)
+        params.relinearizeSkip = 1
+        return gtsam.ISAM2(params)
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        del state["_isam"]  # GTSAM's ISAM2 does not pickle: rebuilt from the history
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        """Rebuild iSAM2 by replaying every update in order, with the reads that followed each
+        (iSAM2 solves for its estimate lazily, when read), so that the new iSAM2 is made by
+        the same calls as the original and the copy continues bit for bit like it
+        (``tests/test_env_copy.py``)."""
+        self.__dict__.update(state)
+        self._isam = self._new_isam()
+        for factors, values, read in self._history:
+            self._isam.update(factors, values)
+            for key in read:
+                self._isam.calculateEstimatePose3(key)
+                self._isam.marginalCovariance(key)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -258,9 +282,10 @@ class GraphLocaliser(BookkeptLocaliser):
             self._isam.update(self._factors, self._values)
             for key in self._values.keys():
                 self._in_graph.add(key)
+            read = self._read(measured)
+            self._history.append((self._factors, self._values, read))
             self._factors = gtsam.NonlinearFactorGraph()
             self._values = gtsam.Values()
-            self._read(measured)
         book.end_update(t, measured)
 
     # ---------------------------------------------------------------- helpers
@@ -318,14 +343,17 @@ class GraphLocaliser(BookkeptLocaliser):
         C = Ad @ cov @ Ad.T + self._floor
         return gtsam.noiseModel.Gaussian.Covariance(0.5 * (C + C.T))
 
-    def _read(self, measured: set[str]) -> None:
-        """Current poses and marginal covariances of every robot's current variable."""
+    def _read(self, measured: set[str]) -> tuple[int, ...]:
+        """Current poses and marginal covariances of every robot's current variable; the
+        variables read, in order."""
+        read = []
         for name, r in self._book.robots.items():
             key = self._key[name]
             if key is None or key not in self._in_graph:
                 continue
             if r.phase is Phase.MOBILE and name not in measured:
                 continue
+            read.append(key)
             T = self._isam.calculateEstimatePose3(key).matrix()
             cov = ros_from_gtsam(T, self._isam.marginalCovariance(key))
             if r.planar:
@@ -335,6 +363,7 @@ class GraphLocaliser(BookkeptLocaliser):
             self._guess[name] = T
             self._pose[name] = T
             self._cov[name] = cov
+        return tuple(read)
 
 
 def graph_vision(config: EstimatorConfig) -> GraphLocaliser:
