@@ -120,7 +120,13 @@ class MomaVectorEnv:
         """Step every copy with its row of ``actions``; a copy whose episode ends resets (``SAME_STEP``)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        checked = checked_actions(actions, self.possible_agents, self.single_action_space, self.num_envs)
+        return self.step_checked(checked_actions(actions, self.possible_agents, self.single_action_space, self.num_envs))
+
+    def step_checked(self, checked: Mapping[str, np.ndarray]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
+        """:meth:`step` with actions that :func:`~moma_env.vector.batch_checks.checked_actions`
+        returned for this batch (what a sharded batch's caller checked once for all shards)."""
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
         agents = self.possible_agents
         n = self.num_envs
         obs_rows: list[dict] = []

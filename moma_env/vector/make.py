@@ -13,7 +13,7 @@ __all__ = ["BatchedEnv", "make"]
 BatchedEnv = MomaVectorEnv | ShardedVectorEnv
 
 
-def make(name: str, num_envs: int, *, workers: int | None = None, **options: Any) -> BatchedEnv:
+def make(name: str, num_envs: int, *, workers: int | None = None, start_method: str | None = None, **options: Any) -> BatchedEnv:
     """``num_envs`` copies of configuration ``name``.
 
     Args:
@@ -24,9 +24,11 @@ def make(name: str, num_envs: int, *, workers: int | None = None, **options: Any
             shards stepped at the same time, one here and the others in ``W - 1``
             worker processes (:class:`~moma_env.vector.sharded.ShardedVectorEnv`),
             the same episodes bit for bit.
+        start_method: with ``workers``, the multiprocessing start method of the worker
+            processes (default :func:`~moma_env.vector.sharded.default_start_method`).
         options: every option of :func:`moma_env.env.factory.parallel_env` (env
             options and configuration fields).
     """
     if workers is None:
         return MomaVectorEnv(name, num_envs, **options)
-    return ShardedVectorEnv(name, num_envs, workers, **options)
+    return ShardedVectorEnv(name, num_envs, workers, start_method=start_method, **options)

@@ -58,8 +58,8 @@ def shard_sizes(num_envs: int, workers: int) -> list[int]:
 
 def _run(vector: MomaVectorEnv, command: str, payload: Any) -> Any:
     """One command of the protocol on a worker's batch."""
-    if command == "step":
-        return vector.step(payload)
+    if command == "step":  # the actions were checked by the caller, for every shard at once
+        return vector.step_checked(payload)
     if command == "reset":
         seeds, options = payload
         return vector.reset(seed=seeds, options=options)

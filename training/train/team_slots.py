@@ -136,8 +136,7 @@ class VectorSlots:
     """
 
     def __init__(self, spec: EnvSpec, n_copies: int, workers: int | None = None, start_method: str | None = None):
-        extra = {} if start_method is None or workers is None else {"start_method": start_method}
-        self.vector = make(spec.configuration, n_copies, workers=workers, **extra, **spec.options)
+        self.vector = make(spec.configuration, n_copies, workers=workers, start_method=start_method, **spec.options)
         self.agents, self.observation_space, self.action_space = slot_spaces(self.vector.spec_env)
         self._discrete = isinstance(self.action_space, spaces.Discrete)
         k = self.vector.num_envs
