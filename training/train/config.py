@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "NETWORKS", "TrainConfig", "reward_overrides",
-    "run_env_options", "config_to_dict", "config_from_dict", "BackendTrainConfig",
+    "run_env_options", "config_to_dict", "config_from_dict", "BackendTrainConfig", "check_learning_fields", "check_workers",
 ]
 
 #: Algorithms by CLI name -> Stable-Baselines3 (or sb3-contrib) class name.
@@ -57,6 +57,33 @@ NETWORKS = ("mlp", "team")
 #: Scripted teachers a run may be cloned from (``pretrain``): built-in switching-mode
 #: policies of :func:`training.evaluation.policies.load_policy`.
 TEACHERS = ("greedy", "scripted")
+def check_learning_fields(config: Any) -> None:
+    """ConfigError naming the first bad one of the fields every training configuration has
+    (:class:`TrainConfig`, :class:`BackendTrainConfig`): ``max_cycles``,
+    ``eval_max_cycles``, ``rewards``, ``net_arch``, ``n_steps``, ``learning_rate``,
+    ``gamma``, ``ent_coef``, ``checkpoint_every`` and the evaluation fields."""
+    from moma_env.env.config import RewardConfig
+
+    for name in ("max_cycles", "eval_max_cycles"):
+        if getattr(config, name) is not None:
+            check_count(name, getattr(config, name), 1)
+    if config.rewards is not None and not isinstance(config.rewards, RewardConfig):
+        raise ConfigError("rewards", f"must be a RewardConfig or None, got {type(config.rewards).__name__}")
+    if not isinstance(config.net_arch, tuple) or not config.net_arch:
+        raise ConfigError("net_arch", f"must be a non-empty tuple of layer sizes, got {config.net_arch!r}")
+    for k, size in enumerate(config.net_arch):
+        check_count(f"net_arch[{k}]", size, 1)
+    check_count("n_steps", config.n_steps, 1)
+    check_positive("learning_rate", config.learning_rate)
+    check_range("gamma", config.gamma, 0.0, 1.0)
+    check_non_negative("ent_coef", config.ent_coef)
+    check_count("checkpoint_every", config.checkpoint_every, 1)
+    check_count("eval_every", config.eval_every, 0)
+    check_count("eval_episodes", config.eval_episodes, 1)
+    check_count("eval_seed", config.eval_seed, 0)
+    check_bool("eval_sample_actions", config.eval_sample_actions)
+
+
 def check_workers(workers: object, envs: int) -> None:
     """ConfigError naming ``workers`` unless it is None or an integer in ``[1, envs]``."""
     if workers is None:
@@ -164,7 +191,7 @@ class TrainConfig:
     dagger_epochs: int = 8
 
     def __post_init__(self) -> None:
-        from moma_env.env.config import ACTION_MODES, RewardConfig
+        from moma_env.env.config import ACTION_MODES
 
         check_choice("scenario", self.scenario, sorted(CONFIGURATION_NAMES) + sorted(TASKS))
         check_choice("algo", self.algo, sorted(ALGORITHMS))
@@ -179,27 +206,10 @@ class TrainConfig:
             raise ConfigError("workers", "subproc runs a process per copy; workers splits the batch over processes: give one")
         if self.workers is not None and self.route != "shared":
             raise ConfigError("workers", "splits the shared route's batched env; the centralised route has --subproc")
-        for name in ("max_cycles", "eval_max_cycles"):
-            if getattr(self, name) is not None:
-                check_count(name, getattr(self, name), 1)
-        if self.rewards is not None and not isinstance(self.rewards, RewardConfig):
-            raise ConfigError("rewards", f"must be a RewardConfig or None, got {type(self.rewards).__name__}")
+        check_learning_fields(self)
         check_bool("normalize", self.normalize)
-        if not isinstance(self.net_arch, tuple) or not self.net_arch:
-            raise ConfigError("net_arch", f"must be a non-empty tuple of layer sizes, got {self.net_arch!r}")
-        for k, size in enumerate(self.net_arch):
-            check_count(f"net_arch[{k}]", size, 1)
-        check_count("n_steps", self.n_steps, 1)
         check_count("batch_size", self.batch_size, 1)
-        check_positive("learning_rate", self.learning_rate)
-        check_range("gamma", self.gamma, 0.0, 1.0)
         check_count("buffer_size", self.buffer_size, 1)
-        check_non_negative("ent_coef", self.ent_coef)
-        check_count("checkpoint_every", self.checkpoint_every, 1)
-        check_count("eval_every", self.eval_every, 0)
-        check_count("eval_episodes", self.eval_episodes, 1)
-        check_count("eval_seed", self.eval_seed, 0)
-        check_bool("eval_sample_actions", self.eval_sample_actions)
         check_bool("progress_bar", self.progress_bar)
         check_count("torch_threads", self.torch_threads, 1)
         check_choice("network", self.network, NETWORKS)
@@ -297,32 +307,13 @@ class BackendTrainConfig:
     eval_sample_actions: bool = False
 
     def __post_init__(self) -> None:
-        from moma_env.env.config import RewardConfig
-
         check_choice("scenario", self.scenario, sorted(CONFIGURATION_NAMES) + sorted(TASKS))
         check_count("steps", self.steps, 1)
         check_count("envs", self.envs, 1)
         check_count("seed", self.seed, 0)
-        for name in ("max_cycles", "eval_max_cycles"):
-            if getattr(self, name) is not None:
-                check_count(name, getattr(self, name), 1)
-        if self.rewards is not None and not isinstance(self.rewards, RewardConfig):
-            raise ConfigError("rewards", f"must be a RewardConfig or None, got {type(self.rewards).__name__}")
-        if not isinstance(self.net_arch, tuple) or not self.net_arch:
-            raise ConfigError("net_arch", f"must be a non-empty tuple of layer sizes, got {self.net_arch!r}")
-        for k, size in enumerate(self.net_arch):
-            check_count(f"net_arch[{k}]", size, 1)
-        check_count("n_steps", self.n_steps, 1)
+        check_learning_fields(self)
         check_count("minibatch_size", self.minibatch_size, 1)
         check_count("num_epochs", self.num_epochs, 1)
-        check_positive("learning_rate", self.learning_rate)
-        check_range("gamma", self.gamma, 0.0, 1.0)
-        check_non_negative("ent_coef", self.ent_coef)
-        check_count("checkpoint_every", self.checkpoint_every, 1)
-        check_count("eval_every", self.eval_every, 0)
-        check_count("eval_episodes", self.eval_episodes, 1)
-        check_count("eval_seed", self.eval_seed, 0)
-        check_bool("eval_sample_actions", self.eval_sample_actions)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for the manifest (tuples as lists)."""
