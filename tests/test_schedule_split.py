@@ -1,5 +1,6 @@
 """``schedule_split``: where a successful episode's time went, seen from the last robot to arrive,
-and the harness's episodes carrying it (time to goal = moving + waiting + still)."""
+and the harness's episodes carrying it (time to goal = moving + waiting + still); ``schedule_bound``:
+the soonest any order of the same moves could arrive."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import math
 
 import pytest
 
-from training.evaluation.episode import schedule_split
+from training.evaluation.episode import mobile_times, schedule_bound, schedule_split
 from training.evaluation.harness import evaluate
 
 
@@ -31,6 +32,25 @@ def test_split_is_nan_when_some_robot_never_arrived():
     assert math.isnan(waiting) and math.isnan(still)
 
 
+def test_mobile_times_count_the_steps_after_which_a_robot_was_mobile():
+    times = [0.0, 0.5, 1.5, 2.0, 4.0]
+    mobile = {"a": [False, True, True, False, True], "b": [True, False, False, False, False]}
+    assert mobile_times(times, mobile) == {"a": pytest.approx(3.5), "b": 0.0}  # b's flag at the reset counts no step
+
+
+def test_schedule_bound_is_the_longest_mover_or_the_work_of_all_but_one_robot():
+    assert schedule_bound({"a": 18.0, "b": 14.4, "c": 13.8, "d": 11.0}) == pytest.approx(57.2 / 3)  # the team's work binds
+    assert schedule_bound({"a": 23.8, "b": 14.9, "c": 14.9, "d": 14.4}) == 23.8                     # the longest mover binds
+    assert schedule_bound({"a": 3.0, "b": 4.0}) == 7.0       # two robots: never both mobile
+    assert schedule_bound({"a": 3.0}) == 3.0
+    with pytest.raises(ValueError, match="at least one robot"):
+        schedule_bound({})
+    with pytest.raises(ValueError, match="'b'"):
+        schedule_bound({"a": 1.0, "b": math.nan})
+    with pytest.raises(ValueError, match="'a'"):
+        schedule_bound({"a": -1.0})
+
+
 def test_evaluated_episodes_split_their_time_to_goal():
     result = evaluate("top_observer_team4", "greedy", 2, 1_000_000)
     for ep in result.episodes:
@@ -40,4 +60,6 @@ def test_evaluated_episodes_split_their_time_to_goal():
         assert ep.waiting_s >= 0.0 and ep.still_s > 0.0  # every leg ends in a dwell
         row = ep.row()
         assert row["waiting_s"] == ep.waiting_s and row["still_s"] == ep.still_s
-    assert result.summary["waiting_s"]["n"] == 2
+        # the greedy schedule is one schedule of its own moves: never sooner than their bound
+        assert 0.0 < ep.bound_s <= ep.time_to_goal_s and row["bound_s"] == ep.bound_s
+    assert result.summary["waiting_s"]["n"] == 2 and result.summary["bound_s"]["n"] == 2

@@ -96,8 +96,8 @@ def test_schedule_columns_split_the_time_to_goal_and_old_sweeps_are_refused():
     from training.sweep.compare import SCHEDULE_COLUMNS
 
     stat = lambda mean: {"mean": mean, "std": 0.5, "n": 10}  # noqa: E731
-    entry = _entry("greedy", 1.0, 23.0, 0.0065) | {"waiting_s": stat(5.0), "still_s": stat(4.0)}
+    entry = _entry("greedy", 1.0, 23.0, 0.0065) | {"waiting_s": stat(5.0), "still_s": stat(4.0), "bound_s": stat(17.5)}
     row = comparison_table([entry], columns=SCHEDULE_COLUMNS).splitlines()[2]
-    assert row == "| greedy | 100 % | 23.0 ± 2.0 | 14.0 | 5.0 | 4.0 |"
+    assert row == "| greedy | 100 % | 23.0 ± 2.0 | 14.0 | 5.0 | 4.0 | 17.5 |"
     with pytest.raises(CompareError, match="waiting_s"):
         comparison_table([_entry("greedy", 1.0, 23.0, 0.0065)], columns=SCHEDULE_COLUMNS)

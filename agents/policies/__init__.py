@@ -23,6 +23,7 @@ from agents.policies.caterpillar_sled import CaterpillarSled
 from agents.policies.greedy import GreedyParallelPolicy
 from agents.policies.planned import PlannedPolicy
 from agents.policies.random_policy import RandomPolicy
+from agents.policies.rollout import GreedyRolloutPolicy
 from agents.policies.top_observer import TopObserverLeapfrog
 from agents.policies.turns import Move, TurnTakingPolicy
 from moma_env.scenarios import SPECS
@@ -36,6 +37,7 @@ __all__ = [
     "CaterpillarMulti",
     "CaterpillarServo",
     "GreedyParallelPolicy",
+    "GreedyRolloutPolicy",
     "PlannedPolicy",
     "TurnTakingPolicy",
     "Move",

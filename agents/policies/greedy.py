@@ -75,6 +75,20 @@ class GreedyParallelPolicy:
 
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, int]:
         """Movers keep advancing; the farthest static robot the masks allow starts a leg."""
+        actions, startable = self.plan(observations, infos)
+        if startable:
+            actions[startable[0]] = ADVANCE
+        return actions
+
+    def plan(
+        self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]
+    ) -> tuple[dict[str, int], list[str]]:
+        """This step's decisions but the start: the movers' actions (``ADVANCE``, or
+        ``HOLD`` for a stalled one and for every static robot), and the static robots
+        not at their goal that may start a leg now, farthest from their goal first
+        (empty while a dwell runs or when the masks allow none). :meth:`act` starts
+        the first; a planner may start another. Counts as this step's :meth:`act`
+        for the stall watches (call one of the two per step)."""
         if not self._ready:
             raise RuntimeError("call reset(env) before act()")
         reader = self.reader
@@ -92,15 +106,13 @@ class GreedyParallelPolicy:
             watch.clear()
             if not reader.at_goal(agent, observations):
                 idle.append((-reader.goal_distance(agent, observations), self.ugvs.index(agent), agent))
-        if not idle:
-            return actions
-        if reader.feature(idle[0][2], observations, "dwell_remaining") > 0.0:
-            return actions
+        if not idle or reader.feature(idle[0][2], observations, "dwell_remaining") > 0.0:
+            return actions, []
+        startable = []
         for _, _, agent in sorted(idle):
             mask = read_info(infos, agent, "action_mask")
             if mask is None:
                 raise ValueError(f"infos[{agent!r}] has no 'action_mask': make the env with action_masks=True")
             if mask[ADVANCE]:
-                actions[agent] = ADVANCE
-                break
-        return actions
+                startable.append(agent)
+        return actions, startable

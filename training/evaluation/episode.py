@@ -20,7 +20,7 @@ from moma_env.env.agent_names import is_observer_agent
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, run_metrics
 from training.evaluation.policies import Policy
 
-__all__ = ["RobotEpisode", "EpisodeResult", "run_episode", "robot_agents", "schedule_split"]
+__all__ = ["RobotEpisode", "EpisodeResult", "run_episode", "robot_agents", "schedule_split", "mobile_times", "schedule_bound"]
 
 FrameSink = Callable[[np.ndarray], None]
 
@@ -75,6 +75,9 @@ class EpisodeResult:
             :func:`schedule_split`.
         still_s: of that time, how long no robot moved (dwells, settling) (s; NaN
             without success).
+        bound_s: the soonest any schedule could reach every goal if each robot is
+            mobile as long as it was in this episode and one robot at least stands at
+            every instant (s; NaN without success); see :func:`schedule_bound`.
     """
 
     index: int
@@ -92,6 +95,7 @@ class EpisodeResult:
     robots: Mapping[str, RobotEpisode]
     waiting_s: float = math.nan
     still_s: float = math.nan
+    bound_s: float = math.nan
 
     def row(self) -> dict[str, Any]:
         """The episode as one flat CSV row (distances in m, angles in deg, times in s)."""
@@ -109,6 +113,7 @@ class EpisodeResult:
             "lost_track": int(self.lost_track),
             "waiting_s": self.waiting_s,
             "still_s": self.still_s,
+            "bound_s": self.bound_s,
         }
         for name, r in self.robots.items():
             m = r.metrics
@@ -216,6 +221,42 @@ def schedule_split(times: Sequence[float], mobile: Mapping[str, Sequence[bool]],
     return waiting, still
 
 
+def mobile_times(times: Sequence[float], mobile: Mapping[str, Sequence[bool]]) -> dict[str, float]:
+    """How long (s) each robot was mobile: the steps ``k`` (from sample ``k - 1`` to
+    ``k``, ``times`` in s) after which it was (``mobile[robot][k]``, the convention of
+    :func:`schedule_split`)."""
+    return {
+        name: sum(times[k] - times[k - 1] for k in range(1, len(times)) if flags[k])
+        for name, flags in mobile.items()
+    }
+
+
+def schedule_bound(mobile_s: Mapping[str, float]) -> float:
+    """The soonest (s) a schedule can bring every robot in, if robot ``r`` must be mobile
+    for ``mobile_s[r]`` seconds and at every instant one robot at least stands (the
+    motion rules' static reference, with the UGVs as the references).
+
+    With ``n`` robots at most ``n - 1`` move at once and none moves longer than the
+    schedule, so it lasts at least ``max(max(mobile_s), sum(mobile_s) / (n - 1))``;
+    with one robot, its mobile time. The switch windows and dwells are not counted, so
+    a real schedule needs more: this bounds what a better order of moves can gain on
+    the same legs.
+
+    Raises:
+        ValueError: no robots, or a time that is negative or not finite.
+    """
+    values = list(mobile_s.values())
+    if not values:
+        raise ValueError("schedule_bound needs at least one robot")
+    for name, value in mobile_s.items():
+        if not math.isfinite(value) or value < 0.0:
+            raise ValueError(f"mobile time of {name!r} must be a finite number >= 0 s, got {value!r}")
+    longest = max(values)
+    if len(values) == 1:
+        return longest
+    return max(longest, sum(values) / (len(values) - 1))
+
+
 def _count_events(infos: Mapping[str, Mapping[str, Any]]) -> tuple[int, int]:
     switches = refused = 0
     for info in infos.values():
@@ -272,8 +313,12 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
             frame_sink(env.render())
     duration = float(env.frame.time)
     results = {name: log.result() for name, log in logs.items()}
-    waiting, still = schedule_split(times, {name: log.mobile for name, log in logs.items()},
-                                    {name: r.goal_time_s for name, r in results.items()}) if terminated and robots else (math.nan, math.nan)
+    mobile = {name: log.mobile for name, log in logs.items()}
+    if terminated and robots:
+        waiting, still = schedule_split(times, mobile, {name: r.goal_time_s for name, r in results.items()})
+        bound = schedule_bound(mobile_times(times, mobile))
+    else:
+        waiting = still = bound = math.nan
     goals = {name: tuple(float(v) for v in goal) for name, goal in env.scenario.goals.items()}
     return EpisodeResult(
         index=index,
@@ -291,4 +336,5 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
         robots=results,
         waiting_s=waiting,
         still_s=still,
+        bound_s=bound,
     )

@@ -89,6 +89,7 @@ def episode_dict(ep: EpisodeResult) -> dict[str, Any]:
         "lost_track": ep.lost_track,
         "waiting_s": ep.waiting_s,
         "still_s": ep.still_s,
+        "bound_s": ep.bound_s,
         "goals": {name: list(goal) for name, goal in ep.goals.items()},
         "robots": {
             name: {
@@ -123,7 +124,8 @@ def summarise(episodes: Sequence[EpisodeResult], robots: Sequence[str]) -> dict[
     Keys: ``n_episodes``, ``success_rate``, ``lost_track_rate``,
     ``time_to_goal_s`` (over successful episodes), ``duration_s``,
     ``total_reward``, ``n_switches``, ``n_refused``, ``waiting_s`` and ``still_s``
-    (over successful episodes; :func:`training.evaluation.episode.schedule_split`)
+    (over successful episodes; :func:`training.evaluation.episode.schedule_split`),
+    ``bound_s`` (over successful episodes; :func:`training.evaluation.episode.schedule_bound`)
     (each ``{"mean", "std", "n"}``), and ``robots``: per robot ``distance_m``, ``n_switches``,
     ``mean_heading_error_deg``, ``final_heading_error_deg`` (mean/std) and
     ``moma``: :func:`moma_env.metrics.aggregate` of its runs (ME_f, its std,
@@ -146,6 +148,7 @@ def summarise(episodes: Sequence[EpisodeResult], robots: Sequence[str]) -> dict[
         "n_refused": mean_std([ep.n_refused for ep in episodes]),
         "waiting_s": mean_std([ep.waiting_s for ep in episodes]),
         "still_s": mean_std([ep.still_s for ep in episodes]),
+        "bound_s": mean_std([ep.bound_s for ep in episodes]),
     }
     per_robot = {}
     for name in robots:

@@ -8,6 +8,8 @@ Specs understood by :func:`load_policy`:
 * ``"scripted"``: ``agents.policies.scripted_policy(configuration)``;
 * ``"greedy"``: ``agents.policies.GreedyParallelPolicy()`` (as many movers as the
   rules allow; it needs the env's action masks, which its ``env_options`` ask for);
+* ``"rollout"``: ``agents.policies.GreedyRolloutPolicy()`` (the greedy policy with a
+  lookahead over its starts in copies of the env: a planner that reads the simulator);
 * ``"random"``: ``agents.policies.RandomPolicy(seed)``;
 * a path: the output folder of ``moma-env train``
   (:class:`agents.learned.LearnedPolicy`, or with ``--backend rllib`` / ``torchrl``
@@ -30,10 +32,10 @@ from typing import Any, Protocol, runtime_checkable
 __all__ = ["Policy", "PolicyLoadError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "load_policy", "policy_label"]
 
 #: Policy specs that name a built-in policy rather than a file.
-BUILTIN_POLICIES = ("scripted", "greedy", "planned", "servo", "random")
+BUILTIN_POLICIES = ("scripted", "greedy", "rollout", "planned", "servo", "random")
 
 #: The action mode each built-in policy acts in.
-POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
+POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "rollout": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
 
 
 class PolicyLoadError(ValueError):
@@ -116,7 +118,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
 
     Args:
         spec: ``"scripted"`` (switching mode), ``"greedy"`` (switching mode, several
-            movers at once), ``"planned"`` (follows the MOMA
+            movers at once), ``"rollout"`` (the greedy with a lookahead over its
+            starts, a planner reading the simulator), ``"planned"`` (follows the MOMA
             navigation planner's plan, velocity mode), ``"servo"`` (the
             caterpillar follower servoing to its stand-off, velocity mode),
             ``"random"``, the path
@@ -157,6 +160,12 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         if cls is None:
             raise PolicyLoadError("agents.policies has no GreedyParallelPolicy()")
         policy = cls()
+    elif spec == "rollout":
+        module = _agents_policies()
+        cls = getattr(module, "GreedyRolloutPolicy", None)
+        if cls is None:
+            raise PolicyLoadError("agents.policies has no GreedyRolloutPolicy()")
+        policy = cls()
     elif spec == "planned":
         module = _agents_policies()
         cls = getattr(module, "PlannedPolicy", None)
@@ -188,7 +197,7 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
             policy = _load_published_policy(spec, configuration, sample_actions)
         elif not path.exists():
             raise PolicyLoadError(
-                f"unknown policy {spec!r}: expected 'scripted', 'greedy', 'planned', 'servo', 'random', the folder of a trained "
+                f"unknown policy {spec!r}: expected 'scripted', 'greedy', 'rollout', 'planned', 'servo', 'random', the folder of a trained "
                 f"policy or a published policy's name (published: {', '.join(_published_names()) or 'none'})"
             )
         else:

@@ -18,7 +18,9 @@ policy's mean over its own successes.
 (:func:`training.evaluation.episode.schedule_split`): success, time to goal, and the
 part of it the last robot to arrive spent moving, waiting (standing while another
 robot moved) and still (no robot moving), means over the successful episodes, so a
-row's three parts add up to its time to goal. Sweeps written before those were
+row's three parts add up to its time to goal; and the schedule bound
+(:func:`training.evaluation.episode.schedule_bound`: the soonest any order of the same
+moves could arrive). Sweeps written before those were
 recorded are refused with ``--schedule``.
 
 Units: time in s, errors in cm, rates in %, counts per episode. (The table of
@@ -60,6 +62,7 @@ SCHEDULE_COLUMNS: Mapping[str, tuple[str, str, float]] = {
     "last robot moving s": ("time_to_goal_s", "moving", 1.0),
     "waiting s": ("waiting_s", "mean", 1.0),
     "team still s": ("still_s", "mean", 1.0),
+    "bound s": ("bound_s", "mean", 1.0),
 }
 
 _DIGITS = {"success": 0, "lost track": 0, "ME_f cm": 2, "ME cm": 2}

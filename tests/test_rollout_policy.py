@@ -1,0 +1,77 @@
+"""``GreedyRolloutPolicy``: the greedy policy with a lookahead over its starts in copies of the env.
+
+What makes it a rollout of the greedy policy: a copy's future is the env's own (the
+greedy's choice, rolled out, reaches the goals exactly when the greedy episode does),
+the lookahead leaves the env untouched, and the time it expects never grows."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from agents.policies import ADVANCE, GreedyParallelPolicy, GreedyRolloutPolicy
+from moma_env.env.factory import parallel_env
+from training.evaluation.episode import run_episode
+from training.evaluation.policies import load_policy
+
+TASK = "top_observer_team4"
+SEED = 1_000_003
+
+
+@pytest.fixture(scope="module")
+def greedy_time() -> float:
+    result = run_episode(parallel_env(TASK), GreedyParallelPolicy(), 0, SEED)
+    assert result.success
+    return result.time_to_goal_s
+
+
+def test_the_greedy_choice_rolled_out_is_the_greedy_episode(greedy_time):
+    env = parallel_env(TASK)
+    observations, infos = env.reset(seed=SEED)
+    policy = GreedyRolloutPolicy()
+    policy.reset(env, seed=SEED)
+    actions, startable = policy.base.plan(observations, infos)
+    assert startable, "at the reset every robot is static and away from its goal"
+    state, time = env.state().copy(), env.frame.time
+    assert policy.time_to_goal(actions | {startable[0]: ADVANCE}) == greedy_time
+    np.testing.assert_array_equal(env.state(), state)  # the lookahead ran in a copy
+    assert env.frame.time == time and env.agents
+    assert policy.lookaheads == 1
+
+
+def test_the_expected_time_never_grows_and_starts_at_most_the_greedys(greedy_time):
+    env = parallel_env(TASK)
+    observations, infos = env.reset(seed=SEED)
+    policy = GreedyRolloutPolicy()
+    policy.reset(env, seed=SEED)
+    assert math.isnan(policy.expected_time_s)
+    expected = []
+    while env.agents and len(expected) < 3:  # the first decisions: the starts after the reset
+        before = policy.lookaheads
+        observations, _, _, _, infos = env.step(policy.act(observations, infos))
+        if policy.lookaheads > before:
+            expected.append(policy.expected_time_s)
+    assert len(expected) == 3
+    assert expected[0] <= greedy_time
+    assert all(later <= earlier for earlier, later in zip(expected, expected[1:]))
+    assert policy.lookaheads >= len(expected) * 2  # every decision step tried at least two choices
+
+
+def test_bad_use_is_refused():
+    with pytest.raises(TypeError, match="wait must be a bool"):
+        GreedyRolloutPolicy(wait=1)
+    with pytest.raises(ValueError, match="stall_s"):
+        GreedyRolloutPolicy(stall_s=-1.0)
+    policy = GreedyRolloutPolicy()
+    with pytest.raises(RuntimeError, match="reset"):
+        policy.act({}, {})
+    with pytest.raises(RuntimeError, match="reset"):
+        policy.time_to_goal({})
+
+
+def test_the_harness_loads_it_by_name():
+    policy = load_policy("rollout", TASK)
+    assert isinstance(policy, GreedyRolloutPolicy)
+    assert policy.env_options == GreedyParallelPolicy.env_options
