@@ -38,6 +38,10 @@ BUILTIN_POLICIES = ("scripted", "greedy", "rollout", "planned", "servo", "random
 POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "rollout": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
 
 
+#: Built-in policies that are an ``agents.policies`` class made without arguments.
+_CLASS_POLICIES = {"greedy": "GreedyParallelPolicy", "rollout": "GreedyRolloutPolicy", "planned": "PlannedPolicy"}
+
+
 class PolicyLoadError(ValueError):
     """A policy spec that names no policy the harness can load (one-line message)."""
 
@@ -154,23 +158,11 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
             policy = factory(builtin_configuration)
         except (KeyError, ValueError) as err:
             raise PolicyLoadError(f"no scripted policy for configuration {configuration!r}: {err}") from None
-    elif spec == "greedy":
-        module = _agents_policies()
-        cls = getattr(module, "GreedyParallelPolicy", None)
+    elif spec in _CLASS_POLICIES:
+        class_name = _CLASS_POLICIES[spec]
+        cls = getattr(_agents_policies(), class_name, None)
         if cls is None:
-            raise PolicyLoadError("agents.policies has no GreedyParallelPolicy()")
-        policy = cls()
-    elif spec == "rollout":
-        module = _agents_policies()
-        cls = getattr(module, "GreedyRolloutPolicy", None)
-        if cls is None:
-            raise PolicyLoadError("agents.policies has no GreedyRolloutPolicy()")
-        policy = cls()
-    elif spec == "planned":
-        module = _agents_policies()
-        cls = getattr(module, "PlannedPolicy", None)
-        if cls is None:
-            raise PolicyLoadError("agents.policies has no PlannedPolicy()")
+            raise PolicyLoadError(f"agents.policies has no {class_name}()")
         policy = cls()
     elif spec == "servo":
         if builtin_configuration != "caterpillar":
