@@ -204,7 +204,11 @@ class SwitchingActions(ActionMode):
         self._route_s: dict[str, float] = {}  # robot -> arc length (m) of its last leg's start on its route
 
     def space(self, agent: str) -> spaces.Space:
-        return spaces.Discrete(3 if agent in self.tows else 2)
+        return spaces.Discrete(self.n_actions(agent))
+
+    def n_actions(self, agent: str) -> int:
+        """How many actions UGV ``agent`` has: hold and advance, and reel when it tows a sled."""
+        return 3 if agent in self.tows else 2
 
     def reset(self, simulation: Simulation) -> None:
         self.legs = {}
@@ -350,7 +354,7 @@ class SwitchingActions(ActionMode):
         were the only change requested (see ``MomaParallelEnv.action_mask``)."""
         if references is None:
             references = simulation.reference_devices()
-        mask = np.ones(self.space(agent).n, dtype=np.int8)
+        mask = np.ones(self.n_actions(agent), dtype=np.int8)
         if agent in self.committed:
             mask[:] = 0
             mask[self.ADVANCE] = 1  # the leg runs to its end
