@@ -16,7 +16,7 @@ interleaved rounds of one run:
 
 and prints each rate's best and median over the rounds, its ratio to MPE2's rate
 of the same round (best and median), and the breakdown of one MOMA batch step by
-stage (camera, estimator, world, the rest) at the largest ``num_envs``. An
+stage (camera, estimator, world, the garbage collector, the rest) at the largest ``num_envs``. An
 env-step is one step of one copy. ``--memory-steps N`` instead prints the resident
 memory over ``N`` env-steps of ``top_observer`` at the largest ``num_envs``, after a
 warm-up episode (start, three points between, end). A measurement, not an assertion.
@@ -101,12 +101,24 @@ def vmas_rate(num_envs: int, min_env_steps: int, seed: int = 0) -> float | None:
 def stage_breakdown(envs, batches: Sequence[dict[str, np.ndarray]], batch_steps: int) -> dict[str, float]:
     """Mean milliseconds of one batch step and of its stages: ``camera`` (the batch
     measurement of every copy's cameras, ``envs.measure``), ``estimator`` (every copy's
-    localiser ``update``), ``world`` (every copy's ``World.step``) and ``rest`` (rules,
-    action modes, rewards, observations, stacking). Copies reset by autoreset during the
-    run are re-wrapped."""
+    localiser ``update``), ``world`` (every copy's ``World.step``), ``gc`` (Python's
+    cyclic garbage collector, wherever it ran: :mod:`moma_env.vector.collection` runs it
+    at the end of a batch step, outside the other stages) and ``rest`` (rules, action
+    modes, rewards, observations, stacking). Copies reset by autoreset during the run
+    are re-wrapped."""
+    import gc
+
     from training.bench_common import time_calls
 
-    totals = {"camera": 0.0, "estimator": 0.0, "world": 0.0}
+    totals = {"camera": 0.0, "estimator": 0.0, "world": 0.0, "gc": 0.0}
+    collecting: list[float] = []
+
+    def collector(phase: str, info: dict) -> None:
+        if phase == "start":
+            collecting.append(time.perf_counter())
+        elif collecting:
+            totals["gc"] += time.perf_counter() - collecting.pop()
+
     time_calls(envs, "measure", totals, "camera")
 
     def instrument() -> None:
@@ -116,14 +128,18 @@ def stage_breakdown(envs, batches: Sequence[dict[str, np.ndarray]], batch_steps:
             time_calls(sim.world, "step", totals, "world")
 
     instrument()
-    start = time.perf_counter()
-    for i in range(batch_steps):
-        envs.step(batches[i % len(batches)])
-        instrument()
-    elapsed = time.perf_counter() - start
+    gc.callbacks.append(collector)
+    try:
+        start = time.perf_counter()
+        for i in range(batch_steps):
+            envs.step(batches[i % len(batches)])
+            instrument()
+        elapsed = time.perf_counter() - start
+    finally:
+        gc.callbacks.remove(collector)
     out = {"batch step": elapsed / batch_steps * 1e3}
     out.update({key: value / batch_steps * 1e3 for key, value in totals.items()})
-    out["rest"] = out["batch step"] - out["camera"] - out["estimator"] - out["world"]
+    out["rest"] = out["batch step"] - out["camera"] - out["estimator"] - out["world"] - out["gc"]
     return out
 
 

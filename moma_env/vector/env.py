@@ -44,6 +44,7 @@ from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
+from moma_env.vector.collection import deferred_collection
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.camera import MeasureRequest, measure_batch
 
@@ -127,6 +128,10 @@ class MomaVectorEnv:
         returned for this batch (what a sharded batch's caller checked once for all shards)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
+        with deferred_collection():
+            return self._step(checked)
+
+    def _step(self, checked: Mapping[str, np.ndarray]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
         agents = self.possible_agents
         n = self.num_envs
         obs_rows: list[dict] = []
