@@ -5,8 +5,8 @@ step returns. CPython's collector runs on allocation counts, so within one step 
 1,024 copies it runs its youngest generation dozens of times and finds the first
 copies' objects still alive each time: it promotes them to the oldest generation, and
 full collections, which traverse every object of every copy, follow every few steps
-(docs/vector.md measures what that cost: the ``gc`` stage of ``python -m
-training.bench_vector``).
+(docs/vector.md measures what deferring it saves; ``python -m training.bench_vector``
+times the collector as its own stage).
 
 :func:`deferred_collection` pauses the collector for the step and, when it resumes it,
 lets CPython run the collection its own schedule has made due by then, once, with its
