@@ -13,6 +13,14 @@ when the ``torchrl`` extra is installed, with TorchRL's MAPPO on 8 copies of the
 timesteps are agent steps, as on the shared route). ``python -m training.train.bench``
 times those two on the four-UGV task in interleaved rounds and prints their ratio
 (:func:`compare_backends`).
+
+Each row also says where the time went: ``env_s`` (the SB3 rows: the vectorised env's
+``step_wait``, the copies stepping), ``collect_s`` (gathering the rollout: the env, the
+policy's forward passes, masks, normalisation and the buffer) and ``learn_s`` (the
+gradient updates), and ``learner_bound_env_steps_per_s``: the env steps per second the
+run would reach with an env that cost nothing, its env steps over ``learn_s`` plus the
+collection's time outside the env (on the TorchRL rows, whose manifests do not split the
+collection, over ``learn_s`` alone: an upper bound).
 """
 
 from __future__ import annotations
@@ -20,11 +28,12 @@ from __future__ import annotations
 import time
 
 from agents.learned import torch_threads
+from training.bench_common import time_calls
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.models import build_model, training_logger
 
-__all__ = ["training_fps", "torchrl_training_fps", "bench_training", "compare_backends", "main"]
+__all__ = ["training_fps", "torchrl_training_fps", "innermost_vec_env", "bench_training", "compare_backends", "main"]
 
 
 def training_fps(
@@ -41,6 +50,10 @@ def training_fps(
         try:
             model = build_model(config, venv)
             model.set_logger(training_logger(None))
+            clocks = {"env": 0.0, "collect": 0.0, "learn": 0.0}
+            time_calls(innermost_vec_env(venv), "step_wait", clocks, "env")
+            time_calls(model, "collect_rollouts", clocks, "collect")
+            time_calls(model, "train", clocks, "learn")
             start = time.perf_counter()
             model.learn(steps)
             elapsed = time.perf_counter() - start
@@ -48,11 +61,21 @@ def training_fps(
             timesteps = int(model.num_timesteps)
         finally:
             venv.close()
+    env_steps = timesteps / slots_per_env_step
     return {
         "scenario": scenario, "algo": algo, "route": route, "envs": envs, "subproc": subproc, "workers": workers,
         "timesteps": timesteps, "seconds": elapsed,
-        "timesteps_per_s": timesteps / elapsed, "env_steps_per_s": timesteps / slots_per_env_step / elapsed,
+        "timesteps_per_s": timesteps / elapsed, "env_steps_per_s": env_steps / elapsed,
+        "env_s": clocks["env"], "collect_s": clocks["collect"], "learn_s": clocks["learn"],
+        "learner_bound_env_steps_per_s": env_steps / (clocks["collect"] - clocks["env"] + clocks["learn"]),
     }
+
+
+def innermost_vec_env(venv):
+    """The VecEnv under every SB3 ``VecEnvWrapper`` (``VecNormalize``, ...) of ``venv``."""
+    while hasattr(venv, "venv"):
+        venv = venv.venv
+    return venv
 
 
 def torchrl_training_fps(
@@ -82,6 +105,8 @@ def torchrl_training_fps(
         "scenario": scenario, "algo": f"{manifest_algorithm(config).lower()} (torchrl)", "route": "shared", "envs": envs, "subproc": False,
         "workers": workers, "timesteps": timesteps, "seconds": elapsed, "timesteps_per_s": timesteps / elapsed,
         "env_steps_per_s": manifest["num_timesteps"] / elapsed,
+        "env_s": None, "collect_s": manifest["collect_s"], "learn_s": manifest["learn_s"],
+        "learner_bound_env_steps_per_s": manifest["num_timesteps"] / manifest["learn_s"],
     }
 
 
@@ -103,12 +128,17 @@ def bench_training(steps: int) -> list[dict]:
 
 def format_training(rows: list[dict]) -> list[str]:
     """Lines of the training rows of the benchmark table."""
-    lines = [f"\ntraining (switching, geometric camera): about {rows[0]['timesteps']} timesteps per row",
-             f"{'scenario':<20}{'algo':<18}{'route':<13}{'envs':>5}{'workers':>8}{'timesteps/s':>13}{'env steps/s':>13}", "-" * 90]
+    lines = [f"\ntraining (switching, geometric camera): about {rows[0]['timesteps']} timesteps per row; env %: the "
+             "share of the time in the env's step; learner bound: env steps/s with an env that cost nothing",
+             f"{'scenario':<20}{'algo':<18}{'route':<13}{'envs':>5}{'workers':>8}{'timesteps/s':>13}{'env steps/s':>13}"
+             f"{'env %':>7}{'learner bound':>15}", "-" * 112]
     for r in rows:
         workers = r["envs"] if r["subproc"] else (r.get("workers") or 0)
+        env_share = "-" if r.get("env_s") is None else f"{100 * r['env_s'] / r['seconds']:.0f}"
+        bound = r.get("learner_bound_env_steps_per_s")
         lines.append(
-            f"{r['scenario']:<20}{r.get('algo', 'ppo'):<18}{r['route']:<13}{r['envs']:>5}{workers:>8}{r['timesteps_per_s']:>13.0f}{r['env_steps_per_s']:>13.0f}"
+            f"{r['scenario']:<20}{r.get('algo', 'ppo'):<18}{r['route']:<13}{r['envs']:>5}{workers:>8}{r['timesteps_per_s']:>13.0f}"
+            f"{r['env_steps_per_s']:>13.0f}{env_share:>7}{'-' if bound is None else f'{bound:.0f}':>15}"
         )
     return lines
 
