@@ -2,7 +2,9 @@
 
 What makes it a rollout of the greedy policy: a copy's future is the env's own (the
 greedy's choice, rolled out, reaches the goals exactly when the greedy episode does),
-the lookahead leaves the env untouched, and the time it expects never grows."""
+the lookahead leaves the env untouched, and the time it expects never grows. Reusing the
+last rollout for the greedy's choice changes no decision, and an env driven off that
+rollout gets a fresh one."""
 
 from __future__ import annotations
 
@@ -11,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from agents.policies import ADVANCE, GreedyParallelPolicy, GreedyRolloutPolicy
+from agents.policies import ADVANCE, HOLD, GreedyParallelPolicy, GreedyRolloutPolicy
 from moma_env.env.factory import parallel_env
 from training.evaluation.episode import run_episode
 from training.evaluation.policies import load_policy
@@ -56,12 +58,59 @@ def test_the_expected_time_never_grows_and_starts_at_most_the_greedys(greedy_tim
     assert len(expected) == 3
     assert expected[0] <= greedy_time
     assert all(later <= earlier for earlier, later in zip(expected, expected[1:]))
-    assert policy.lookaheads >= len(expected) * 2  # every decision step tried at least two choices
+    # every decision step tried at least two choices, the greedy's from the last rollout or anew
+    assert policy.lookaheads + policy.reused >= len(expected) * 2
+
+
+def test_reusing_the_last_rollout_changes_no_decision():
+    envs, policies, steps = [], [], []
+    for reuse in (True, False):
+        env = parallel_env(TASK)
+        observations, infos = env.reset(seed=SEED)
+        policy = GreedyRolloutPolicy(reuse=reuse)
+        policy.reset(env, seed=SEED)
+        envs.append(env)
+        policies.append(policy)
+        steps.append((observations, infos))
+    reusing, fresh = policies
+    decisions = 0
+    while envs[0].agents and decisions < 4:
+        before = fresh.lookaheads
+        chosen = [policy.act(*step) for policy, step in zip(policies, steps)]
+        assert chosen[0] == chosen[1]
+        if fresh.lookaheads > before:
+            decisions += 1
+            assert reusing.expected_time_s == fresh.expected_time_s
+        steps = [env.step(actions)[::4] for env, actions in zip(envs, chosen)]  # (observations, infos)
+        np.testing.assert_array_equal(envs[0].state(), envs[1].state())
+    assert decisions == 4
+    assert reusing.reused >= 1, "the decision steps after the first continue the last rollout"
+    assert reusing.lookaheads + reusing.reused == fresh.lookaheads
+    assert fresh.reused == 0
+
+
+def test_an_env_driven_off_the_rollout_gets_a_fresh_one():
+    env = parallel_env(TASK)
+    observations, infos = env.reset(seed=SEED)
+    policy = GreedyRolloutPolicy()
+    policy.reset(env, seed=SEED)
+    policy.act(observations, infos)  # the first decision: every robot may start
+    assert policy.lookaheads >= 2 and policy.reused == 0
+    # Not the decision: every robot holds, so the env leaves the rollout of the chosen start.
+    observations, _, _, _, infos = env.step({agent: HOLD for agent in env.agents})
+    while env.agents:
+        before = policy.lookaheads
+        observations, _, _, _, infos = env.step(policy.act(observations, infos))
+        if policy.lookaheads > before:
+            break
+    assert policy.reused == 0, "the state is not the rollout's: the greedy's choice is rolled out again"
 
 
 def test_bad_use_is_refused():
     with pytest.raises(TypeError, match="wait must be a bool"):
         GreedyRolloutPolicy(wait=1)
+    with pytest.raises(TypeError, match="reuse must be a bool"):
+        GreedyRolloutPolicy(reuse="yes")
     with pytest.raises(ValueError, match="stall_s"):
         GreedyRolloutPolicy(stall_s=-1.0)
     policy = GreedyRolloutPolicy()
