@@ -214,6 +214,32 @@ def test_running_error_mean_matches_linear_error_mean(seed):
     assert same_error(running.mean(errors), reference_error_mean(errors))
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_stacked_error_products_match_the_products_one_by_one(seed):
+    """Errors on many references (a team's): the covariance's K^2 products and the
+    transform's K products, computed stacked, are the bits of the loops they replace,
+    with the joint covariance's lower blocks the transposed views the estimator keeps."""
+    rng = np.random.default_rng(seed)
+    for _ in range(40):
+        k = int(rng.integers(0, 9))
+        keys = [int(key) for key in rng.permutation(12)[:k]]
+        P = {}
+        for i, a in enumerate(keys):
+            for b in keys[i:]:
+                C = rng.normal(size=(6, 6))
+                P[(a, b)] = C
+                P[(b, a)] = C.T
+        Q = rng.normal(size=(6, 6))
+        error = LinearError({s: rng.normal(size=(6, 6)) for s in keys}, Q @ Q.T)
+        assert same_bits(error.covariance(P), reference_covariance(error, P))
+        A = rng.normal(size=(6, 6))
+        moved = error.transformed(A)
+        assert list(moved.J) == keys
+        for s in keys:
+            assert same_bits(moved.J[s], A @ error.J[s])
+        assert same_bits(moved.Q, A @ error.Q @ A.T)
+
+
 def test_linear_error_helpers_copy_the_jacobian_dict():
     e = LinearError({0: np.eye(6)})
     for other in (e.plus_noise(np.eye(6), None), e.plus_noise(np.eye(6), np.eye(6)), e.transformed(np.eye(6))):

@@ -203,7 +203,12 @@ class LinearError:
     def transformed(self, A: np.ndarray) -> LinearError:
         """The error ``A @ e``."""
         P = self.P
-        return LinearError._of({s: A @ J for s, J in self.J.items()}, A @ self.Q @ A.T, None if P is None else A @ P @ A.T)
+        J = self.J
+        if len(J) > 1:  # one stacked product: each slice the bits of A @ J[s] alone
+            J = dict(zip(J, A @ np.array(list(J.values()))))
+        else:
+            J = {s: A @ Js for s, Js in J.items()}
+        return LinearError._of(J, A @ self.Q @ A.T, None if P is None else A @ P @ A.T)
 
     def plus_noise(
         self, A: np.ndarray, covariance: np.ndarray | None, persistent: np.ndarray | None = None
@@ -230,12 +235,17 @@ class LinearError:
         if len(J) == 1:  # the usual case: one reference (Q + X is Q.copy() += X)
             ((s, Js),) = J.items()
             S = self.Q + Js @ P[(s, s)] @ Js.T
-        else:
+        elif not J:
             S = self.Q.copy()
-            items = list(J.items())
-            for s, Js in items:
-                for r, Jr in items:
-                    S += Js @ P[(s, r)] @ Jr.T
+        else:
+            # Q + sum over s, then r, of J[s] @ P[(s, r)] @ J[r].T: the K^2 products as two
+            # stacked products (each slice the bits of its own) added up in that order.
+            keys = list(J)
+            k = len(keys)
+            Js = np.array(list(J.values()))
+            blocks = np.array([P[(s, r)] for s in keys for r in keys])
+            terms = np.repeat(Js, k, axis=0) @ blocks @ np.tile(Js.transpose(0, 2, 1), (k, 1, 1))
+            S = np.add.accumulate(np.concatenate((self.Q[None], terms)), axis=0)[-1]
         S_sym = S + S.T
         S_sym *= 0.5
         return S_sym
