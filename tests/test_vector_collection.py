@@ -73,11 +73,12 @@ def test_the_collector_is_paused_in_the_body_and_collects_what_was_due_after(low
 
 
 def test_nothing_runs_after_a_body_that_allocated_little(low_threshold):
-    gc.collect()
     with _collections() as starts:
-        with deferred_collection():
+        gc.collect()  # the young generation empty right before the step (this collection is counted)
+        before = len(starts)
+        with deferred_collection():  # a few allocations of its own, fewer than the threshold of 10
             pass
-    assert starts == []
+    assert len(starts) == before
 
 
 def test_a_disabled_collector_stays_disabled_and_runs_nothing(low_threshold):
