@@ -33,16 +33,17 @@ def test_centralised_row_times_the_env_under_its_wrappers():
     assert row["learner_bound_env_steps_per_s"] > row["env_steps_per_s"]
 
 
-def test_innermost_vec_env_unwraps_every_wrapper():
+def test_the_env_clock_times_the_vec_env_under_the_wrappers():
+    """``training_fps`` times ``venv.unwrapped``'s ``step_wait``: SB3's innermost VecEnv, under
+    ``VecNormalize`` and ``VecMonitor``, whose ``step_wait`` is where the copies step."""
     import gymnasium
     from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
 
     import moma_env  # noqa: F401  (registers the ids)
-    from training.train.bench import innermost_vec_env
 
     inner = DummyVecEnv([lambda: gymnasium.make("moma_env/TopObserver-v0")])
     try:
-        assert innermost_vec_env(VecNormalize(VecMonitor(inner))) is inner
-        assert innermost_vec_env(inner) is inner
+        assert VecNormalize(VecMonitor(inner)).unwrapped is inner
+        assert inner.unwrapped is inner
     finally:
         inner.close()

@@ -33,7 +33,7 @@ from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.models import build_model, training_logger
 
-__all__ = ["training_fps", "torchrl_training_fps", "innermost_vec_env", "bench_training", "compare_backends", "main"]
+__all__ = ["training_fps", "torchrl_training_fps", "bench_training", "compare_backends", "main"]
 
 
 def training_fps(
@@ -51,7 +51,7 @@ def training_fps(
             model = build_model(config, venv)
             model.set_logger(training_logger(None))
             clocks = {"env": 0.0, "collect": 0.0, "learn": 0.0}
-            time_calls(innermost_vec_env(venv), "step_wait", clocks, "env")
+            time_calls(venv.unwrapped, "step_wait", clocks, "env")  # under VecNormalize and the other wrappers
             time_calls(model, "collect_rollouts", clocks, "collect")
             time_calls(model, "train", clocks, "learn")
             start = time.perf_counter()
@@ -69,13 +69,6 @@ def training_fps(
         "env_s": clocks["env"], "collect_s": clocks["collect"], "learn_s": clocks["learn"],
         "learner_bound_env_steps_per_s": env_steps / (clocks["collect"] - clocks["env"] + clocks["learn"]),
     }
-
-
-def innermost_vec_env(venv):
-    """The VecEnv under every SB3 ``VecEnvWrapper`` (``VecNormalize``, ...) of ``venv``."""
-    while hasattr(venv, "venv"):
-        venv = venv.venv
-    return venv
 
 
 def torchrl_training_fps(
