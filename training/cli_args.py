@@ -24,6 +24,7 @@ __all__ = [
     "ESTIMATOR_NAMES",
     "name_list",
     "int_at_least",
+    "int_at_least_or",
     "positive_float",
     "choice",
 ]
@@ -51,6 +52,21 @@ def int_at_least(minimum: int, what: str) -> Callable[[str], int]:
         if value < minimum:
             raise argparse.ArgumentTypeError(f"{what} must be >= {minimum}, got {value}")
         return value
+
+    return parse
+
+
+def int_at_least_or(word: str, minimum: int, what: str) -> Callable[[str], int | str]:
+    """An argparse type: ``word`` itself, or an integer >= ``minimum``."""
+    number = int_at_least(minimum, what)
+
+    def parse(text: str) -> int | str:
+        if text == word:
+            return word
+        try:
+            return number(text)
+        except argparse.ArgumentTypeError as err:
+            raise argparse.ArgumentTypeError(f"{err} (or {word!r})") from None
 
     return parse
 

@@ -1,5 +1,5 @@
 """What every backend of ``moma-env train`` does alike on the command line: read ``--reward``
-and report the finished run (imported by :mod:`training.train.command` and the backends'
+and ``--workers``, and report the finished run (imported by :mod:`training.train.command` and the backends'
 command modules, importing none of them).
 """
 
@@ -12,12 +12,15 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from moma_env.tasks import TASKS
-from training.train.config import reward_overrides
+from training.train.config import auto_workers, reward_overrides, usable_cores
 
 if TYPE_CHECKING:
     from moma_env.env.config import RewardConfig
 
-__all__ = ["scenario_rewards", "report_training"]
+__all__ = ["AUTO", "scenario_rewards", "resolved_workers", "report_training"]
+
+#: ``--workers``'s default: as many processes as pay on this machine (:func:`resolved_workers`).
+AUTO = "auto"
 
 
 def scenario_rewards(scenario: str, pairs: list[str]) -> RewardConfig | None:
@@ -27,6 +30,16 @@ def scenario_rewards(scenario: str, pairs: list[str]) -> RewardConfig | None:
         return None
     task = TASKS.get(scenario)
     return reward_overrides(pairs, None if task is None else task.options.get("rewards"))
+
+
+def resolved_workers(option: int | str, envs: int, splits: bool) -> int | None:
+    """The worker count of ``--workers option`` for a run of ``envs`` copies: a count as given;
+    ``auto``, where the run ``splits`` its batched env over processes (SB3's shared route
+    without ``--subproc``, the TorchRL backend), :func:`~training.train.config.auto_workers`
+    on this process's cores, else None (every copy in this process)."""
+    if option != AUTO:
+        return option  # type: ignore[return-value]
+    return auto_workers(envs, usable_cores()) if splits else None
 
 
 def report_training(args: argparse.Namespace, run: Callable[[], dict], summary: Callable[[dict], str]) -> int:

@@ -44,7 +44,7 @@ def add_rllib_arguments(parser: argparse.ArgumentParser) -> None:
 def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
     """The :class:`RllibTrainConfig` of ``moma-env train --backend rllib`` (ConfigError names a bad option)."""
     from moma_env.config import ConfigError
-    from training.train.command_common import scenario_rewards
+    from training.train.command_common import AUTO, scenario_rewards
     from training.train.rllib_config import RllibTrainConfig
 
     if args.algo != "ppo":
@@ -53,7 +53,7 @@ def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
         raise ConfigError("route", "--backend rllib trains one shared UGV policy: drop --route centralised")
     if args.subproc:
         raise ConfigError("subproc", "--backend rllib runs its envs in env runners: use --num-env-runners instead of --subproc")
-    if args.workers is not None:
+    if args.workers != AUTO:
         raise ConfigError("workers", "--backend rllib runs its envs in env runners: use --num-env-runners instead of --workers")
     if args.torch_threads != 1:
         raise ConfigError("torch_threads", "--backend rllib does not take --torch-threads: its env runners and learner set their own threads")

@@ -38,7 +38,7 @@ def add_torchrl_arguments(parser: argparse.ArgumentParser) -> None:
 def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
     """The :class:`TorchRLTrainConfig` of ``moma-env train --backend torchrl`` (ConfigError names a bad option)."""
     from moma_env.config import ConfigError
-    from training.train.command_common import scenario_rewards
+    from training.train.command_common import resolved_workers, scenario_rewards
     from training.train.torchrl_config import TORCHRL_ACTION_MODE, TorchRLTrainConfig
 
     if args.algo not in ("ppo", "maskable_ppo"):
@@ -59,7 +59,7 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
         n_steps=args.n_steps, minibatch_size=min(args.batch_size, args.n_steps * args.num_envs), learning_rate=args.learning_rate,
         gamma=args.gamma, ent_coef=args.ent_coef, checkpoint_every=args.checkpoint_every, eval_every=args.eval_every,
         eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, eval_sample_actions=args.eval_sample_actions,
-        workers=args.workers, torch_threads=args.torch_threads,
+        workers=resolved_workers(args.workers, args.num_envs, splits=True), torch_threads=args.torch_threads,
     )
 
 
