@@ -190,8 +190,7 @@ def test_workers_are_checked_against_the_copies_the_route_and_subproc():
         tiny(envs=2, workers=0)
     with pytest.raises(ConfigError, match="^workers: subproc runs a process per copy"):
         tiny(envs=2, workers=2, subproc=True)
-    with pytest.raises(ConfigError, match="^workers: splits the shared route's batched env"):
-        tiny(envs=2, workers=2, route="centralised")
+    assert tiny(envs=2, workers=2, route="centralised").workers == 2
 
 
 def test_learned_policy_refuses_an_env_it_does_not_fit(tmp_path):
@@ -357,7 +356,9 @@ def test_sb3_metrics_go_to_one_csv_per_session_in_the_run_folder(tmp_path, monke
         assert rows and int(rows[-1][header.index("time/total_timesteps")]) == end
 
 
-@pytest.mark.parametrize("route,remote_kind", [("shared", {"subproc": True}), ("centralised", {"subproc": True}), ("shared", {"workers": 2})])
+@pytest.mark.parametrize("route,remote_kind", [
+    ("shared", {"subproc": True}), ("centralised", {"subproc": True}), ("shared", {"workers": 2}), ("centralised", {"workers": 2}),
+])
 def test_worker_processes_train_the_same_weights_as_one_process(tmp_path, route, remote_kind):
     import torch
 

@@ -41,9 +41,9 @@ def test_the_default_is_auto_and_resolves_on_this_machine_cores(monkeypatch):
     assert config_from_args(parse("--num-envs", "32")).workers is None
 
 
-def test_auto_leaves_runs_that_do_not_split_their_batch_in_this_process(monkeypatch):
+def test_auto_splits_both_routes_but_not_a_process_per_copy(monkeypatch):
     monkeypatch.setattr(command_common, "usable_cores", lambda: 4)
-    assert config_from_args(parse("--num-envs", "16", "--route", "centralised")).workers is None
+    assert config_from_args(parse("--num-envs", "16", "--route", "centralised")).workers == 4
     assert config_from_args(parse("--num-envs", "16", "--subproc")).workers is None
     assert config_from_args(parse("--num-envs", "16")).workers == 4
 

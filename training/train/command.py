@@ -66,9 +66,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--subproc", action="store_true", help="run each env copy in its own worker process (default: in this process)")
     tr.add_argument("--workers", type=int_at_least_or(AUTO, 1, "worker count"), default=AUTO, metavar="W",
                     help="split the batched env's copies over W processes, this one and W - 1 workers: the same rollouts, faster "
-                         "with a free core per process and enough copies (shared route and --backend torchrl); 1: every copy in "
-                         "this process; auto (default): one per usable core, at most one per 4 copies (so in this process "
-                         "below 8 copies, or with --route centralised or --subproc)")
+                         "with a free core per process and enough copies (not with --subproc, nor --backend rllib); 1: every "
+                         "copy in this process; auto (default): one per usable core, at most one per 4 copies (so in this "
+                         "process below 8 copies, and with --subproc)")
     tr.add_argument("--seed", type=int_at_least(0, "seed"), default=defaults["seed"], help="seed of the model and the envs (default %(default)s)")
     tr.add_argument("--torch-threads", type=int_at_least(1, "thread count"), default=defaults["torch_threads"], metavar="N",
                     help="torch's intra-op threads while training (default %(default)s: the networks are small, more threads "
@@ -138,7 +138,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         steps=args.timesteps,
         envs=args.num_envs,
         subproc=args.subproc,
-        workers=resolved_workers(args.workers, args.num_envs, splits=args.route == "shared" and not args.subproc),
+        workers=resolved_workers(args.workers, args.num_envs, splits=not args.subproc),
         torch_threads=args.torch_threads,
         seed=args.seed,
         action_mode=args.action_mode,

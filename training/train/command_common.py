@@ -34,8 +34,8 @@ def scenario_rewards(scenario: str, pairs: list[str]) -> RewardConfig | None:
 
 def resolved_workers(option: int | str, envs: int, splits: bool) -> int | None:
     """The worker count of ``--workers option`` for a run of ``envs`` copies: a count as given;
-    ``auto``, where the run ``splits`` its batched env over processes (SB3's shared route
-    without ``--subproc``, the TorchRL backend), :func:`~training.train.config.auto_workers`
+    ``auto``, where the run ``splits`` its batched env over processes (SB3 without
+    ``--subproc``, the TorchRL backend), :func:`~training.train.config.auto_workers`
     on this process's cores, else None (every copy in this process)."""
     if option != AUTO:
         return option  # type: ignore[return-value]

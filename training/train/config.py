@@ -4,8 +4,9 @@ A run trains one Stable-Baselines3 algorithm on one configuration of
 :mod:`moma_env.scenarios` through one of two routes:
 
 * ``centralised``: the whole team as one Gymnasium agent
-  (:class:`moma_env.env.centralised.CentralisedTeamEnv`), K copies vectorised
-  with SB3's ``DummyVecEnv`` / ``SubprocVecEnv``; one timestep is one env step.
+  (:class:`moma_env.env.centralised.CentralisedTeamEnv`), K copies through
+  :class:`training.train.shared_vec_env.TeamVecEnv` (one slot per copy); one
+  timestep is one env step.
 * ``shared``: one policy shared by every UGV agent, through
   :class:`training.train.shared_vec_env.SharedPolicyVecEnv` (each UGV of each of
   the K copies is one slot); one timestep is one agent step, so an env step of
@@ -134,9 +135,9 @@ class TrainConfig:
             steps on the shared route); 0 with ``pretrain``: the cloned policy as it is.
         envs: number of env copies K.
         subproc: run the K copies in worker processes, one each.
-        workers: None, or split the K copies of the shared route's batched env over
-            this many worker processes (:func:`moma_env.vector.make`): the same
-            rollouts, faster with a free core per worker and enough copies.
+        workers: None, or split the K copies of the run's batched env over this
+            many processes, this one included (:func:`moma_env.vector.make`): the
+            same rollouts, faster with a free core per process and enough copies.
         seed: seed of the model and of the envs (copy k resets first with a seed
             derived from it; later layouts come from each env's own generator).
         action_mode: ``"switching"`` or ``"velocity"``.
@@ -228,8 +229,6 @@ class TrainConfig:
         check_workers(self.workers, self.envs)
         if self.workers is not None and self.subproc:
             raise ConfigError("workers", "subproc runs a process per copy; workers splits the batch over processes: give one")
-        if self.workers is not None and self.route != "shared":
-            raise ConfigError("workers", "splits the shared route's batched env; the centralised route has --subproc")
         check_learning_fields(self)
         check_bool("normalize", self.normalize)
         check_count("batch_size", self.batch_size, 1)

@@ -1,30 +1,38 @@
-"""A Stable-Baselines3 ``VecEnv`` over K copies of a MOMA PettingZoo parallel env.
+"""Stable-Baselines3 ``VecEnv`` adapters over K copies of a MOMA PettingZoo parallel env.
 
-Every UGV agent of every copy is one slot (``num_envs = K * N`` for N UGVs), so
-one policy is shared by all the robots (parameter sharing): the observations are
-each robot's own (egocentric, from its estimates), the reward is the team's.
-The K copies are one batched env (:func:`moma_env.vector.make`, driven as slots by
+Both step one batched env (:func:`moma_env.vector.make`, driven as slots by
 :class:`training.train.team_slots.VectorSlots`): in this process (the default),
 split over ``workers`` processes, or with ``subproc=True`` one copy per process
 (``workers=K``). The workers import neither SB3 nor torch. All give the same
 slots bit for bit.
 
+* :class:`SharedPolicyVecEnv` (the shared route): every UGV agent of every copy is
+  one slot (``num_envs = K * N`` for N UGVs), so one policy is shared by all the
+  robots (parameter sharing): the observations are each robot's own (egocentric,
+  from its estimates), the reward is the team's.
+* :class:`TeamVecEnv` (the centralised route): every copy is one slot, the whole
+  team as one agent (``num_envs = K``): slot ``k`` is bit for bit
+  :class:`~moma_env.env.centralised.CentralisedTeamEnv` (``gymnasium.make(id)``)
+  reset with the seed ``s + k`` and given the same actions, its rewards rounded to
+  float32 as SB3's buffers keep them.
+
 Contract (Stable-Baselines3 ``VecEnv``): ``reset()`` returns the stacked
-observations ``(K*N, D)`` and stores the infos in ``reset_infos``;
-``step_wait()`` returns observations, rewards ``(K*N,)`` float32, dones
-``(K*N,)`` bool and a list of K*N info dicts; at an episode's end the copy
+observations ``(num_envs, D)`` and stores the infos in ``reset_infos``;
+``step_wait()`` returns observations, rewards ``(num_envs,)`` float32, dones
+``(num_envs,)`` bool and a list of ``num_envs`` info dicts; at an episode's end the copy
 auto-resets and each of its slots' infos carries ``terminal_observation``,
-``TimeLimit.truncated`` and the ``episode`` statistics. ``seed(s)`` (what
-``PPO(seed=s)`` calls) sets slot i's seed to ``s + i``; copy k resets with its
-first slot's seed ``s + k*N`` at the next ``reset()``, and every later layout
+``TimeLimit.truncated`` and the ``episode`` statistics (``r`` return, ``l`` length,
+``t`` simulated duration in s). ``seed(s)`` (what ``PPO(seed=s)`` calls) sets slot
+i's seed to ``s + i``; copy k resets with its first slot's seed at the next
+``reset()`` (``s + k*N`` shared, ``s + k`` centralised), and every later layout
 comes from that copy's seeded generator: same seed, same rollouts.
 
-Action masks (switching mode): :meth:`SharedPolicyVecEnv.action_masks` gives
-one row per slot, what the motion rules would grant that robot at the next step
-(``MomaParallelEnv.action_mask``), and ``env_method("action_masks")`` returns
+Action masks (switching mode): ``action_masks()`` gives one row per slot, what the
+motion rules would grant at the next step (``MomaParallelEnv.action_mask``: a UGV's
+row, or the team's rows side by side), and ``env_method("action_masks")`` returns
 those rows, which is how sb3-contrib's ``MaskablePPO`` asks a VecEnv for them.
 
-This adapter lives in ``training/`` rather than ``moma_env/``: it subclasses
+These adapters live in ``training/`` rather than ``moma_env/``: they subclass
 SB3's ``VecEnv``, and SB3 is an optional extra that ``import moma_env`` must
 not need.
 """
@@ -35,23 +43,21 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 from training.train.team_slots import EnvSpec, VectorSlots
 
-__all__ = ["ACTION_MASKS", "SharedPolicyVecEnv"]
+__all__ = ["ACTION_MASKS", "SlotVecEnv", "SharedPolicyVecEnv", "TeamVecEnv"]
 
 #: The method through which sb3-contrib's MaskablePPO asks a VecEnv for every slot's mask.
 ACTION_MASKS = "action_masks"
 
 
-class SharedPolicyVecEnv(VecEnv):
-    """K copies of a parallel env, one slot per UGV agent (see the module docstring).
+class SlotVecEnv(VecEnv):
+    """K copies of a parallel env as the slots of a layout (see the module docstring).
 
     Args:
-        spec: how to build a copy (configuration and env options; the observer
-            must not be an agent).
+        spec: how to build a copy (configuration and env options).
         n_copies: K >= 1.
         subproc: one process per copy (``workers=n_copies``; default: every copy
             in this process).
@@ -59,13 +65,21 @@ class SharedPolicyVecEnv(VecEnv):
             (default :func:`moma_env.vector.sharded.default_start_method`).
         workers: instead of ``subproc``: the copies split over ``workers``
             processes, this one included (:func:`moma_env.vector.make`).
+        slots: ``"ugv"`` (one slot per UGV agent) or ``"team"`` (one per copy)
+            (:data:`training.train.team_slots.SLOT_LAYOUTS`).
 
     Attributes:
         engine: the :class:`VectorSlots` over the batched env (its ``vector``).
     """
 
     def __init__(
-        self, spec: EnvSpec, n_copies: int, subproc: bool = False, start_method: str | None = None, workers: int | None = None
+        self,
+        spec: EnvSpec,
+        n_copies: int,
+        subproc: bool = False,
+        start_method: str | None = None,
+        workers: int | None = None,
+        slots: str = "ugv",
     ):
         if isinstance(n_copies, bool) or not isinstance(n_copies, int) or n_copies < 1:
             raise ValueError(f"n_copies must be an integer >= 1, got {n_copies!r}")
@@ -73,17 +87,19 @@ class SharedPolicyVecEnv(VecEnv):
             raise ValueError("subproc (a process per copy) and workers (the batch split over processes) exclude each other")
         self.spec = spec
         self.subproc = subproc
-        self.engine = VectorSlots(spec, n_copies, n_copies if subproc else workers, start_method=start_method)
+        self.engine = VectorSlots(spec, n_copies, n_copies if subproc else workers, start_method=start_method, slots=slots)
         self._closed = False
         self.n_copies = n_copies
         self.agents = list(self.engine.agents)
         self.n_agents = len(self.agents)
-        super().__init__(n_copies * self.n_agents, self.engine.observation_space, self.engine.action_space)
+        #: Slots of one copy (N UGVs, or 1 for the team).
+        self.per_copy = self.engine.layout.per_copy
+        super().__init__(self.engine.n_slots, self.engine.observation_space, self.engine.action_space)
 
     # -------------------------------------------------------------- VecEnv API
     def reset(self) -> VecEnvObs:
         """Reset every copy, copy k with its first slot's seed (``seed(s)``: ``s + k * N``); see the module docstring."""
-        firsts = range(0, self.num_envs, self.n_agents)
+        firsts = range(0, self.num_envs, self.per_copy)
         seeds = [self._seeds[i] for i in firsts]
         options = [self._options[i] or None for i in firsts]
         observations, infos = self.engine.reset(seeds, options)
@@ -108,7 +124,7 @@ class SharedPolicyVecEnv(VecEnv):
         self._closed = True
 
     def _per_slot(self, command: str, payload: Any, indices: VecEnvIndices) -> list[Any]:
-        wanted = [i // self.n_agents for i in self._get_indices(indices)]
+        wanted = [i // self.per_copy for i in self._get_indices(indices)]
         values = {k: self.engine.command(k, command, payload) for k in sorted(set(wanted))}
         return [values[k] for k in wanted]
 
@@ -131,13 +147,13 @@ class SharedPolicyVecEnv(VecEnv):
     def has_attr(self, attr_name: str) -> bool:
         """Whether the parallel envs have ``attr_name``; ``"action_masks"`` in the switching mode."""
         if attr_name == ACTION_MASKS:
-            return isinstance(self.action_space, spaces.Discrete)
+            return self.engine.layout.discrete
         return super().has_attr(attr_name)
 
     def action_masks(self) -> np.ndarray:
-        """(num_envs, n_actions) bool: per slot, the actions the motion rules would grant
-        its robot at the next step if it were the only change (switching mode only)."""
-        if not isinstance(self.action_space, spaces.Discrete):
+        """(num_envs, n) bool: per slot, the actions the motion rules would grant its robot
+        (each robot of the team) at the next step if it were the only change (switching mode only)."""
+        if not self.engine.layout.discrete:
             raise ValueError(f"action masks need the switching mode's discrete actions; the slots act in {self.action_space}")
         return self.engine.action_masks()
 
@@ -147,3 +163,19 @@ class SharedPolicyVecEnv(VecEnv):
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         return [None for _ in range(self.num_envs)]
+
+
+class SharedPolicyVecEnv(SlotVecEnv):
+    """K copies, one slot per UGV agent (the shared route; see the module docstring).
+    Arguments as :class:`SlotVecEnv`'s, without ``slots``; the observer must not be an agent."""
+
+    def __init__(self, spec: EnvSpec, n_copies: int, subproc: bool = False, start_method: str | None = None, workers: int | None = None):
+        super().__init__(spec, n_copies, subproc=subproc, start_method=start_method, workers=workers, slots="ugv")
+
+
+class TeamVecEnv(SlotVecEnv):
+    """K copies, one slot per copy: the centralised team (see the module docstring).
+    Arguments as :class:`SlotVecEnv`'s, without ``slots``."""
+
+    def __init__(self, spec: EnvSpec, n_copies: int, subproc: bool = False, start_method: str | None = None, workers: int | None = None):
+        super().__init__(spec, n_copies, subproc=subproc, start_method=start_method, workers=workers, slots="team")

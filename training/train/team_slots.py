@@ -1,14 +1,23 @@
-"""K MOMA env copies seen as slots (one per UGV agent): :class:`VectorSlots`.
+"""K MOMA env copies seen as slots: :class:`VectorSlots`.
 
-The engine of :class:`training.train.shared_vec_env.SharedPolicyVecEnv`: one batched
+The engine of the training VecEnvs (:mod:`training.train.shared_vec_env`): one batched
 env (:func:`moma_env.vector.make`, in this process or split over worker processes),
-driven with the VecEnv contract of Stable-Baselines3 for its slots (slot ``k * N + j``
-is UGV ``j`` of copy ``k``). It deliberately imports neither Stable-Baselines3 nor
-torch, so that the worker processes stay light.
+driven with the VecEnv contract of Stable-Baselines3 for its slots. A slot layout
+says what a slot is:
+
+* :class:`UGVSlots` (the shared route): one slot per UGV agent, slot ``k * N + j``
+  UGV ``j`` of copy ``k``, its own observation and action;
+* :class:`TeamSlot` (the centralised route): one slot per copy, the whole team as
+  one agent through :class:`moma_env.env.centralised.TeamLayout`, as
+  :class:`~moma_env.env.centralised.CentralisedTeamEnv` sees it.
+
+It deliberately imports neither Stable-Baselines3 nor torch, so that the worker
+processes stay light.
 
 * ``step`` returns per slot the observation, the team reward, ``done``
-  (terminated or truncated) and the agent's info dict (a new plain ``dict``)
-  with ``"TimeLimit.truncated"`` (truncated and not terminated);
+  (terminated or truncated) and an info dict (a new plain ``dict``: the UGV's own
+  info, or the copy's, agent -> info, for the team) with ``"TimeLimit.truncated"``
+  (truncated and not terminated);
 * when the episode ends, every slot's info gets ``"terminal_observation"`` (the
   episode's last observation of that slot) and ``"episode"`` (``r``: return,
   ``l``: length in steps, ``t``: simulated duration in s), and the copy resets
@@ -30,11 +39,12 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from moma_env.env.centralised import TeamLayout
 from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.vector import make
 
-__all__ = ["EnvSpec", "VectorSlots", "slot_spaces", "slot_infos", "env_command", "control_step"]
+__all__ = ["EnvSpec", "SLOT_LAYOUTS", "TeamSlot", "UGVSlots", "VectorSlots", "slot_spaces", "slot_infos", "env_command", "control_step"]
 
 
 @dataclass(frozen=True)
@@ -75,24 +85,101 @@ def slot_spaces(env) -> tuple[list[str], spaces.Space, spaces.Space]:
     return agents, spaces.Box(low, high, dtype=np.float32), first_act
 
 
+class UGVSlots:
+    """One slot per UGV agent of a copy (the shared route); see the module docstring.
+
+    Args:
+        env: a parallel env of the run (the observer must not be an agent).
+    """
+
+    def __init__(self, env: MomaParallelEnv):
+        self.agents, self.observation_space, self.action_space = slot_spaces(env)
+        #: Slots of one copy.
+        self.per_copy = len(self.agents)
+        #: Whether the slots' actions are the switching mode's (masks exist).
+        self.discrete = isinstance(self.action_space, spaces.Discrete)
+
+    def rows(self, per_agent: Mapping[str, np.ndarray], dtype: type = np.float32) -> np.ndarray:
+        """agent -> ``(K, ...)`` arrays as ``(K * N, ...)`` rows of ``dtype``, slot ``k * N + j``."""
+        stacked = np.stack([np.asarray(per_agent[a], dtype=dtype) for a in self.agents], axis=1)
+        return stacked.reshape(-1, *stacked.shape[2:])
+
+    def agent_actions(self, actions: np.ndarray) -> dict[str, np.ndarray]:
+        """One action row per slot (``(K * N,)`` or ``(K * N, *shape)``) as agent -> its ``K`` actions."""
+        n = self.per_copy
+        k = actions.shape[0] // n
+        if self.discrete:
+            rows = np.asarray(actions).reshape(k, n)
+        else:
+            rows = np.asarray(actions, dtype=np.float32).reshape(k, n, *self.action_space.shape)
+        return {agent: rows[:, j] for j, agent in enumerate(self.agents)}
+
+    def mask_rows(self, masks: Mapping[str, np.ndarray]) -> np.ndarray:
+        """agent -> ``(K, n)`` masks as ``(K * N, n)`` bool rows."""
+        return self.rows(masks, dtype=bool)
+
+    def payloads(self, infos: Mapping[str, Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+        """One copy's infos (agent -> info) as its slots' infos: each UGV's own."""
+        return [infos[a] for a in self.agents]
+
+
+class TeamSlot:
+    """One slot per copy: the whole team as one agent (the centralised route), mapped with
+    the :class:`~moma_env.env.centralised.TeamLayout` of
+    :class:`~moma_env.env.centralised.CentralisedTeamEnv`; see the module docstring.
+
+    Args:
+        env: a parallel env of the run.
+    """
+
+    per_copy = 1
+
+    def __init__(self, env: MomaParallelEnv):
+        self.layout = TeamLayout.of(env)
+        self.agents = list(self.layout.agents)
+        self.observation_space = self.layout.observation_space
+        self.action_space = self.layout.action_space
+        self.discrete = self.layout.discrete
+
+    def rows(self, per_agent: Mapping[str, np.ndarray]) -> np.ndarray:
+        """agent -> ``(K, D_agent)`` arrays as ``(K, D)`` float32 team observations."""
+        return self.layout.observation(per_agent)
+
+    def agent_actions(self, actions: np.ndarray) -> dict[str, np.ndarray]:
+        """``(K, A)`` team actions as agent -> its ``K`` actions (:meth:`TeamLayout.batch_actions`)."""
+        return self.layout.batch_actions(actions)
+
+    def mask_rows(self, masks: Mapping[str, np.ndarray]) -> np.ndarray:
+        """agent -> ``(K, n)`` masks as ``(K, sum n)`` bool team masks."""
+        return self.layout.masks(masks)
+
+    def payloads(self, infos: Mapping[str, Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+        """One copy's infos as its one slot's info: agent -> info, as the team env's."""
+        return [infos]
+
+
+#: Slot layouts by name: what :class:`VectorSlots` takes.
+SLOT_LAYOUTS = {"ugv": UGVSlots, "team": TeamSlot}
+
+
 def slot_infos(
-    agents: Sequence[str],
-    infos: Mapping[str, Mapping[str, Any]],
+    payloads: Sequence[Mapping[str, Any]],
     terminated: bool,
     truncated: bool,
     last_observations: np.ndarray | None = None,
     episode: dict[str, float] | None = None,
 ) -> list[dict]:
-    """One copy's step infos as its slots' SB3 infos: per agent a new plain dict of its
-    info with ``"TimeLimit.truncated"`` (truncated and not terminated); at an
-    episode's end (``episode`` given) also ``"terminal_observation"`` (row ``k`` of
-    ``last_observations``, ``(N, D)`` float32) and ``"episode"`` (``r``, ``l``, ``t``)."""
+    """One copy's step infos as its slots' SB3 infos: per slot a new plain dict of its
+    payload (a layout's :meth:`~UGVSlots.payloads`) with ``"TimeLimit.truncated"``
+    (truncated and not terminated); at an episode's end (``episode`` given) also
+    ``"terminal_observation"`` (row ``j`` of ``last_observations``, ``(per_copy, D)``
+    float32) and ``"episode"`` (``r``, ``l``, ``t``)."""
     out = []
-    for k, agent in enumerate(agents):
-        info = dict(infos[agent])
+    for j, payload in enumerate(payloads):
+        info = dict(payload)
         info["TimeLimit.truncated"] = bool(truncated and not terminated)
         if episode is not None:
-            info["terminal_observation"] = last_observations[k].copy()
+            info["terminal_observation"] = last_observations[j].copy()
             info["episode"] = dict(episode)
         out.append(info)
     return out
@@ -119,26 +206,32 @@ def env_command(env: MomaParallelEnv, command: str, payload: Any) -> Any:
 
 
 class VectorSlots:
-    """K copies as ``K * N`` slots, on one batched env (in this process, or split over workers)
-    (see the module docstring).
+    """K copies as slots of a layout, on one batched env (in this process, or split over
+    workers) (see the module docstring).
 
     Args:
-        spec: how to build a copy (the observer must not be an agent).
+        spec: how to build a copy.
         n_copies: K >= 1.
         workers: None: every copy in this process; ``W``: the copies split over ``W``
             processes, this one included (:func:`moma_env.vector.make`; the same slots
             bit for bit).
         start_method: with ``workers``, the multiprocessing start method (default
             :func:`moma_env.vector.sharded.default_start_method`).
+        slots: a key of :data:`SLOT_LAYOUTS`: ``"ugv"`` (default, one slot per UGV;
+            the observer must not be an agent) or ``"team"`` (one per copy).
 
     Attributes:
         vector: the batched env (:func:`moma_env.vector.make`).
+        layout: the slot layout (:class:`UGVSlots` or :class:`TeamSlot`).
     """
 
-    def __init__(self, spec: EnvSpec, n_copies: int, workers: int | None = None, start_method: str | None = None):
+    def __init__(self, spec: EnvSpec, n_copies: int, workers: int | None = None, start_method: str | None = None, slots: str = "ugv"):
+        if slots not in SLOT_LAYOUTS:
+            raise ValueError(f"slots must be one of {sorted(SLOT_LAYOUTS)}, got {slots!r}")
         self.vector = make(spec.configuration, n_copies, workers=workers, start_method=start_method, **spec.options)
-        self.agents, self.observation_space, self.action_space = slot_spaces(self.vector.spec_env)
-        self._discrete = isinstance(self.action_space, spaces.Discrete)
+        self.layout = SLOT_LAYOUTS[slots](self.vector.spec_env)
+        self.agents = self.layout.agents
+        self.observation_space, self.action_space = self.layout.observation_space, self.layout.action_space
         k = self.vector.num_envs
         self._returns = [0.0] * k
         self._lengths = [0] * k
@@ -148,10 +241,10 @@ class VectorSlots:
     def n_copies(self) -> int:
         return self.vector.num_envs
 
-    def _slots(self, per_agent: Mapping[str, np.ndarray], dtype: type = np.float32) -> np.ndarray:
-        """agent -> ``(K, ...)`` arrays as ``(K * N, ...)`` rows of ``dtype``, slot ``k * N + j``."""
-        stacked = np.stack([np.asarray(per_agent[a], dtype=dtype) for a in self.agents], axis=1)
-        return stacked.reshape(-1, *stacked.shape[2:])
+    @property
+    def n_slots(self) -> int:
+        """Slots of every copy: ``K * per_copy``."""
+        return self.n_copies * self.layout.per_copy
 
     def _episode_started(self, k: int) -> None:
         self._returns[k], self._lengths[k] = 0.0, 0
@@ -159,51 +252,46 @@ class VectorSlots:
 
     def reset(self, seeds: Sequence[int | None], options: Sequence[dict | None] | None = None) -> tuple[np.ndarray, list[dict]]:
         """Reset copy k with ``seeds[k]`` (None: its generator continues) and ``options[k]``:
-        ``(observations (K * N, D) float32, infos: K * N plain dicts)``."""
+        ``(observations (K * per_copy, D) float32, infos: one plain dict per slot)``."""
         observations, infos = self.vector.reset(seed=list(seeds), options=None if options is None else list(options))
         for k in range(self.n_copies):
             self._episode_started(k)
-        return self._slots(observations), [dict(info[a]) for info in infos for a in self.agents]
-
-    def _actions(self, actions: np.ndarray) -> dict[str, np.ndarray]:
-        k, n = self.n_copies, len(self.agents)
-        if self._discrete:
-            rows = np.asarray(actions).reshape(k, n)
-        else:
-            rows = np.asarray(actions, dtype=np.float32).reshape(k, n, *self.action_space.shape)
-        return {agent: rows[:, j] for j, agent in enumerate(self.agents)}
+        payloads = self.layout.payloads
+        return self.layout.rows(observations), [dict(p) for info in infos for p in payloads(info)]
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
-        """One step of every copy with one action row per slot (``(K * N,)`` or ``(K * N, *shape)``);
+        """One step of every copy with one action row per slot (``(K * per_copy, ...)``);
         a copy whose episode ends resets (the returned observations are its next episode's first)."""
         actions = np.asarray(actions)
-        if actions.shape[0] != self.n_copies * len(self.agents):
-            raise ValueError(f"expected {self.n_copies * len(self.agents)} action rows (one per UGV slot), got {actions.shape[0]}")
-        observations, rewards, terminations, truncations, infos = self.vector.step(self._actions(actions))
-        team_rewards = np.asarray(rewards[self.agents[0]], dtype=np.float64)
+        if actions.shape[0] != self.n_slots:
+            raise ValueError(f"expected {self.n_slots} action rows (one per slot), got {actions.shape[0]}")
+        layout = self.layout
+        agents = self.agents
+        observations, rewards, terminations, truncations, infos = self.vector.step(layout.agent_actions(actions))
+        team_rewards = np.asarray(rewards[agents[0]], dtype=np.float64)
         out_infos: list[dict] = []
         dones = np.zeros(self.n_copies, dtype=bool)
         for k, info in enumerate(infos):
             reward = float(team_rewards[k])
-            terminated = any(bool(terminations[a][k]) for a in self.agents)
-            truncated = any(bool(truncations[a][k]) for a in self.agents)
+            terminated = any(bool(terminations[a][k]) for a in agents)
+            truncated = any(bool(truncations[a][k]) for a in agents)
             self._returns[k] += reward
             self._lengths[k] += 1
             if terminated or truncated:
                 dones[k] = True
-                last = self._slots({a: np.asarray(info["final_observation"][a])[None] for a in self.agents})  # (N, D)
+                last = layout.rows({a: np.asarray(info["final_observation"][a])[None] for a in agents})  # (per_copy, D)
                 # the copy has reset: its last time (s) is its step count times the control step
                 episode = {"r": self._returns[k], "l": self._lengths[k], "t": float(self._lengths[k] * self._dt[k])}
-                out_infos += slot_infos(self.agents, info["final_info"], terminated, truncated, last, episode)
+                out_infos += slot_infos(layout.payloads(info["final_info"]), terminated, truncated, last, episode)
                 self._episode_started(k)
             else:
-                out_infos += slot_infos(self.agents, info, terminated, truncated)
-        n = len(self.agents)
-        return self._slots(observations), np.repeat(team_rewards.astype(np.float32), n), np.repeat(dones, n), out_infos
+                out_infos += slot_infos(layout.payloads(info), terminated, truncated)
+        n = layout.per_copy
+        return layout.rows(observations), np.repeat(team_rewards.astype(np.float32), n), np.repeat(dones, n), out_infos
 
     def action_masks(self) -> np.ndarray:
-        """``(K * N, n_actions)`` bool, one row per slot (``MomaParallelEnv.action_mask``; switching mode)."""
-        return self._slots(self.vector.action_masks(), dtype=bool)
+        """``(K * per_copy, n)`` bool, one row per slot (``MomaParallelEnv.action_mask``; switching mode)."""
+        return self.layout.mask_rows(self.vector.action_masks())
 
     def command(self, k: int, command: str, payload: Any) -> Any:
         """:func:`env_command` on copy ``k``'s parallel env."""
