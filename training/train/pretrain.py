@@ -44,7 +44,7 @@ from moma_env.vector import MomaVectorEnv
 from training.evaluation.policies import load_policy
 from training.train.config import TEACHERS, TrainConfig
 from training.train.envs import env_spec
-from training.train.team_slots import EnvSpec, slot_spaces
+from training.train.team_slots import SLOT_LAYOUTS, EnvSpec
 
 __all__ = ["Demonstrations", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
 
@@ -132,21 +132,20 @@ def collect_demonstrations(
     options = dict(spec.options) | dict(getattr(policies[0], "env_options", {}))
     vector = MomaVectorEnv(spec.configuration, n_copies, **options)
     try:
-        agents, _, action_space = slot_spaces(vector.envs[0])
-        n = len(agents)
         shared = route == "shared"
-        seeds = [seed + k * (n if shared else 1) for k in range(n_copies)]
+        layout = SLOT_LAYOUTS["ugv" if shared else "team"](vector.envs[0])  # a row per slot of the run's VecEnv
+        agents = layout.agents
+        n = len(agents)
+        seeds = [seed + k * layout.per_copy for k in range(n_copies)]
         observations, infos = vector.reset(seed=seeds)
         for k, policy in enumerate(policies):
             policy.reset(vector.envs[k], seed=seeds[k])
-        stride = n_copies * n if shared else n_copies  # rows per env step of every copy
+        stride = n_copies * layout.per_copy  # rows per env step of every copy
         steps = math.ceil(rows / stride)
         total = steps * stride
-        obs_size = vector.envs[0].observation_space(agents[0]).shape[0]
-        n_actions = int(action_space.n)
-        obs_out = np.empty((total, obs_size if shared else obs_size * n), dtype=np.float32)
+        obs_out = np.empty((total, *layout.observation_space.shape), dtype=np.float32)
         act_out = np.empty((total,) if shared else (total, n), dtype=np.int64)
-        mask_out = np.empty((total, n_actions if shared else n_actions * n), dtype=bool)
+        mask_out = np.empty((total, layout.mask_rows(vector.action_masks()).shape[1]), dtype=bool)
         reward_out = np.empty(total, dtype=np.float64)
         end_out = np.zeros(total, dtype=bool)
         episodes = successes = 0
@@ -158,10 +157,9 @@ def collect_demonstrations(
                 for a in agents:
                     actions[a][k] = int(chosen[a])
             block = slice(t * stride, (t + 1) * stride)
-            # (K, N, ...) per copy and agent, then one row per slot or per copy
-            obs_out[block] = np.stack([observations[a] for a in agents], axis=1).reshape(stride, -1)
-            act_out[block] = np.stack([actions[a] for a in agents], axis=1).reshape(act_out[block].shape)
-            mask_out[block] = np.stack([masks[a] for a in agents], axis=1).reshape(stride, -1)
+            obs_out[block] = layout.rows(observations)
+            act_out[block] = np.stack([actions[a] for a in agents], axis=1).reshape(act_out[block].shape)  # (K, N): per slot or copy
+            mask_out[block] = layout.mask_rows(masks)
             if learner is not None:
                 acted = np.asarray(learner(obs_out[block], mask_out[block]), dtype=np.int64).reshape(n_copies, n)
                 actions = {a: acted[:, j].copy() for j, a in enumerate(agents)}
@@ -169,9 +167,8 @@ def collect_demonstrations(
             ended = np.zeros(n_copies, dtype=bool)
             for a in agents:
                 ended |= np.asarray(terminations[a], dtype=bool) | np.asarray(truncations[a], dtype=bool)
-            per_row = stride // n_copies
-            reward_out[block] = np.repeat(np.asarray(rewards[agents[0]], dtype=np.float32), per_row)  # SB3's reward precision
-            end_out[block] = np.repeat(ended, per_row)
+            reward_out[block] = np.repeat(np.asarray(rewards[agents[0]], dtype=np.float32), layout.per_copy)  # SB3's reward precision
+            end_out[block] = np.repeat(ended, layout.per_copy)
             for k in np.flatnonzero(ended):
                 episodes += 1
                 final = infos[k]["final_info"]
