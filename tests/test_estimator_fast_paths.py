@@ -48,9 +48,15 @@ def reference_inliers(poses: list[np.ndarray], k: float, floor_m: float, floor_r
     t = stack[:, :3, 3]
     d_t = np.sqrt(((t - np.median(t, axis=0)) ** 2).sum(axis=1))
     flat = stack[:, :3, :3].reshape(n, 9)
-    traces = flat @ flat.T
-    medoid = int(np.argmax(traces.sum(axis=1)))
-    d_r = np.arccos(np.clip((traces[medoid] - 1.0) / 2.0, -1.0, 1.0))
+    traces = flat @ flat.T.copy()  # a general product (flat @ flat.T takes BLAS's symmetric one)
+    sums = []
+    for row in traces.tolist():  # left to right, as a compiled loop adds
+        total = 0.0
+        for v in row:
+            total += v
+        sums.append(total)
+    medoid = sums.index(max(sums))
+    d_r = np.array([math.acos(c) for c in np.clip((traces[medoid] - 1.0) / 2.0, -1.0, 1.0).tolist()])  # the C library's
     limit_t = max(k * float(np.median(d_t)), floor_m)
     limit_r = max(k * float(np.median(d_r)), floor_rad)
     return [i for i in range(n) if d_t[i] <= limit_t and d_r[i] <= limit_r]
@@ -272,8 +278,8 @@ def reference_upright(T_w_x, T_b_x):
     R0 = T_w_x[:3, :3] @ T_b_x[:3, :3].T
     cx, cy, cz = R0[0, 0], R0[1, 0], R0[2, 0]
     h2 = cx * cx + cy * cy
-    yaw = np.arctan2(cy, cx)
-    c, s = float(np.cos(yaw)), float(np.sin(yaw))
+    yaw = math.atan2(cy, cx)  # the C library's, as the pose's own projection
+    c, s = math.cos(yaw), math.sin(yaw)
     tx, ty = float(T_b_x[0, 3]), float(T_b_x[1, 3])
     dyaw = np.array((-cz * cx / h2, -cz * cy / h2, 1.0))
     J = np.zeros((6, 6))

@@ -34,6 +34,7 @@ exactly as without it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -130,8 +131,8 @@ def upright_projection_jacobian(T_w_x: np.ndarray, T_b_x: np.ndarray) -> np.ndar
     R0 = T_w_x[:3, :3] @ T_b_x[:3, :3].T
     (cx, _, _), (cy, _, _), (cz, _, _) = R0.tolist()
     h2 = cx * cx + cy * cy
-    yaw = np.arctan2(cy, cx)  # numpy's, not math's: they may differ in the last bit
-    c, s = float(np.cos(yaw)), float(np.sin(yaw))
+    yaw = math.atan2(cy, cx)  # the C library's, as upright_body_from_mount's (numpy's differs in the last bit)
+    c, s = math.cos(yaw), math.sin(yaw)
     (_, _, _, tx), (_, _, _, ty) = T_b_x[:2].tolist()
     # d yaw / d dtheta for R = exp([dtheta]x) R0, yaw = atan2(R[1, 0], R[0, 0]).
     d0, d1, d2 = -cz * cx / h2, -cz * cy / h2, 1.0

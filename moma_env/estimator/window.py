@@ -25,6 +25,29 @@ def _sorted_median(s: list[float]) -> float:
     return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2.0
 
 
+def _gram(flat: np.ndarray) -> np.ndarray:
+    """``flat @ flat.T`` for ``(n, 9)`` rows, as a general matrix product of two buffers
+    (``A @ A.T`` of one buffer takes BLAS's symmetric kernel, whose bits differ)."""
+    return flat @ np.ascontiguousarray(flat.T)
+
+
+def _sum_left_to_right(values: list[float]) -> float:
+    """``((v0 + v1) + v2) + ...`` from 0.0 (``sum`` compensates its rounding from Python 3.12 on)."""
+    total = 0.0
+    for v in values:
+        total += v
+    return total
+
+
+def _first_max(values: list[float]) -> int:
+    """Index of the first largest of ``values`` (finite floats)."""
+    best = 0
+    for i in range(1, len(values)):
+        if values[i] > values[best]:
+            best = i
+    return best
+
+
 class SwitchWindow:
     """Up to ``capacity`` 4x4 poses (world frame W, metres), averaged robustly.
 
@@ -159,24 +182,17 @@ class SwitchWindow:
         if not self._finite:
             self._inliers = self._inliers_numpy()
             return self._inliers
-        # Plain floats where numpy would only round the same way (element-wise
-        # arithmetic, sqrt, medians); the Gram matrix of the rotations stays one
-        # numpy product on the same (n, 9) array as ever.
+        # Plain floats and the C library's acos; the Gram matrix of the rotations is one
+        # general matrix product (see _gram): arithmetic a compiled kernel can repeat bit for bit.
         translations = self._translations
         xs, ys, zs = self._sorted_xyz
         mx, my, mz = _sorted_median(xs), _sorted_median(ys), _sorted_median(zs)
         sqrt = math.sqrt
         d_t = [sqrt((x - mx) * (x - mx) + (y - my) * (y - my) + (z - mz) * (z - mz)) for x, y, z in translations]
-        flat = self._rotations[:n]
-        traces = flat @ flat.T  # trace(R_i^T R_j)
-        medoid = int(np.add.reduce(traces, axis=1).argmax())  # traces.sum(axis=1), without its wrapper
-        # np.arccos(np.clip((row - 1.0) / 2.0, -1.0, 1.0)) in place (finite entries: the same bits).
-        c = traces[medoid]
-        c -= 1.0
-        c /= 2.0
-        np.maximum(c, -1.0, out=c)
-        np.minimum(c, 1.0, out=c)
-        d_r = np.arccos(c, out=c).tolist()
+        traces = _gram(self._rotations[:n]).tolist()  # trace(R_i^T R_j)
+        medoid = _first_max([_sum_left_to_right(row) for row in traces])
+        acos = math.acos
+        d_r = [acos(min(1.0, max(-1.0, (c - 1.0) / 2.0))) for c in traces[medoid]]
         k = self.outlier_k
         limit_t = max(k * _median(d_t), self.floor_m)
         limit_r = max(k * _median(d_r), self.floor_rad)
@@ -190,9 +206,9 @@ class SwitchWindow:
         t = stack[:, :3, 3]
         d_t = np.sqrt(((t - np.median(t, axis=0)) ** 2).sum(axis=1))
         flat = stack[:, :3, :3].reshape(n, 9)
-        traces = flat @ flat.T  # trace(R_i^T R_j)
+        traces = _gram(flat)  # trace(R_i^T R_j)
         medoid = int(np.argmax(traces.sum(axis=1)))
-        d_r = np.arccos(np.clip((traces[medoid] - 1.0) / 2.0, -1.0, 1.0))
+        d_r = np.array([math.acos(c) if c == c else c for c in np.clip((traces[medoid] - 1.0) / 2.0, -1.0, 1.0).tolist()])
         k = self.outlier_k
         limit_t = max(k * float(np.median(d_t)), self.floor_m)
         limit_r = max(k * float(np.median(d_r)), self.floor_rad)
