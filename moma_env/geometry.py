@@ -35,6 +35,8 @@ __all__ = [
     "rot_z",
     "make_transform",
     "invert",
+    "invert_kernel",
+    "pose_array",
     "translation",
     "rotation",
     "se2_to_se3",
@@ -42,6 +44,8 @@ __all__ = [
     "yaw_of",
     "rotation_angle",
     "upright_body_from_mount",
+    "upright_body_kernel",
+    "mount_rotation_kernel",
     "rotvec_to_matrix",
     "matrix_to_rotvec",
     "matrix_to_quaternion",
@@ -94,11 +98,33 @@ def make_transform(R: np.ndarray | None = None, t: Sequence[float] | np.ndarray 
 
 def invert(T: np.ndarray) -> np.ndarray:
     """Inverse of a rigid transform: ``invert(T_a_b) == T_b_a`` (a new array)."""
-    Rt = T[:3, :3].T
+    return invert_kernel(pose_array(T, "T"))
+
+
+def pose_array(T: object, name: str) -> np.ndarray:
+    """``T`` as a float64 4x4 array (itself when it is one), for the compiled helpers."""
+    if type(T) is not np.ndarray or T.dtype.char != "d":
+        T = np.asarray(T, dtype=float)
+    if T.shape != (4, 4):
+        raise ValueError(f"{name} must be a 4x4 transform, got shape {T.shape}")
+    return T
+
+
+@numba.njit(cache=True)
+def invert_kernel(T: np.ndarray) -> np.ndarray:
+    """:func:`invert` of a float64 4x4 array, compiled: the arithmetic of numpy's
+    ``R.T @ t`` (BLAS, the transposed view as a column-major matrix), bit for bit."""
+    Rt = np.asfortranarray(T[:3, :3].T)
+    v = np.dot(Rt, np.ascontiguousarray(T[:3, 3]))
     Ti = np.empty((4, 4))
     Ti[:3, :3] = Rt
-    np.negative(Rt @ T[:3, 3], out=Ti[:3, 3])
-    Ti[3] = _LAST_ROW
+    Ti[0, 3] = -v[0]
+    Ti[1, 3] = -v[1]
+    Ti[2, 3] = -v[2]
+    Ti[3, 0] = 0.0
+    Ti[3, 1] = 0.0
+    Ti[3, 2] = 0.0
+    Ti[3, 3] = 1.0
     return Ti
 
 
@@ -142,20 +168,33 @@ def upright_body_from_mount(T_w_x: np.ndarray, T_b_x: np.ndarray, z: float = 0.0
     through the mount's lever arm (a board 0.4 m above the floor tilted by 0.1 rad
     would otherwise move the robot by 4 cm).
     """
-    R = T_w_x[:3, :3] @ T_b_x[:3, :3].T
+    return upright_body_kernel(pose_array(T_w_x, "T_w_x"), pose_array(T_b_x, "T_b_x"), float(z))
+
+
+@numba.njit(cache=True)
+def mount_rotation_kernel(T_w_x: np.ndarray, T_b_x: np.ndarray) -> np.ndarray:
+    """``T_w_x[:3, :3] @ T_b_x[:3, :3].T`` (3x3) with numpy's BLAS product, bit for bit."""
+    return np.dot(np.ascontiguousarray(T_w_x[:3, :3]), np.asfortranarray(T_b_x[:3, :3].T))
+
+
+@numba.njit(cache=True)
+def upright_body_kernel(T_w_x: np.ndarray, T_b_x: np.ndarray, z: float) -> np.ndarray:
+    """:func:`upright_body_from_mount` of float64 4x4 arrays, compiled (the C library's atan2)."""
+    R = mount_rotation_kernel(T_w_x, T_b_x)
     yaw = math.atan2(R[1, 0], R[0, 0])
     c, s = math.cos(yaw), math.sin(yaw)
-    # Plain floats (the same IEEE arithmetic as numpy scalars, without their overhead).
-    tx, ty = T_b_x[:2, 3].tolist()
-    x, y = T_w_x[:2, 3].tolist()
-    return np.array(
-        [
-            [c, -s, 0.0, x - (c * tx - s * ty)],
-            [s, c, 0.0, y - (s * tx + c * ty)],
-            [0.0, 0.0, 1.0, z],
-            [0.0, 0.0, 0.0, 1.0],
-        ]
-    )
+    tx, ty = T_b_x[0, 3], T_b_x[1, 3]
+    out = np.zeros((4, 4))
+    out[0, 0] = c
+    out[0, 1] = -s
+    out[0, 3] = T_w_x[0, 3] - (c * tx - s * ty)
+    out[1, 0] = s
+    out[1, 1] = c
+    out[1, 3] = T_w_x[1, 3] - (s * tx + c * ty)
+    out[2, 2] = 1.0
+    out[2, 3] = z
+    out[3, 3] = 1.0
+    return out
 
 
 def rotation_angle(R: np.ndarray) -> float:

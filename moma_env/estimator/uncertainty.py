@@ -37,9 +37,10 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 
+import numba
 import numpy as np
 
-from moma_env.geometry import matrix_to_rotvec, rotvec_to_matrix
+from moma_env.geometry import matrix_to_rotvec, mount_rotation_kernel, pose_array, rotvec_to_matrix
 
 __all__ = [
     "apply_error",
@@ -83,27 +84,12 @@ def compose_jacobians(T_x_y: np.ndarray, T_y_z: np.ndarray) -> tuple[np.ndarray,
 
         J_A = [[I, -[R_x_y t_y_z]x], [0, I]]      J_B = [[R_x_y, 0], [0, R_x_y]]
     """
-    R = T_x_y[:3, :3]
-    J_B = np.zeros((6, 6))
-    J_B[:3, :3] = R
-    J_B[3:, 3:] = R
-    return compose_jacobian_first(T_x_y, T_y_z), J_B
+    return compose_jacobians_kernel(pose_array(T_x_y, "T_x_y"), pose_array(T_y_z, "T_y_z"))
 
 
 def compose_jacobian_first(T_x_y: np.ndarray, T_y_z: np.ndarray) -> np.ndarray:
     """``J_A`` of :func:`compose_jacobians` alone (6x6), when the second factor is exact (a mount)."""
-    x, y, z = (T_x_y[:3, :3] @ T_y_z[:3, 3]).tolist()
-    # -[v]x entry by entry (its diagonal is -0.0, as negating skew(v) gives).
-    return np.array(
-        (
-            (1.0, 0.0, 0.0, -0.0, z, -y),
-            (0.0, 1.0, 0.0, -z, -0.0, x),
-            (0.0, 0.0, 1.0, y, -x, -0.0),
-            (0.0, 0.0, 0.0, 1.0, 0.0, 0.0),
-            (0.0, 0.0, 0.0, 0.0, 1.0, 0.0),
-            (0.0, 0.0, 0.0, 0.0, 0.0, 1.0),
-        )
-    )
+    return compose_first_kernel(pose_array(T_x_y, "T_x_y"), pose_array(T_y_z, "T_y_z"))
 
 
 def inverse_jacobian(T_x_y: np.ndarray) -> np.ndarray:
@@ -111,13 +97,7 @@ def inverse_jacobian(T_x_y: np.ndarray) -> np.ndarray:
 
         [[-R^T, [t_y_x]x R^T], [0, -R^T]]    with R = R_x_y, t_y_x = -R^T t_x_y
     """
-    Rt = T_x_y[:3, :3].T
-    minus_Rt = -Rt
-    J = np.zeros((6, 6))
-    J[:3, :3] = minus_Rt
-    J[:3, 3:] = skew((minus_Rt @ T_x_y[:3, 3]).tolist()) @ Rt
-    J[3:, 3:] = minus_Rt
-    return J
+    return inverse_jacobian_kernel(pose_array(T_x_y, "T_x_y"))
 
 
 def upright_projection_jacobian(T_w_x: np.ndarray, T_b_x: np.ndarray) -> np.ndarray:
@@ -128,26 +108,85 @@ def upright_projection_jacobian(T_w_x: np.ndarray, T_b_x: np.ndarray) -> np.ndar
     so rows 2, 3 and 4 of the Jacobian are zero. Input: the error of ``T_w_x``
     (world frame); output: the error of the upright ``T_w_b`` (world frame).
     """
-    R0 = T_w_x[:3, :3] @ T_b_x[:3, :3].T
-    (cx, _, _), (cy, _, _), (cz, _, _) = R0.tolist()
+    return upright_jacobian_kernel(pose_array(T_w_x, "T_w_x"), pose_array(T_b_x, "T_b_x"))
+
+
+# The compiled forms of the Jacobians above, on float64 4x4 arrays: the arithmetic of
+# numpy's products on C-ordered arrays (BLAS through np.dot, each operand in the memory
+# order numpy gives it) and the C library's atan2, bit for bit (docs/estimator.md).
+
+
+@numba.njit(cache=True)
+def compose_first_kernel(T_x_y: np.ndarray, T_y_z: np.ndarray) -> np.ndarray:
+    """:func:`compose_jacobian_first`, compiled."""
+    v = np.dot(np.ascontiguousarray(T_x_y[:3, :3]), np.ascontiguousarray(T_y_z[:3, 3]))
+    x, y, z = v[0], v[1], v[2]
+    J = np.zeros((6, 6))
+    for i in range(6):
+        J[i, i] = 1.0
+    # -[v]x entry by entry (its diagonal is -0.0, as negating skew(v) gives).
+    J[0, 3] = -0.0
+    J[0, 4] = z
+    J[0, 5] = -y
+    J[1, 3] = -z
+    J[1, 4] = -0.0
+    J[1, 5] = x
+    J[2, 3] = y
+    J[2, 4] = -x
+    J[2, 5] = -0.0
+    return J
+
+
+@numba.njit(cache=True)
+def compose_jacobians_kernel(T_x_y: np.ndarray, T_y_z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`compose_jacobians`, compiled."""
+    J_B = np.zeros((6, 6))
+    J_B[:3, :3] = T_x_y[:3, :3]
+    J_B[3:, 3:] = T_x_y[:3, :3]
+    return compose_first_kernel(T_x_y, T_y_z), J_B
+
+
+@numba.njit(cache=True)
+def inverse_jacobian_kernel(T_x_y: np.ndarray) -> np.ndarray:
+    """:func:`inverse_jacobian`, compiled."""
+    Rt = np.asfortranarray(T_x_y[:3, :3].T)
+    minus_Rt = -Rt  # column-major, as numpy's negation of the transposed view
+    v = np.dot(minus_Rt, np.ascontiguousarray(T_x_y[:3, 3]))
+    x, y, z = v[0], v[1], v[2]
+    S = np.zeros((3, 3))  # skew(v), its zeros +0.0
+    S[0, 1] = -z
+    S[0, 2] = y
+    S[1, 0] = z
+    S[1, 2] = -x
+    S[2, 0] = -y
+    S[2, 1] = x
+    J = np.zeros((6, 6))
+    J[:3, :3] = minus_Rt
+    J[:3, 3:] = np.dot(S, Rt)
+    J[3:, 3:] = minus_Rt
+    return J
+
+
+@numba.njit(cache=True)
+def upright_jacobian_kernel(T_w_x: np.ndarray, T_b_x: np.ndarray) -> np.ndarray:
+    """:func:`upright_projection_jacobian`, compiled."""
+    R0 = mount_rotation_kernel(T_w_x, T_b_x)
+    cx, cy, cz = R0[0, 0], R0[1, 0], R0[2, 0]
     h2 = cx * cx + cy * cy
-    yaw = math.atan2(cy, cx)  # the C library's, as upright_body_from_mount's (numpy's differs in the last bit)
+    yaw = math.atan2(cy, cx)
     c, s = math.cos(yaw), math.sin(yaw)
-    (_, _, _, tx), (_, _, _, ty) = T_b_x[:2].tolist()
+    tx, ty = T_b_x[0, 3], T_b_x[1, 3]
     # d yaw / d dtheta for R = exp([dtheta]x) R0, yaw = atan2(R[1, 0], R[0, 0]).
     d0, d1, d2 = -cz * cx / h2, -cz * cy / h2, 1.0
     a = s * tx + c * ty
     b = -(c * tx - s * ty)
-    return np.array(
-        (
-            (1.0, 0.0, 0.0, a * d0, a * d1, a * d2),
-            (0.0, 1.0, 0.0, b * d0, b * d1, b * d2),
-            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
-            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
-            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
-            (0.0, 0.0, 0.0, d0, d1, d2),
-        )
-    )
+    J = np.zeros((6, 6))
+    J[0, 0] = 1.0
+    J[1, 1] = 1.0
+    J[0, 3], J[0, 4], J[0, 5] = a * d0, a * d1, a * d2
+    J[1, 3], J[1, 4], J[1, 5] = b * d0, b * d1, b * d2
+    J[5, 3], J[5, 4], J[5, 5] = d0, d1, d2
+    return J
 
 
 def window_mean_noise(Q_sum: np.ndarray, P_sum: np.ndarray | None, n: int) -> np.ndarray:
