@@ -37,6 +37,7 @@ __all__ = [
     "invert",
     "invert_kernel",
     "pose_array",
+    "kernel_array",
     "translation",
     "rotation",
     "se2_to_se3",
@@ -102,12 +103,19 @@ def invert(T: np.ndarray) -> np.ndarray:
 
 
 def pose_array(T: object, name: str) -> np.ndarray:
-    """``T`` as a float64 4x4 array (itself when it is one), for the compiled helpers."""
-    if type(T) is not np.ndarray or T.dtype.char != "d":
-        T = np.asarray(T, dtype=float)
-    if T.shape != (4, 4):
-        raise ValueError(f"{name} must be a 4x4 transform, got shape {T.shape}")
-    return T
+    """``T`` as a C-ordered float64 4x4 array (itself when it is one), for the compiled
+    helpers; ValueError naming ``name`` for another shape."""
+    return kernel_array(T, (4, 4), name)
+
+
+def kernel_array(M: object, shape: tuple[int, ...], name: str) -> np.ndarray:
+    """``M`` as a C-ordered float64 array of ``shape`` (itself when it is one), what the
+    compiled kernels take; ValueError naming ``name`` for another shape."""
+    if type(M) is not np.ndarray or M.dtype.char != "d" or not M.flags.c_contiguous:
+        M = np.ascontiguousarray(M, dtype=float)
+    if M.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {M.shape}")
+    return M
 
 
 @numba.njit(cache=True)

@@ -446,3 +446,74 @@ def test_update_takes_any_iterable_of_detections():
     assert est.camera_pose("down") is not None
     with pytest.raises(ValueError, match="detected twice"):
         est.update(0.16, [d, d])
+
+
+# ------------------------------------------------------------------ the compiled update steps
+def random_covariance(rng: np.random.Generator) -> np.ndarray:
+    L = rng.normal(0.0, 0.01, (6, 6))
+    return L @ L.T
+
+
+def reference_through(error: LinearError, A, B, cov, persistent):
+    """transformed(A).plus_noise(B, cov, persistent) as numpy computed them before the kernel."""
+    J = {s: A @ Js for s, Js in error.J.items()}
+    Q = A @ error.Q @ A.T
+    P = None if error.P is None else A @ error.P @ A.T
+    if persistent is not None and cov is not None:
+        added = B @ persistent @ B.T
+        P = added if P is None else P + added
+    if cov is not None:
+        Q = Q + B @ cov @ B.T
+    return J, Q, P
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_an_error_through_a_step_is_numpy_s_bit_for_bit(seed):
+    rng = np.random.default_rng(seed)
+    for case in range(200):
+        keys = list(range(case % 4))
+        error = LinearError({k: rng.normal(size=(6, 6)) for k in keys}, random_covariance(rng), random_covariance(rng) if case % 3 else None)
+        A, B = rng.normal(size=(6, 6)), rng.normal(size=(6, 6))
+        cov = random_covariance(rng) if case % 5 else None
+        persistent = random_covariance(rng) if case % 2 else None
+        got = error.through(A, B, cov, persistent)
+        J, Q, P = reference_through(error, A, B, cov, persistent)
+        assert list(got.J) == keys and all(same_bits(got.J[k], J[k]) for k in keys)
+        assert same_bits(got.Q, Q) and (P is None) == (got.P is None) and (P is None or same_bits(got.P, P))
+        plain = error.transformed(A)
+        J, Q, P = reference_through(error, A, B, None, None)
+        assert all(same_bits(plain.J[k], J[k]) for k in keys) and same_bits(plain.Q, Q)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_compiled_detection_steps_are_the_helpers_bit_for_bit(seed):
+    from moma_env.estimator.kernels import body_from_board_seen, body_from_mounted_frame, camera_from_reference_board
+
+    rng = np.random.default_rng(seed)
+    for _ in range(300):
+        T_w_m, T_c_m, T_w_c, mount = (random_pose(rng) for _ in range(4))
+        board_J, cov, persistent = rng.normal(size=(6, 6)), random_covariance(rng), random_covariance(rng)
+        # a camera from a reference board
+        T_m_c = g.invert(T_c_m)
+        J_ref, J_meas = compose_jacobians(T_w_m, T_m_c)
+        A = J_meas @ inverse_jacobian(T_c_m)
+        got = camera_from_reference_board(T_w_m, board_J, T_c_m, cov, True, persistent, True)
+        for x, y in zip(got, (T_w_m @ T_m_c, J_ref @ board_J, A @ cov @ A.T + 0.0, A @ persistent @ A.T)):
+            assert same_bits(x, y)
+        assert same_bits(camera_from_reference_board(T_w_m, board_J, T_c_m, cov, False, persistent, False)[2], np.zeros((6, 6)))
+        # a body from a board seen by a located camera, upright and not
+        T_w_b_board = T_w_c @ T_c_m
+        J_cam, J_meas = compose_jacobians(T_w_c, T_c_m)
+        inverse = g.invert(mount)
+        for planar in (True, False):
+            if planar:
+                sample, A = g.upright_body_from_mount(T_w_b_board, mount, 0.3), upright_projection_jacobian(T_w_b_board, mount)
+            else:
+                sample, A = T_w_b_board @ inverse, compose_jacobian_first(T_w_b_board, inverse)
+            got = body_from_board_seen(T_w_c, T_c_m, mount, inverse, planar, 0.3)
+            assert same_bits(got[0], sample) and same_bits(got[1], A @ J_cam) and same_bits(got[2], A @ J_meas)
+            got = body_from_mounted_frame(T_w_c, mount, inverse, planar, 0.3)
+            if planar:
+                assert same_bits(got[0], g.upright_body_from_mount(T_w_c, mount, 0.3)) and same_bits(got[1], upright_projection_jacobian(T_w_c, mount))
+            else:
+                assert same_bits(got[0], T_w_c @ inverse) and same_bits(got[1], compose_jacobian_first(T_w_c, inverse))

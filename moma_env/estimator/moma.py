@@ -23,16 +23,10 @@ from moma_env.estimator.errors import (
 from moma_env.estimator.fusion import information_fusion
 from moma_env.estimator.gate import OutlierGate
 from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
-from moma_env.estimator.uncertainty import (
-    LinearError,
-    RunningErrorMean,
-    compose_jacobian_first,
-    compose_jacobians,
-    inverse_jacobian,
-    upright_projection_jacobian,
-)
+from moma_env.estimator.kernels import body_from_board_seen, body_from_mounted_frame, camera_from_reference_board
+from moma_env.estimator.uncertainty import NO_MATRIX, LinearError, RunningErrorMean, compose_jacobian_first, matrix6_array
 from moma_env.estimator.window import SwitchWindow
-from moma_env.geometry import invert, mean_pose, upright_body_from_mount
+from moma_env.geometry import invert, mean_pose, pose_array
 
 __all__ = ["MomaEstimator"]
 
@@ -495,24 +489,16 @@ class MomaEstimator:
             for d in group:
                 ref = board_owner[d.board_id]
                 if ref.phase is _REFERENCE and ref is not own:
-                    T_w_m = ref.board_world[d.board_id]
-                    T_m_c = invert(d.T_c_m)
-                    J_ref, J_meas = compose_jacobians(T_w_m, T_m_c)
-                    J = {ref.ref_key: J_ref @ ref.board_world_J[d.board_id]}
                     # LinearError(J).plus_noise(J_meas @ inverse_jacobian(T_c_m), covariance), without
                     # the zero Q: Q + 0.0 is the 0 + Q it gave (-0.0 entries turn +0.0 alike).
-                    cov = d.covariance
-                    P = None  # the part of the noise that persists over a switch window
-                    if cov is None:
-                        Q = np.zeros((6, 6))
-                    else:
-                        A = J_meas @ inverse_jacobian(d.T_c_m)
-                        Q = A @ cov @ A.T
-                        Q += 0.0
-                        if d.persistent_covariance is not None:
-                            P = A @ d.persistent_covariance @ A.T
-                    errors.append(LinearError._of(J, Q, P))
-                    located.append(T_w_m @ T_m_c)
+                    cov, persistent = d.covariance, d.persistent_covariance
+                    T_w_c, J, Q, P = camera_from_reference_board(
+                        ref.board_world[d.board_id], ref.board_world_J[d.board_id], pose_array(d.T_c_m, "T_c_m"),
+                        NO_MATRIX if cov is None else matrix6_array(cov), cov is not None,
+                        NO_MATRIX if persistent is None else matrix6_array(persistent), cov is not None and persistent is not None,
+                    )
+                    errors.append(LinearError.of_jacobian(ref.ref_key, J, Q, P if cov is not None and persistent is not None else None))
+                    located.append(T_w_c)
             if located:
                 if len(located) > 1 and self._information_fusion:
                     camera_poses[camera_id] = information_fusion(located, errors, joint)
@@ -531,29 +517,20 @@ class MomaEstimator:
             for d in group:
                 r = board_owner[d.board_id]
                 if r.phase is not _REFERENCE and r is not own:
-                    T_w_m = T_w_c @ d.T_c_m
-                    J_cam, J_meas = compose_jacobians(T_w_c, d.T_c_m)
-                    if r.plane_z is None:
-                        T_m_b = r.board_inverses[d.board_id]
-                        sample = T_w_m @ T_m_b
-                        A = compose_jacobian_first(T_w_m, T_m_b)
-                    else:
-                        mount = r.board_mounts[d.board_id]
-                        sample = upright_body_from_mount(T_w_m, mount, r.plane_z)
-                        A = upright_projection_jacobian(T_w_m, mount)
-                    error = camera_error.transformed(A @ J_cam).plus_noise(A @ J_meas, d.covariance, d.persistent_covariance)
+                    planar = r.plane_z is not None
+                    sample, A_cam, A_meas = body_from_board_seen(
+                        T_w_c, pose_array(d.T_c_m, "T_c_m"), r.board_mounts[d.board_id], r.board_inverses[d.board_id],
+                        planar, r.plane_z if planar else 0.0,
+                    )
+                    error = camera_error.through(A_cam, A_meas, d.covariance, d.persistent_covariance)
                     samples.setdefault(r, []).append((sample, error))
         for camera_id, (T_w_c, camera_error) in camera_poses.items():
             r = camera_owner[camera_id]
             if r.phase is not _REFERENCE:
-                if r.plane_z is None:
-                    T_c_b = r.camera_inverses[camera_id]
-                    sample = T_w_c @ T_c_b
-                    A = compose_jacobian_first(T_w_c, T_c_b)
-                else:
-                    mount = r.camera_mounts[camera_id]
-                    sample = upright_body_from_mount(T_w_c, mount, r.plane_z)
-                    A = upright_projection_jacobian(T_w_c, mount)
+                planar = r.plane_z is not None
+                sample, A = body_from_mounted_frame(
+                    T_w_c, r.camera_mounts[camera_id], r.camera_inverses[camera_id], planar, r.plane_z if planar else 0.0
+                )
                 samples.setdefault(r, []).append((sample, camera_error.transformed(A)))
 
         measured: set[_Robot] = set()

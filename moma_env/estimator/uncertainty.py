@@ -40,7 +40,7 @@ from collections.abc import Iterable, Mapping, Sequence
 import numba
 import numpy as np
 
-from moma_env.geometry import matrix_to_rotvec, mount_rotation_kernel, pose_array, rotvec_to_matrix
+from moma_env.geometry import kernel_array, matrix_to_rotvec, mount_rotation_kernel, pose_array, rotvec_to_matrix
 
 __all__ = [
     "apply_error",
@@ -51,6 +51,13 @@ __all__ = [
     "inverse_jacobian",
     "upright_projection_jacobian",
     "LinearError",
+    "matrix6_array",
+    "NO_MATRIX",
+    "through_kernel",
+    "compose_first_kernel",
+    "compose_jacobians_kernel",
+    "inverse_jacobian_kernel",
+    "upright_jacobian_kernel",
     "RunningErrorMean",
     "window_mean_noise",
 ]
@@ -206,6 +213,36 @@ def window_mean_noise(Q_sum: np.ndarray, P_sum: np.ndarray | None, n: int) -> np
     return (Q_sum + (n - 1) * P_sum) / (n * n)
 
 
+#: Stand-ins for an absent matrix in the compiled calls (never read: a flag says so).
+NO_MATRIX = np.zeros((6, 6))
+NO_MATRIX.flags.writeable = False
+_NO_JACOBIANS = np.zeros((0, 6, 6))
+_NO_JACOBIANS.flags.writeable = False
+
+
+def matrix6_array(M: object, name: str = "matrix") -> np.ndarray:
+    """``M`` as a C-ordered float64 6x6 array (itself when it is one), for the compiled calls."""
+    return kernel_array(M, (6, 6), name)
+
+
+@numba.njit(cache=True)
+def through_kernel(Js, Q, P, has_P, A, B, covariance, has_covariance, persistent, has_persistent):
+    """:meth:`LinearError.through`, compiled: ``(A @ J[s] for each s, Q', P', whether P' exists)``
+    with numpy's products (``A @ X @ A.T`` as ``(A @ X) @ A.T``), bit for bit."""
+    out = np.empty_like(Js)
+    for k in range(Js.shape[0]):
+        out[k] = np.dot(A, Js[k])
+    Q_out = np.dot(np.dot(A, Q), A.T)
+    P_out = np.dot(np.dot(A, P), A.T) if has_P else np.zeros((6, 6))
+    if has_covariance:
+        if has_persistent:
+            added = np.dot(np.dot(B, persistent), B.T)
+            P_out = P_out + added if has_P else added
+            has_P = True
+        Q_out = Q_out + np.dot(np.dot(B, covariance), B.T)
+    return out, Q_out, P_out, has_P
+
+
 class LinearError:
     """The error of one estimate: ``e = sum_s J[s] @ e_s + n``, ``n ~ N(0, Q)`` (6-vectors).
 
@@ -240,15 +277,33 @@ class LinearError:
         error.P = P
         return error
 
+    @classmethod
+    def of_jacobian(cls, reference: int | str, J: np.ndarray, Q: np.ndarray, P: np.ndarray | None = None) -> LinearError:
+        """The error ``J @ e_reference + n``, ``n`` of covariance ``Q`` (persistent part ``P``),
+        owning the arrays given (not copied)."""
+        return cls._of({reference: J}, Q, P)
+
     def transformed(self, A: np.ndarray) -> LinearError:
         """The error ``A @ e``."""
-        P = self.P
+        return self.through(A, None, None)
+
+    def through(
+        self, A: np.ndarray, B: np.ndarray | None, covariance: np.ndarray | None, persistent: np.ndarray | None = None
+    ) -> LinearError:
+        """``self.transformed(A).plus_noise(B, covariance, persistent)`` in one compiled call, the
+        same bits: the error ``A @ e + B @ n`` of an estimate computed from this one and a fresh
+        measurement ``n`` (``B`` is ignored when ``covariance`` is None)."""
         J = self.J
-        if len(J) > 1:  # one stacked product: each slice the bits of A @ J[s] alone
-            J = dict(zip(J, A @ np.array(list(J.values()))))
-        else:
-            J = {s: A @ Js for s, Js in J.items()}
-        return LinearError._of(J, A @ self.Q @ A.T, None if P is None else A @ P @ A.T)
+        keys = list(J)
+        stack = np.array(list(J.values())) if keys else _NO_JACOBIANS
+        with_noise = covariance is not None
+        P = self.P
+        Js, Q, P_out, has_P = through_kernel(
+            stack, self.Q, NO_MATRIX if P is None else P, P is not None, matrix6_array(A), matrix6_array(B) if with_noise else NO_MATRIX,
+            matrix6_array(covariance) if with_noise else NO_MATRIX, with_noise,
+            matrix6_array(persistent) if with_noise and persistent is not None else NO_MATRIX, with_noise and persistent is not None,
+        )
+        return LinearError._of(dict(zip(keys, Js)), Q, P_out if has_P else None)
 
     def plus_noise(
         self, A: np.ndarray, covariance: np.ndarray | None, persistent: np.ndarray | None = None
