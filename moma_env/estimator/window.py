@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numba
 import numpy as np
 
 from moma_env.geometry import project_to_rotation
@@ -14,38 +15,50 @@ __all__ = ["SwitchWindow"]
 _LAST_ROW = (0.0, 0.0, 0.0, 1.0)
 
 
-def _median(values: list[float]) -> float:
-    """``np.median`` of finite floats, the same bits: the middle value, or the mean of the middle two."""
-    return _sorted_median(sorted(values))
-
-
-def _sorted_median(s: list[float]) -> float:
-    """:func:`_median` of a sorted list."""
-    h = len(s) // 2
-    return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2.0
-
-
 def _gram(flat: np.ndarray) -> np.ndarray:
     """``flat @ flat.T`` for ``(n, 9)`` rows, as a general matrix product of two buffers
     (``A @ A.T`` of one buffer takes BLAS's symmetric kernel, whose bits differ)."""
     return flat @ np.ascontiguousarray(flat.T)
 
 
-def _sum_left_to_right(values: list[float]) -> float:
-    """``((v0 + v1) + v2) + ...`` from 0.0 (``sum`` compensates its rounding from Python 3.12 on)."""
-    total = 0.0
-    for v in values:
-        total += v
-    return total
+@numba.njit(cache=True)
+def _sorted_median(values: np.ndarray) -> float:
+    """The middle of ``values`` sorted, or the mean of the middle two (``np.median``'s bits)."""
+    s = np.sort(values)
+    h = s.size // 2
+    return s[h] if s.size % 2 else (s[h - 1] + s[h]) / 2.0
 
 
-def _first_max(values: list[float]) -> int:
-    """Index of the first largest of ``values`` (finite floats)."""
-    best = 0
-    for i in range(1, len(values)):
-        if values[i] > values[best]:
-            best = i
-    return best
+@numba.njit(cache=True)
+def inlier_mask_kernel(rotations: np.ndarray, xyz: np.ndarray, k: float, floor_m: float, floor_rad: float) -> np.ndarray:
+    """Which of ``n`` finite samples the window's mean keeps (see :class:`SwitchWindow`), compiled.
+
+    ``rotations``: ``(n, 9)`` rotation blocks row by row; ``xyz``: ``(n, 3)`` translations (m).
+    The arithmetic of docs/estimator.md ("Its arithmetic"): coordinate-wise medians,
+    distances ``sqrt(dx*dx + dy*dy + dz*dz)``, the Gram matrix of the rotations as one
+    general product, its rows summed left to right, the first largest the medoid, the C
+    library's acos.
+    """
+    n = rotations.shape[0]
+    mx, my, mz = _sorted_median(xyz[:, 0]), _sorted_median(xyz[:, 1]), _sorted_median(xyz[:, 2])
+    d_t = np.empty(n)
+    for i in range(n):
+        dx, dy, dz = xyz[i, 0] - mx, xyz[i, 1] - my, xyz[i, 2] - mz
+        d_t[i] = math.sqrt(dx * dx + dy * dy + dz * dz)
+    traces = np.dot(rotations, np.ascontiguousarray(rotations.T))  # trace(R_i^T R_j)
+    medoid, best = 0, 0.0
+    for i in range(n):
+        total = 0.0
+        for j in range(n):
+            total += traces[i, j]
+        if i == 0 or total > best:
+            medoid, best = i, total
+    d_r = np.empty(n)
+    for j in range(n):
+        d_r[j] = math.acos(min(1.0, max(-1.0, (traces[medoid, j] - 1.0) / 2.0)))
+    limit_t = max(k * _sorted_median(d_t), floor_m)
+    limit_r = max(k * _sorted_median(d_r), floor_rad)
+    return (d_t <= limit_t) & (d_r <= limit_r)
 
 
 class SwitchWindow:
@@ -65,8 +78,9 @@ class SwitchWindow:
     of the matrices projected back onto SO(3)).
 
     It runs at every update of a settling robot, so it keeps what the next call
-    can reuse: the samples' rotations in a preallocated ``(capacity, 9)`` array
-    and their translations as floats, the inliers and the mean until the next
+    can reuse: the samples' rotations and translations in preallocated
+    ``(capacity, 9)`` and ``(capacity, 3)`` arrays, which one compiled call
+    (:func:`inlier_mask_kernel`) turns into the inliers, the inliers and the mean until the next
     change, and the running sums of the inliers' rotations and translations
     while the inliers only grow at the end (the same additions in the same
     order as summing them afresh, so the mean is the same to the bit).
@@ -88,7 +102,7 @@ class SwitchWindow:
         "_inliers",
         "_rotations",
         "_translations",
-        "_sorted_xyz",
+        "_xyz",
         "_finite",
         "_mean",
         "_sum_index",
@@ -108,7 +122,7 @@ class SwitchWindow:
         self._inliers: list[int] | None = None
         self._rotations = np.empty((capacity, 9))  # row i: the rotation block of sample i, row by row
         self._translations: list[tuple[float, float, float]] = []  # (m)
-        self._sorted_xyz: tuple[list[float], list[float], list[float]] = ([], [], [])  # each coordinate, sorted
+        self._xyz = np.empty((capacity, 3))  # row i: the translation of sample i (m)
         self._finite = True  # every sample finite (else the exact numpy statistics decide)
         self._mean: np.ndarray | None = None  # mean of the current inliers
         self._sum_index: list[int] = []  # the samples summed in _R_sum, _t_sum, in order
@@ -128,8 +142,6 @@ class SwitchWindow:
         self._poses.clear()
         self._payloads.clear()
         self._translations.clear()
-        for axis in self._sorted_xyz:
-            axis.clear()
         self._inliers = None
         self._finite = True
         self._mean = None
@@ -151,13 +163,7 @@ class SwitchWindow:
             self._finite = False
         self._poses.append(T)
         self._translations.append(t)
-        xs, ys, zs = self._sorted_xyz
-        xs.append(t[0])
-        xs.sort()  # one pass over an already sorted list
-        ys.append(t[1])
-        ys.sort()
-        zs.append(t[2])
-        zs.sort()
+        self._xyz[n] = t
         self._payloads.append(payload)
         self._inliers = None
         self._mean = None
@@ -182,21 +188,8 @@ class SwitchWindow:
         if not self._finite:
             self._inliers = self._inliers_numpy()
             return self._inliers
-        # Plain floats and the C library's acos; the Gram matrix of the rotations is one
-        # general matrix product (see _gram): arithmetic a compiled kernel can repeat bit for bit.
-        translations = self._translations
-        xs, ys, zs = self._sorted_xyz
-        mx, my, mz = _sorted_median(xs), _sorted_median(ys), _sorted_median(zs)
-        sqrt = math.sqrt
-        d_t = [sqrt((x - mx) * (x - mx) + (y - my) * (y - my) + (z - mz) * (z - mz)) for x, y, z in translations]
-        traces = _gram(self._rotations[:n]).tolist()  # trace(R_i^T R_j)
-        medoid = _first_max([_sum_left_to_right(row) for row in traces])
-        acos = math.acos
-        d_r = [acos(min(1.0, max(-1.0, (c - 1.0) / 2.0))) for c in traces[medoid]]
-        k = self.outlier_k
-        limit_t = max(k * _median(d_t), self.floor_m)
-        limit_r = max(k * _median(d_r), self.floor_rad)
-        self._inliers = [i for i in range(n) if d_t[i] <= limit_t and d_r[i] <= limit_r]
+        mask = inlier_mask_kernel(self._rotations[:n], self._xyz[:n], float(self.outlier_k), float(self.floor_m), float(self.floor_rad))
+        self._inliers = np.flatnonzero(mask).tolist()
         return self._inliers
 
     def _inliers_numpy(self) -> list[int]:
