@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 
+import numba
 import numpy as np
 
 from moma_env.config import ConfigError, all_finite, check_rigid_transform
@@ -40,8 +41,6 @@ _EYE3 = np.eye(3)
 #: The fast checks below pass a rotation block only this far inside the tolerance;
 #: closer to it (and for anything unusual) the exact numpy checks decide.
 _CLEAR_ROTATION_TOLERANCE = _ROTATION_TOLERANCE * (1.0 - 1e-6)
-#: Index pairs (i * 6 + j, j * 6 + i), i < j, of a flattened 6x6 matrix.
-_UPPER_LOWER = tuple((i * 6 + j, j * 6 + i) for i in range(6) for j in range(i + 1, 6))
 
 
 def _what(d: Detection) -> str:
@@ -59,10 +58,21 @@ def _clearly_rigid(T: object) -> bool:
     """
     if type(T) is not np.ndarray or T.shape != (4, 4) or T.dtype.char != "d":
         return False
-    a, b, c, _, e, f, g, _, i, j, k, _, m, n, o, p = values = T.ravel().tolist()
-    if not math.isfinite(sum(values)):
+    return _clearly_rigid_kernel(T, _CLEAR_ROTATION_TOLERANCE, _ROTATION_TOLERANCE)
+
+
+@numba.njit(cache=True)
+def _clearly_rigid_kernel(T: np.ndarray, tol: float, last_row_tol: float) -> bool:
+    """:func:`_clearly_rigid` of a float64 4x4 array, compiled."""
+    total = 0.0
+    for r in range(4):
+        for c in range(4):
+            total += T[r, c]
+    if not math.isfinite(total):
         return False
-    tol = _CLEAR_ROTATION_TOLERANCE
+    a, b, c = T[0, 0], T[0, 1], T[0, 2]
+    e, f, g = T[1, 0], T[1, 1], T[1, 2]
+    i, j, k = T[2, 0], T[2, 1], T[2, 2]
     return (
         abs(a * a + e * e + i * i - 1.0) <= tol
         and abs(b * b + f * f + j * j - 1.0) <= tol
@@ -71,10 +81,10 @@ def _clearly_rigid(T: object) -> bool:
         and abs(a * c + e * g + i * k) <= tol
         and abs(b * c + f * g + j * k) <= tol
         and a * (f * k - g * j) - b * (e * k - g * i) + c * (e * j - f * i) > 0.5
-        and abs(m) <= _ROTATION_TOLERANCE
-        and abs(n) <= _ROTATION_TOLERANCE
-        and abs(o) <= _ROTATION_TOLERANCE
-        and abs(p - 1.0) <= _ROTATION_TOLERANCE
+        and abs(T[3, 0]) <= last_row_tol
+        and abs(T[3, 1]) <= last_row_tol
+        and abs(T[3, 2]) <= last_row_tol
+        and abs(T[3, 3] - 1.0) <= last_row_tol
     )
 
 
@@ -104,15 +114,28 @@ def _clearly_valid_covariance(cov: object) -> bool:
     """
     if type(cov) is not np.ndarray or cov.shape != (6, 6) or cov.dtype.char != "d":
         return False
-    values = cov.ravel().tolist()
-    if not math.isfinite(sum(values)):
+    return _clearly_valid_covariance_kernel(cov)
+
+
+@numba.njit(cache=True)
+def _clearly_valid_covariance_kernel(cov: np.ndarray) -> bool:
+    """:func:`_clearly_valid_covariance` of a float64 6x6 array, compiled."""
+    total = 0.0
+    largest = 0.0
+    for r in range(6):
+        for c in range(6):
+            total += cov[r, c]
+            largest = max(largest, abs(cov[r, c]))
+    if not math.isfinite(total):
         return False
-    if values[0] < 0.0 or values[7] < 0.0 or values[14] < 0.0 or values[21] < 0.0 or values[28] < 0.0 or values[35] < 0.0:
-        return False
-    limit = 1e-9 * max(1.0, max(map(abs, values)))
-    for u, v in _UPPER_LOWER:
-        if abs(values[u] - values[v]) > limit:
+    for d in range(6):
+        if cov[d, d] < 0.0:
             return False
+    limit = 1e-9 * max(1.0, largest)
+    for r in range(6):
+        for c in range(r + 1, 6):
+            if abs(cov[r, c] - cov[c, r]) > limit:
+                return False
     return True
 
 
