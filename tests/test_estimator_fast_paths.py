@@ -483,6 +483,14 @@ def test_an_error_through_a_step_is_numpy_s_bit_for_bit(seed):
         plain = error.transformed(A)
         J, Q, P = reference_through(error, A, B, None, None)
         assert all(same_bits(plain.J[k], J[k]) for k in keys) and same_bits(plain.Q, Q)
+        noisy = error.plus_noise(B, cov, persistent)  # numpy's plus_noise: no transform
+        P = error.P
+        if persistent is not None and cov is not None:
+            added = B @ persistent @ B.T
+            P = added if P is None else P + added
+        assert all(same_bits(noisy.J[k], error.J[k]) for k in keys)
+        assert same_bits(noisy.Q, error.Q if cov is None else error.Q + B @ cov @ B.T)
+        assert (P is None) == (noisy.P is None) and (P is None or same_bits(noisy.P, P))
 
 
 @pytest.mark.parametrize("seed", range(3))

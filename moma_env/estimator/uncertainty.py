@@ -226,14 +226,18 @@ def matrix6_array(M: object, name: str = "matrix") -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def through_kernel(Js, Q, P, has_P, A, B, covariance, has_covariance, persistent, has_persistent):
+def through_kernel(Js, Q, P, has_P, transform, A, B, covariance, has_covariance, persistent, has_persistent):
     """:meth:`LinearError.through`, compiled: ``(A @ J[s] for each s, Q', P', whether P' exists)``
-    with numpy's products (``A @ X @ A.T`` as ``(A @ X) @ A.T``), bit for bit."""
-    out = np.empty_like(Js)
-    for k in range(Js.shape[0]):
-        out[k] = np.dot(A, Js[k])
-    Q_out = np.dot(np.dot(A, Q), A.T)
-    P_out = np.dot(np.dot(A, P), A.T) if has_P else np.zeros((6, 6))
+    (``A`` the identity unless ``transform``) with numpy's products (``A @ X @ A.T`` as
+    ``(A @ X) @ A.T``), bit for bit."""
+    if transform:
+        out = np.empty_like(Js)
+        for k in range(Js.shape[0]):
+            out[k] = np.dot(A, Js[k])
+        Q_out = np.dot(np.dot(A, Q), A.T)
+        P_out = np.dot(np.dot(A, P), A.T) if has_P else np.zeros((6, 6))
+    else:
+        out, Q_out, P_out = Js.copy(), Q.copy(), P.copy()
     if has_covariance:
         if has_persistent:
             added = np.dot(np.dot(B, persistent), B.T)
@@ -288,18 +292,19 @@ class LinearError:
         return self.through(A, None, None)
 
     def through(
-        self, A: np.ndarray, B: np.ndarray | None, covariance: np.ndarray | None, persistent: np.ndarray | None = None
+        self, A: np.ndarray | None, B: np.ndarray | None, covariance: np.ndarray | None, persistent: np.ndarray | None = None
     ) -> LinearError:
         """``self.transformed(A).plus_noise(B, covariance, persistent)`` in one compiled call, the
         same bits: the error ``A @ e + B @ n`` of an estimate computed from this one and a fresh
-        measurement ``n`` (``B`` is ignored when ``covariance`` is None)."""
+        measurement ``n`` (``A`` None: no transform; ``B`` is ignored when ``covariance`` is None)."""
         J = self.J
         keys = list(J)
         stack = np.array(list(J.values())) if keys else _NO_JACOBIANS
         with_noise = covariance is not None
         P = self.P
         Js, Q, P_out, has_P = through_kernel(
-            stack, self.Q, NO_MATRIX if P is None else P, P is not None, matrix6_array(A), matrix6_array(B) if with_noise else NO_MATRIX,
+            stack, self.Q, NO_MATRIX if P is None else P, P is not None, A is not None, NO_MATRIX if A is None else matrix6_array(A),
+            matrix6_array(B) if with_noise else NO_MATRIX,
             matrix6_array(covariance) if with_noise else NO_MATRIX, with_noise,
             matrix6_array(persistent) if with_noise and persistent is not None else NO_MATRIX, with_noise and persistent is not None,
         )
@@ -310,13 +315,7 @@ class LinearError:
     ) -> LinearError:
         """A new error: this one plus ``A @ n`` for fresh noise ``n`` of ``covariance`` (None: no noise),
         of which the part of covariance ``persistent`` (None: none) persists over a switch window."""
-        P = self.P
-        if persistent is not None and covariance is not None:
-            added = A @ persistent @ A.T
-            P = added if P is None else P + added
-        if covariance is None:
-            return LinearError._of(dict(self.J), self.Q, P)
-        return LinearError._of(dict(self.J), self.Q + A @ covariance @ A.T, P)
+        return self.through(None, A, covariance, persistent)
 
     @staticmethod
     def mean(errors: Sequence[LinearError]) -> LinearError:
