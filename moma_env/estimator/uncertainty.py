@@ -54,6 +54,7 @@ __all__ = [
     "matrix6_array",
     "NO_MATRIX",
     "through_kernel",
+    "covariance_kernel",
     "compose_first_kernel",
     "compose_jacobians_kernel",
     "inverse_jacobian_kernel",
@@ -247,6 +248,19 @@ def through_kernel(Js, Q, P, has_P, transform, A, B, covariance, has_covariance,
     return out, Q_out, P_out, has_P
 
 
+@numba.njit(cache=True)
+def covariance_kernel(Js, blocks, Q):
+    """:meth:`LinearError.covariance`, compiled: ``Q + sum over s, then r, of J[s] @ P[(s, r)] @ J[r].T``
+    (``blocks[s * K + r]`` is ``P[(s, r)]``), added in that order, then symmetrised as
+    ``(S + S.T) * 0.5``; numpy's products, bit for bit."""
+    k = Js.shape[0]
+    S = Q.copy()
+    for s in range(k):
+        for r in range(k):
+            S = S + np.dot(np.dot(Js[s], blocks[s * k + r]), Js[r].T)
+    return (S + S.T) * 0.5
+
+
 class LinearError:
     """The error of one estimate: ``e = sum_s J[s] @ e_s + n``, ``n ~ N(0, Q)`` (6-vectors).
 
@@ -326,23 +340,13 @@ class LinearError:
     def covariance(self, P: Mapping[tuple[str, str], np.ndarray]) -> np.ndarray:
         """6x6 covariance, given the joint covariance ``P[(s, r)]`` of the references' errors."""
         J = self.J
-        if len(J) == 1:  # the usual case: one reference (Q + X is Q.copy() += X)
+        if len(J) == 1:  # the usual case: one reference
             ((s, Js),) = J.items()
-            S = self.Q + Js @ P[(s, s)] @ Js.T
-        elif not J:
-            S = self.Q.copy()
-        else:
-            # Q + sum over s, then r, of J[s] @ P[(s, r)] @ J[r].T: the K^2 products as two
-            # stacked products (each slice the bits of its own) added up in that order.
-            keys = list(J)
-            k = len(keys)
-            Js = np.array(list(J.values()))
-            blocks = np.array([P[(s, r)] for s in keys for r in keys])
-            terms = np.repeat(Js, k, axis=0) @ blocks @ np.tile(Js.transpose(0, 2, 1), (k, 1, 1))
-            S = np.add.accumulate(np.concatenate((self.Q[None], terms)), axis=0)[-1]
-        S_sym = S + S.T
-        S_sym *= 0.5
-        return S_sym
+            return covariance_kernel(Js[None], P[(s, s)][None], self.Q)
+        if not J:
+            return covariance_kernel(_NO_JACOBIANS, _NO_JACOBIANS, self.Q)
+        keys = list(J)
+        return covariance_kernel(np.array(list(J.values())), np.array([P[(s, r)] for s in keys for r in keys]), self.Q)
 
     def cross(self, P: Mapping[tuple[str, str], np.ndarray], other: str) -> np.ndarray:
         """6x6 covariance ``E[e e_other^T]`` with reference ``other``'s error (fresh noise is independent of it)."""
