@@ -313,7 +313,10 @@ class LinearError:
         measurement ``n`` (``A`` None: no transform; ``B`` is ignored when ``covariance`` is None)."""
         J = self.J
         keys = list(J)
-        stack = np.array(list(J.values())) if keys else _NO_JACOBIANS
+        if len(keys) == 1:  # the usual case: a view, no copy
+            stack = np.ascontiguousarray(J[keys[0]])[None]
+        else:
+            stack = np.array(list(J.values())) if keys else _NO_JACOBIANS
         with_noise = covariance is not None
         P = self.P
         Js, Q, P_out, has_P = through_kernel(
@@ -342,7 +345,7 @@ class LinearError:
         J = self.J
         if len(J) == 1:  # the usual case: one reference
             ((s, Js),) = J.items()
-            return covariance_kernel(Js[None], P[(s, s)][None], self.Q)
+            return covariance_kernel(np.ascontiguousarray(Js)[None], np.ascontiguousarray(P[(s, s)])[None], self.Q)
         if not J:
             return covariance_kernel(_NO_JACOBIANS, _NO_JACOBIANS, self.Q)
         keys = list(J)

@@ -79,9 +79,9 @@ class SwitchWindow:
 
     It runs at every update of a settling robot, so it keeps what the next call
     can reuse: the samples' rotations and translations in preallocated
-    ``(capacity, 9)`` and ``(capacity, 3)`` arrays, which one compiled call
-    (:func:`inlier_mask_kernel`) turns into the inliers, the inliers and the mean until the next
-    change, and the running sums of the inliers' rotations and translations
+    ``(capacity, 9)`` and ``(capacity, 3)`` arrays (the inliers come from them in
+    one compiled call, :func:`inlier_mask_kernel`), the inliers and the mean until
+    the next change, and the running sums of the inliers' rotations and translations
     while the inliers only grow at the end (the same additions in the same
     order as summing them afresh, so the mean is the same to the bit).
 
@@ -101,7 +101,6 @@ class SwitchWindow:
         "_payloads",
         "_inliers",
         "_rotations",
-        "_translations",
         "_xyz",
         "_finite",
         "_mean",
@@ -121,7 +120,6 @@ class SwitchWindow:
         self._payloads: list[Any] = []
         self._inliers: list[int] | None = None
         self._rotations = np.empty((capacity, 9))  # row i: the rotation block of sample i, row by row
-        self._translations: list[tuple[float, float, float]] = []  # (m)
         self._xyz = np.empty((capacity, 3))  # row i: the translation of sample i (m)
         self._finite = True  # every sample finite (else the exact numpy statistics decide)
         self._mean: np.ndarray | None = None  # mean of the current inliers
@@ -141,7 +139,6 @@ class SwitchWindow:
         """Forget every sample."""
         self._poses.clear()
         self._payloads.clear()
-        self._translations.clear()
         self._inliers = None
         self._finite = True
         self._mean = None
@@ -162,7 +159,6 @@ class SwitchWindow:
         if not math.isfinite(sum(r0) + sum(r1) + sum(r2) + sum(rows[3])):
             self._finite = False
         self._poses.append(T)
-        self._translations.append(t)
         self._xyz[n] = t
         self._payloads.append(payload)
         self._inliers = None
@@ -229,7 +225,7 @@ class SwitchWindow:
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = R_sum
         sx, sy, sz = t_sum
         rotations = self._rotations
-        translations = self._translations
+        xyz = self._xyz
         for i in index[m:]:
             a, b, c, d, e, f, g, h, j = rotations[i].tolist()
             r00 += a
@@ -241,7 +237,7 @@ class SwitchWindow:
             r20 += g
             r21 += h
             r22 += j
-            x, y, z = translations[i]
+            x, y, z = xyz[i].tolist()
             sx += x
             sy += y
             sz += z
