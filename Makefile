@@ -26,5 +26,7 @@ $(STAMP): pyproject.toml
 square: $(STAMP)
 	$(BIN)/moma-env experiment square --out runs/square
 
+# -n auto: pytest-xdist runs the suite on every core (the tests are independent and
+# write only to their own temporary folders).
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto
