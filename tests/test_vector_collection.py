@@ -124,3 +124,21 @@ def test_a_batch_step_collects_at_most_once(low_threshold):
             assert len(starts) - before <= 1
             assert gc.isenabled()
     assert starts  # with a threshold of 10 every step made one due
+
+
+def test_a_sharded_batch_step_collects_at_most_once_here(low_threshold):
+    """The workers' replies (every copy's infos, unpickled in this process) are made within
+    the paused stretch too: one collection at most per step of a batch split over processes."""
+    envs = vector.make("top_observer", 8, max_cycles=20, workers=2)
+    try:
+        envs.reset(seed=0)
+        actions = envs.sample_actions(np.random.default_rng(0))
+        with _collections() as starts:
+            for _ in range(3):
+                gc.collect()  # nothing due from before the step
+                before = len(starts)
+                envs.step(actions)
+                assert len(starts) - before == 1  # with a threshold of 10 every step makes one due
+                assert gc.isenabled()
+    finally:
+        envs.close()

@@ -40,6 +40,7 @@ from gymnasium import spaces
 
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
+from moma_env.vector.collection import deferred_collection
 from moma_env.vector.env import MomaVectorEnv
 
 __all__ = ["ShardedVectorEnv", "default_start_method", "shard_sizes"]
@@ -330,13 +331,16 @@ class ShardedVectorEnv:
         :class:`MomaVectorEnv` (``SAME_STEP``)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        checked = checked_actions(actions, self.possible_agents, self.single_action_space, self.num_envs)
-        payloads = [{a: rows[s.first : s.first + s.size] for a, rows in checked.items()} for s in self._shards]
-        results = self._broadcast("step", payloads)
-        agents = self.possible_agents
-        observations = {a: _join([r[0][a] for r in results]) for a in agents}
-        rewards, terminations, truncations = ({a: np.concatenate([r[j][a] for r in results]) for a in agents} for j in (1, 2, 3))
-        return observations, rewards, terminations, truncations, tuple(info for r in results for info in r[4])
+        # The workers' replies (every copy's infos, unpickled here) live until the next step,
+        # like the local shard's: the collector waits for the end of the batch step for both.
+        with deferred_collection():
+            checked = checked_actions(actions, self.possible_agents, self.single_action_space, self.num_envs)
+            payloads = [{a: rows[s.first : s.first + s.size] for a, rows in checked.items()} for s in self._shards]
+            results = self._broadcast("step", payloads)
+            agents = self.possible_agents
+            observations = {a: _join([r[0][a] for r in results]) for a in agents}
+            rewards, terminations, truncations = ({a: np.concatenate([r[j][a] for r in results]) for a in agents} for j in (1, 2, 3))
+            return observations, rewards, terminations, truncations, tuple(info for r in results for info in r[4])
 
     def sample_actions(self, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """Uniform random actions of every agent for every copy, drawn from ``rng``
