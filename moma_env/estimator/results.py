@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,16 +81,17 @@ class RobotEstimate:
         true position from the estimate; NaN without a covariance."""
         cov = self.covariance
         if cov is None:
-            return float("nan")
-        return float(np.sqrt(max(0.0, cov[0, 0] + cov[1, 1] + cov[2, 2])))
+            return math.nan
+        # math.sqrt and np.sqrt are both the correctly rounded square root.
+        return math.sqrt(max(0.0, float(cov[0, 0] + cov[1, 1] + cov[2, 2])))
 
     @property
     def heading_std_rad(self) -> float:
         """Standard deviation of the heading (rotation about the world z axis, rad); NaN without a covariance."""
         cov = self.covariance
         if cov is None:
-            return float("nan")
-        return float(np.sqrt(max(0.0, cov[5, 5])))
+            return math.nan
+        return math.sqrt(max(0.0, float(cov[5, 5])))
 
 
 @dataclass(frozen=True)

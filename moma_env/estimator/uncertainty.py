@@ -337,7 +337,10 @@ class LinearError:
     @staticmethod
     def mean(errors: Sequence[LinearError]) -> LinearError:
         """The error of the mean of estimates with these errors, their fresh noises independent
-        (persistent parts included: independent of each other, e.g. different boards of one frame)."""
+        (persistent parts included: independent of each other, e.g. different boards of one frame);
+        the one error itself when there is one."""
+        if len(errors) == 1:
+            return errors[0]
         return RunningErrorMean().mean(errors)
 
     def covariance(self, P: Mapping[tuple[str, str], np.ndarray]) -> np.ndarray:
