@@ -126,9 +126,10 @@ def test_a_batch_step_collects_at_most_once(low_threshold):
     assert starts  # with a threshold of 10 every step made one due
 
 
-def test_a_sharded_batch_step_collects_at_most_once_here(low_threshold):
+def test_a_sharded_batch_step_collects_once_here(low_threshold):
     """The workers' replies (every copy's infos, unpickled in this process) are made within
-    the paused stretch too: one collection at most per step of a batch split over processes."""
+    the paused stretch too: one collection in this process per step of a batch split over
+    processes (the step before the deferral covered them ran ten here)."""
     envs = vector.make("top_observer", 8, max_cycles=20, workers=2)
     try:
         envs.reset(seed=0)
