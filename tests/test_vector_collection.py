@@ -126,20 +126,33 @@ def test_a_batch_step_collects_at_most_once(low_threshold):
     assert starts  # with a threshold of 10 every step made one due
 
 
-def test_a_sharded_batch_step_collects_once_here(low_threshold):
-    """The workers' replies (every copy's infos, unpickled in this process) are made within
-    the paused stretch too: one collection in this process per step of a batch split over
-    processes (the step before the deferral covered them ran ten here)."""
+def test_a_sharded_batch_step_reads_the_workers_replies_with_the_collector_paused(monkeypatch):
+    """The workers' replies (every copy's infos, unpickled in this process) are read within
+    the paused stretch of the batch step, as the local shard's copies are stepped, so the
+    collector neither runs while they arrive nor promotes them; it runs once at the end."""
+    from moma_env.vector import sharded
+
+    paused: list[bool] = []
+    receive = sharded._Shard.receive
+
+    def watched(self):
+        paused.append(not gc.isenabled())
+        return receive(self)
+
+    monkeypatch.setattr(sharded._Shard, "receive", watched)
     envs = vector.make("top_observer", 8, max_cycles=20, workers=2)
     try:
         envs.reset(seed=0)
         actions = envs.sample_actions(np.random.default_rng(0))
-        with _collections() as starts:
+        was_enabled = gc.isenabled()
+        gc.enable()
+        try:
+            paused.clear()
             for _ in range(3):
-                gc.collect()  # nothing due from before the step
-                before = len(starts)
                 envs.step(actions)
-                assert len(starts) - before == 1  # with a threshold of 10 every step makes one due
                 assert gc.isenabled()
+        finally:
+            (gc.enable if was_enabled else gc.disable)()
+        assert paused == [True, True, True]  # one worker, one reply a step
     finally:
         envs.close()
