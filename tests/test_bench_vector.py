@@ -2,7 +2,7 @@
 
 import pytest
 
-from training.bench_vector import CASES, format_vector_bench, run_vector_bench, vector_memory
+from training.bench_vector import CASES, format_vector_bench, run_vector_bench, target_lines, vector_memory
 from training.cli import main
 
 
@@ -40,3 +40,29 @@ def test_the_memory_row_samples_the_start_and_even_points():
     assert all(mb > 0 for _, mb in samples)
     with pytest.raises(ValueError, match="env_steps >= num_envs"):
         vector_memory(4, 2)
+
+
+def test_the_targets_are_judged_on_the_best_ratio_of_their_rows():
+    result = {
+        "num_envs": [1, 1024],
+        "rates": {
+            "top_observer switching, num_envs=1": [100.0, 90.0],
+            "top_observer switching, num_envs=1024": [400.0, 300.0],
+            "top_observer switching, 2 workers, num_envs=1024": [800.0, 700.0],
+            "top_observer 8 UGVs switching, num_envs=1024": [90.0, 99.0],
+        },
+        "ratios": {
+            "top_observer switching, num_envs=1": [2.4, 2.6],
+            "top_observer switching, num_envs=1024": [14.0, 3.0],
+            "top_observer switching, 2 workers, num_envs=1024": [15.0, 1.0],
+        },
+    }
+    lines = target_lines(result)
+    assert lines == [
+        "target >= 15x MPE2 at num_envs=1024: top_observer switching, num_envs=1024: 14.00x (missed)",
+        "target >= 15x MPE2 at num_envs=1024: top_observer switching, 2 workers, num_envs=1024: 15.00x (met)",
+        "target >= 2.5x MPE2 for one copy: top_observer switching, num_envs=1: 2.60x (met)",
+        "target: 8 UGVs cost at most 4x the time of 2 (linear), num_envs=1024: 4.04x (missed)",
+    ]
+    # without MPE2 (no ratios) only the cost of added UGVs is judged
+    assert target_lines({**result, "ratios": {}}) == lines[-1:]

@@ -16,7 +16,9 @@ interleaved rounds of one run:
 
 and prints each rate's best and median over the rounds, its ratio to MPE2's rate
 of the same round (best and median), and the breakdown of one MOMA batch step by
-stage (camera, estimator, world, the garbage collector, the rest) at the largest ``num_envs``. An
+stage (camera, estimator, world, the garbage collector, the rest) at the largest ``num_envs``,
+and each target of :data:`TARGET_BATCH`, :data:`TARGET_ONE_COPY` and :data:`TARGET_UGV_COST`
+met or missed (:func:`target_lines`). An
 env-step is one step of one copy. ``--memory-steps N`` instead prints the resident
 memory over ``N`` env-steps of ``top_observer`` at the largest ``num_envs``, after a
 warm-up episode (start, three points between, end). A measurement, not an assertion.
@@ -39,6 +41,7 @@ __all__ = [
     "stage_breakdown",
     "run_vector_bench",
     "format_vector_bench",
+    "target_lines",
     "vector_memory",
     "main",
 ]
@@ -230,6 +233,45 @@ def vector_memory(num_envs: int, env_steps: int, samples: int = 3, seed: int = 0
     return out
 
 
+#: What the batched env is built towards, as ratios to MPE2's single-env rate of the same
+#: round (docs/vector.md, "Speed"): at least this many times MPE2 with this many copies...
+TARGET_BATCH = (1024, 15.0)
+#: ... and for one copy (the PettingZoo env).
+TARGET_ONE_COPY = 2.5
+#: Added UGVs cost no worse than linearly: 8 UGVs take at most 4 times the time of 2.
+TARGET_UGV_COST = (2, 8)
+
+
+def target_lines(result: dict) -> list[str]:
+    """Each target met or missed by :func:`run_vector_bench`'s ``result`` (best ratio over the
+    rounds; the rows a run did not time, and the MPE2 ratios of a run without MPE2, are left out)."""
+    ratios, rates = result["ratios"], result["rates"]
+    lines = []
+
+    def verdict(value: float, goal: float) -> str:
+        return "met" if value >= goal else "missed"
+
+    n, factor = TARGET_BATCH
+    for key in [k for k in ratios if k.startswith(SHARDED_CASE) and k.endswith(f"num_envs={n}")]:
+        best = max(ratios[key])
+        lines.append(f"target >= {factor:g}x MPE2 at num_envs={n}: {key}: {best:.2f}x ({verdict(best, factor)})")
+    key = f"{SHARDED_CASE}, num_envs=1"
+    if key in ratios:
+        best = max(ratios[key])
+        lines.append(f"target >= {TARGET_ONE_COPY:g}x MPE2 for one copy: {key}: {best:.2f}x ({verdict(best, TARGET_ONE_COPY)})")
+    few, many = TARGET_UGV_COST
+    largest = max(result["num_envs"])
+    few_key, many_key = f"top_observer switching, num_envs={largest}", f"top_observer {many} UGVs switching, num_envs={largest}"
+    if few_key in rates and many_key in rates:
+        cost = max(rates[few_key]) / max(rates[many_key])
+        limit = many / few
+        lines.append(
+            f"target: {many} UGVs cost at most {limit:g}x the time of {few} (linear), num_envs={largest}: "
+            f"{cost:.2f}x ({'met' if cost <= limit else 'missed'})"
+        )
+    return lines
+
+
 def format_vector_bench(result: dict) -> str:
     """The table of :func:`run_vector_bench`'s result."""
     lines = [f"{'row':<52}{'best/s':>10}{'median/s':>10}{'x MPE2 best':>13}{'median':>8}", "-" * 93]
@@ -251,6 +293,7 @@ def format_vector_bench(result: dict) -> str:
         f"the batch step is bounded by {bound!r}: {stages[bound] / breakdown['batch step']:.0%} of it; "
         f"the step costs {breakdown['batch step'] / stages[bound]:.2f}x that stage alone"
     )
+    lines.extend(target_lines(result))
     return "\n".join(lines)
 
 
