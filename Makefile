@@ -26,7 +26,8 @@ $(STAMP): pyproject.toml
 square: $(STAMP)
 	$(BIN)/moma-env experiment square --out runs/square
 
-# -n auto: pytest-xdist runs the suite on every core (the tests are independent and
-# write only to their own temporary folders).
+# -n auto: pytest-xdist runs the suite on every core, at most 8 processes (the tests are
+# independent and write only to their own temporary folders); --dist loadgroup keeps the
+# tests of one xdist_group (those of the session's Ray) on one process, so one Ray starts.
 test: $(STAMP)
-	$(BIN)/python -m pytest -n auto
+	$(BIN)/python -m pytest -n auto --maxprocesses 8 --dist loadgroup

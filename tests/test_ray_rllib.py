@@ -14,6 +14,9 @@ from ray.rllib.core.columns import Columns  # noqa: E402
 from ray.tune.registry import ENV_CREATOR, _global_registry  # noqa: E402
 from ray_session import ray_local  # noqa: E402,F401
 
+# make test (pytest-xdist, --dist loadgroup) runs every test of the session's Ray on one worker: one Ray.
+pytestmark = pytest.mark.xdist_group("ray")
+
 from moma_env.integrations.rllib import (  # noqa: E402
     OBSERVER_POLICY, UGV_POLICY, MaskedObservations, env_name, make_multi_agent_env, policies_of, ppo_config, register_envs)
 from moma_env.integrations.rllib_masking import MASK_KEY, OBS_KEY, MaskedPPOTorchRLModule  # noqa: E402

@@ -15,6 +15,9 @@ pytest.importorskip("ray", reason="needs the 'ray' extra")
 
 from ray_session import ray_local  # noqa: E402,F401  (the session's Ray)
 
+# make test (pytest-xdist, --dist loadgroup) runs every test of the session's Ray on one worker: one Ray.
+pytestmark = pytest.mark.xdist_group("ray")
+
 from training.sweep.backends import LocalBackend, RayBackend  # noqa: E402
 from training.sweep.folder import CELLS_DIR  # noqa: E402
 from training.sweep.run import sweep  # noqa: E402

@@ -13,6 +13,9 @@ pytest.importorskip("ray.rllib", reason="needs the 'ray' extra")
 
 from ray_session import ray_local  # noqa: E402,F401
 
+# make test (pytest-xdist, --dist loadgroup) runs every test of the session's Ray on one worker: one Ray.
+pytestmark = pytest.mark.xdist_group("ray")
+
 from agents.rllib_policy import RllibPolicy, is_rllib_run  # noqa: E402
 from training.cli import main  # noqa: E402
 from training.evaluation.harness import evaluate  # noqa: E402
