@@ -514,13 +514,14 @@ class MomaEstimator:
                 if ref.phase is _REFERENCE and ref is not own:
                     # LinearError(J).plus_noise(J_meas @ inverse_jacobian(T_c_m), covariance), without
                     # the zero Q: Q + 0.0 is the 0 + Q it gave (-0.0 entries turn +0.0 alike).
-                    cov, persistent = d.covariance, d.persistent_covariance
+                    cov = d.covariance
+                    persistent = None if cov is None else d.persistent_covariance  # a part of cov: none without it
                     T_w_c, J, Q, P = camera_from_reference_board(
                         ref.board_world[d.board_id], ref.board_world_J[d.board_id], pose_array(d.T_c_m, "T_c_m"),
                         NO_MATRIX if cov is None else matrix6_array(cov), cov is not None,
-                        NO_MATRIX if persistent is None else matrix6_array(persistent), cov is not None and persistent is not None,
+                        NO_MATRIX if persistent is None else matrix6_array(persistent), persistent is not None,
                     )
-                    errors.append(LinearError.of_jacobian(ref.ref_key, J, Q, P if cov is not None and persistent is not None else None))
+                    errors.append(LinearError.of_jacobian(ref.ref_key, J, Q, None if persistent is None else P))
                     located.append(T_w_c)
             if located:
                 if len(located) > 1 and self._information_fusion:
