@@ -57,6 +57,17 @@ def test_demonstrations_are_the_teachers_allowed_actions(route):
     venv.close()
 
 
+def test_the_pipeline_teacher_demonstrates_two_movers_on_the_bent_file():
+    config = tiny(scenario="caterpillar_multi_bend4", route="centralised", max_cycles=400)  # the second pair starts at ~7 s
+    demos = collect_demonstrations(env_spec(config), "pipeline", 2, 800, seed=0, route="centralised")
+    actions = demos.actions.reshape(len(demos), -1)
+    masks = demos.masks.reshape(len(demos), -1, 2)
+    assert actions.shape[1] == 4
+    assert np.take_along_axis(masks, actions[:, :, None], axis=2).all()  # only what the rules allow
+    assert (actions == ADVANCE).sum(axis=1).max() == 2  # every other robot of the file at once
+    assert not ((actions[:, :-1] == ADVANCE) & (actions[:, 1:] == ADVANCE)).any()  # never two neighbours
+
+
 def test_with_a_learner_the_learner_acts_and_the_teacher_labels():
     # A learner that holds wherever holding is allowed: no robot starts a leg, so the
     # observations never change much, while the teacher's labels ask robots to advance.

@@ -21,6 +21,7 @@ from agents.policies.caterpillar_multi import CaterpillarMulti, CaterpillarTwo
 from agents.policies.caterpillar_servo import CaterpillarServo
 from agents.policies.caterpillar_sled import CaterpillarSled
 from agents.policies.greedy import GreedyParallelPolicy
+from agents.policies.pipeline import FilePipelinePolicy
 from agents.policies.planned import PlannedPolicy
 from agents.policies.random_policy import RandomPolicy
 from agents.policies.rollout import GreedyRolloutPolicy
@@ -37,6 +38,7 @@ __all__ = [
     "CaterpillarMulti",
     "CaterpillarServo",
     "GreedyParallelPolicy",
+    "FilePipelinePolicy",
     "GreedyRolloutPolicy",
     "PlannedPolicy",
     "TurnTakingPolicy",

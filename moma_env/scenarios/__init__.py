@@ -9,6 +9,7 @@
   (``SPEC``); :data:`SPECS` / :data:`SCENARIO_SPECS` -- the registered ones.
 * :data:`CONFIGURATIONS`, :func:`make_scenario`, :func:`random_config` -- by name.
 * :func:`missing_views` -- boards a configuration's cameras fail to see at the start.
+* :func:`view_neighbours` -- the devices that share a camera's view (a file's neighbours).
 
 Every configuration is a frozen dataclass validated at construction (errors name
 the field, e.g. ``"caterpillar.standoff"``); ``config.scenario()`` lays out the
@@ -33,7 +34,7 @@ from moma_env.scenarios.registry import (
 )
 from moma_env.scenarios.spec import ScenarioSpec
 from moma_env.scenarios.top_observer import FORMATIONS, TopObserverConfig
-from moma_env.scenarios.views import missing_views, start_boards, start_camera_poses, visible_marker_counts
+from moma_env.scenarios.views import missing_views, start_boards, start_camera_poses, view_neighbours, visible_marker_counts
 
 __all__ = [
     "Scenario",
@@ -54,6 +55,7 @@ __all__ = [
     "make_scenario",
     "random_config",
     "missing_views",
+    "view_neighbours",
     "start_boards",
     "start_camera_poses",
     "visible_marker_counts",

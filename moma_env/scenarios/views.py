@@ -26,7 +26,7 @@ from moma_env.markers import BoardLayout
 from moma_env.scenarios.base import Scenario
 from moma_env.world import WorldConfig, uav_body_transform
 
-__all__ = ["start_camera_poses", "start_boards", "visible_marker_counts", "missing_views"]
+__all__ = ["start_camera_poses", "start_boards", "visible_marker_counts", "missing_views", "view_neighbours"]
 
 
 def start_camera_poses(world: WorldConfig) -> dict[str, np.ndarray]:
@@ -87,3 +87,28 @@ def missing_views(scenario: Scenario, required: Mapping[str, Sequence[str]]) -> 
             if counts[owner] < n_markers:
                 missing.append(f"{camera_name} -> {owner}: {counts[owner]} of {n_markers} markers visible")
     return missing
+
+
+def view_neighbours(world: WorldConfig, views: Mapping[str, Sequence[str]]) -> dict[str, frozenset[str]]:
+    """Device -> the devices it shares a view with, from ``views`` (``camera -> board
+    owners``, e.g. a configuration's motion views): the robot carrying the camera and each
+    owner of a board it watches are each other's neighbours (symmetric; a device is not its
+    own). Every UGV and sled of ``world`` has an entry, empty when it shares no view.
+
+    Raises:
+        ValueError: a camera no UGV of ``world`` carries, or an owner that is no UGV or sled.
+    """
+    carrier = {mount.name: ugv.name for ugv in world.ugvs for mount in ugv.cameras}
+    devices = [u.name for u in world.ugvs] + [s.name for s in world.sleds]
+    neighbours: dict[str, set[str]] = {name: set() for name in devices}
+    for camera_name, owners in views.items():
+        robot = carrier.get(camera_name)
+        if robot is None:
+            raise ValueError(f"view of unknown camera {camera_name!r}; cameras: {sorted(carrier)}")
+        for owner in owners:
+            if owner not in neighbours:
+                raise ValueError(f"view of {camera_name!r} on {owner!r}, which is no UGV or sled; devices: {devices}")
+            if owner != robot:
+                neighbours[robot].add(owner)
+                neighbours[owner].add(robot)
+    return {name: frozenset(others) for name, others in neighbours.items()}

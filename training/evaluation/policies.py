@@ -8,6 +8,8 @@ Specs understood by :func:`load_policy`:
 * ``"scripted"``: ``agents.policies.scripted_policy(configuration)``;
 * ``"greedy"``: ``agents.policies.GreedyParallelPolicy()`` (as many movers as the
   rules allow; it needs the env's action masks, which its ``env_options`` ask for);
+* ``"pipeline"``: ``agents.policies.FilePipelinePolicy()`` (a file of robots, every
+  other robot moving at once between static neighbours; caterpillar files only);
 * ``"rollout"``: ``agents.policies.GreedyRolloutPolicy()`` (the greedy policy with a
   lookahead over its starts in copies of the env: a planner that reads the simulator);
 * ``"random"``: ``agents.policies.RandomPolicy(seed)``;
@@ -32,14 +34,14 @@ from typing import Any, Protocol, runtime_checkable
 __all__ = ["Policy", "PolicyLoadError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "load_policy", "policy_label"]
 
 #: Policy specs that name a built-in policy rather than a file.
-BUILTIN_POLICIES = ("scripted", "greedy", "rollout", "planned", "servo", "random")
+BUILTIN_POLICIES = ("scripted", "greedy", "pipeline", "rollout", "planned", "servo", "random")
 
 #: The action mode each built-in policy acts in.
-POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "rollout": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
+POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "pipeline": "switching", "rollout": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
 
 
 #: Built-in policies that are an ``agents.policies`` class made without arguments.
-_CLASS_POLICIES = {"greedy": "GreedyParallelPolicy", "rollout": "GreedyRolloutPolicy", "planned": "PlannedPolicy"}
+_CLASS_POLICIES = {"greedy": "GreedyParallelPolicy", "pipeline": "FilePipelinePolicy", "rollout": "GreedyRolloutPolicy", "planned": "PlannedPolicy"}
 
 
 class PolicyLoadError(ValueError):
@@ -122,7 +124,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
 
     Args:
         spec: ``"scripted"`` (switching mode), ``"greedy"`` (switching mode, several
-            movers at once), ``"rollout"`` (the greedy with a lookahead over its
+            movers at once), ``"pipeline"`` (a file of robots, every other one moving
+            at once), ``"rollout"`` (the greedy with a lookahead over its
             starts, a planner reading the simulator), ``"planned"`` (follows the MOMA
             navigation planner's plan, velocity mode), ``"servo"`` (the
             caterpillar follower servoing to its stand-off, velocity mode),
@@ -189,7 +192,7 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
             policy = _load_published_policy(spec, configuration, sample_actions)
         elif not path.exists():
             raise PolicyLoadError(
-                f"unknown policy {spec!r}: expected 'scripted', 'greedy', 'rollout', 'planned', 'servo', 'random', the folder of a trained "
+                f"unknown policy {spec!r}: expected one of {', '.join(repr(p) for p in BUILTIN_POLICIES)}, the folder of a trained "
                 f"policy or a published policy's name (published: {', '.join(_published_names()) or 'none'})"
             )
         else:

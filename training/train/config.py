@@ -59,7 +59,7 @@ PRETRAINABLE = frozenset({"ppo", "maskable_ppo"})
 NETWORKS = ("mlp", "team")
 #: Scripted teachers a run may be cloned from (``pretrain``): built-in switching-mode
 #: policies of :func:`training.evaluation.policies.load_policy`.
-TEACHERS = ("greedy", "scripted")
+TEACHERS = ("greedy", "pipeline", "scripted")
 def check_learning_fields(config: Any) -> None:
     """ConfigError naming the first bad one of the fields every training configuration has
     (:class:`TrainConfig`, :class:`BackendTrainConfig`): ``max_cycles``,
@@ -167,8 +167,8 @@ class TrainConfig:
             centralised route in switching mode: one encoder and one action head
             shared by every robot, with max and mean pooling over the team,
             :mod:`agents.team_network`); ``net_arch`` gives its hidden sizes.
-        pretrain: a scripted teacher to clone before learning (``"greedy"`` or
-            ``"scripted"``, :mod:`training.train.pretrain`; None: start from scratch).
+        pretrain: a scripted teacher to clone before learning (``"greedy"``,
+            ``"pipeline"`` (files of robots) or ``"scripted"``, :mod:`training.train.pretrain`; None: start from scratch).
             PPO-like algorithms in switching mode only.
         pretrain_rows: teacher demonstration rows to record (UGV slot steps on the
             shared route, env steps on the centralised one).
