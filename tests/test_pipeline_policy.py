@@ -78,3 +78,15 @@ def test_the_pipeline_refuses_a_team_that_is_no_file():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="needs a file of robots"):
         FilePipelinePolicy().reset(env)
+
+
+def test_evaluate_names_a_policy_that_refuses_the_scenario_in_one_line_and_writes_nothing(tmp_path, capsys):
+    from training.cli import main
+
+    out = tmp_path / "run"
+    assert main(["evaluate", "--scenario", "top_observer_team4", "--policy", "pipeline", "--episodes", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    last = err.strip().splitlines()[-1]  # after the progress bar's lines
+    assert last.startswith("moma-env evaluate: FilePipelinePolicy cannot act in this env:") and "needs a file of robots" in last
+    assert "Traceback" not in err
+    assert not out.exists()

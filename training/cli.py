@@ -355,7 +355,7 @@ def _add_train(sub) -> None:
 def _run_evaluate(args: argparse.Namespace) -> int:
     from moma_env.io import run_folder, to_jsonable
     from moma_env.tasks import TASKS
-    from training.evaluation import PolicyLoadError, evaluate, load_policy, policy_label
+    from training.evaluation import PolicyEnvError, PolicyLoadError, evaluate, load_policy, policy_label
     from training.evaluation.policies import POLICY_ACTION_MODES
     from training.evaluation.progress import EpisodeProgress
     from training.evaluation.report import format_table, write_outputs
@@ -379,26 +379,30 @@ def _run_evaluate(args: argparse.Namespace) -> int:
 
         recorder = GifRecorder(fps=make_scenario(rig).world.control_hz)
     start = time.perf_counter()
-    with run_folder(out, "evaluate") as run:
-        with EpisodeProgress(args.episodes, f"{args.scenario}/{label}") as bar:
-            result = evaluate(
-                args.scenario,
-                policy,
-                args.episodes,
-                args.seed,
-                random_scenarios=args.random_scenarios,
-                action_mode=args.action_mode or env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(args.policy, "switching"),
-                max_cycles=args.max_cycles,
-                frame_sink=recorder,
-                progress=lambda _episode: bar.update(),
-                **env_options,
-            )
-        result = dataclasses.replace(result, policy=label)
-        paths = write_outputs(result, run.path)
-        if recorder is not None:
-            paths["video"] = run.path / f"{args.scenario}_episode_000.gif"
-            recorder.write(paths["video"])
-        paths = run.final(paths)
+    try:
+        with run_folder(out, "evaluate") as run:
+            with EpisodeProgress(args.episodes, f"{args.scenario}/{label}") as bar:
+                result = evaluate(
+                    args.scenario,
+                    policy,
+                    args.episodes,
+                    args.seed,
+                    random_scenarios=args.random_scenarios,
+                    action_mode=args.action_mode or env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(args.policy, "switching"),
+                    max_cycles=args.max_cycles,
+                    frame_sink=recorder,
+                    progress=lambda _episode: bar.update(),
+                    **env_options,
+                )
+            result = dataclasses.replace(result, policy=label)
+            paths = write_outputs(result, run.path)
+            if recorder is not None:
+                paths["video"] = run.path / f"{args.scenario}_episode_000.gif"
+                recorder.write(paths["video"])
+            paths = run.final(paths)
+    except PolicyEnvError as err:  # the policy refused the env at its first reset: the folder is not written
+        print(f"moma-env evaluate: {err}", file=sys.stderr)
+        return 2
     wall = time.perf_counter() - start
     if args.json:
         print(json.dumps(to_jsonable(dict(result.summary) | {"scenario": args.scenario, "policy": label, "seed": args.seed,

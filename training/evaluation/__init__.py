@@ -12,13 +12,14 @@ The command line (``moma-env evaluate``) lives in :mod:`training.cli`.
 
 from training.evaluation.episode import EpisodeResult, RobotEpisode, run_episode
 from training.evaluation.harness import EvaluationResult, evaluate, summarise
-from training.evaluation.policies import BUILTIN_POLICIES, Policy, PolicyLoadError, load_policy, policy_label
+from training.evaluation.policies import BUILTIN_POLICIES, Policy, PolicyEnvError, PolicyLoadError, load_policy, policy_label
 
 __all__ = [
     "BUILTIN_POLICIES",
     "EpisodeResult",
     "EvaluationResult",
     "Policy",
+    "PolicyEnvError",
     "PolicyLoadError",
     "RobotEpisode",
     "evaluate",

@@ -18,7 +18,7 @@ import numpy as np
 
 from moma_env.env.agent_names import is_observer_agent
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, run_metrics
-from training.evaluation.policies import Policy
+from training.evaluation.policies import Policy, PolicyEnvError
 
 __all__ = ["RobotEpisode", "EpisodeResult", "run_episode", "robot_agents", "schedule_split", "mobile_times", "schedule_bound"]
 
@@ -279,11 +279,17 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
         seed: the env's reset seed, also given to ``policy.reset``.
         frame_sink: called with every rendered frame ``(H, W, 3) uint8``, the
             reset's first, when given.
+
+    Raises:
+        PolicyEnvError: ``policy.reset`` refused the env (a ValueError of the policy's).
     """
     if frame_sink is not None and getattr(env, "render_mode", None) != "rgb_array":
         raise ValueError("recording frames needs an env with render_mode='rgb_array'")
     observations, infos = env.reset(seed=seed)
-    policy.reset(env, seed=seed)
+    try:
+        policy.reset(env, seed=seed)
+    except ValueError as err:  # what a policy raises for an env it cannot act in
+        raise PolicyEnvError(f"{type(policy).__name__} cannot act in this env: {err}") from err
     robots = robot_agents(env)
     capacity = env.max_cycles + 1
     logs = {name: _RobotLog(capacity) for name in robots}

@@ -31,7 +31,7 @@ import importlib
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["Policy", "PolicyLoadError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "load_policy", "policy_label"]
+__all__ = ["Policy", "PolicyLoadError", "PolicyEnvError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "load_policy", "policy_label"]
 
 #: Policy specs that name a built-in policy rather than a file.
 BUILTIN_POLICIES = ("scripted", "greedy", "pipeline", "rollout", "planned", "servo", "random")
@@ -46,6 +46,11 @@ _CLASS_POLICIES = {"greedy": "GreedyParallelPolicy", "pipeline": "FilePipelinePo
 
 class PolicyLoadError(ValueError):
     """A policy spec that names no policy the harness can load (one-line message)."""
+
+
+class PolicyEnvError(PolicyLoadError):
+    """A loaded policy that refuses the env it is given at ``reset`` (another configuration,
+    action mode or team: e.g. the file pipeline under a top observer); one-line message."""
 
 
 @runtime_checkable
