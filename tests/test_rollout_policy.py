@@ -124,3 +124,23 @@ def test_the_harness_loads_it_by_name():
     policy = load_policy("rollout", TASK)
     assert isinstance(policy, GreedyRolloutPolicy)
     assert policy.env_options == GreedyParallelPolicy.env_options
+
+
+def test_a_rollout_of_the_file_pipeline_arrives_no_later_than_the_pipeline():
+    from agents.policies import FilePipelinePolicy
+
+    bent, seed = "caterpillar_multi_bend4", 100_000
+    pipeline = run_episode(parallel_env(bent), FilePipelinePolicy(), 0, seed)
+    rollout = GreedyRolloutPolicy(base=FilePipelinePolicy())
+    planned = run_episode(parallel_env(bent), rollout, 0, seed)
+    assert pipeline.success and planned.success
+    assert planned.time_to_goal_s <= pipeline.time_to_goal_s
+    assert rollout.lookaheads > 0
+    assert isinstance(load_policy("pipeline_rollout", bent).base, FilePipelinePolicy)
+
+
+def test_the_base_is_a_greedy_policy_and_takes_its_own_settings():
+    with pytest.raises(TypeError, match="base must be a GreedyParallelPolicy"):
+        GreedyRolloutPolicy(base=object())
+    with pytest.raises(ValueError, match="for the default base"):
+        GreedyRolloutPolicy(base=GreedyParallelPolicy(), stall_s=3.0)

@@ -75,16 +75,16 @@ class FilePipelinePolicy(GreedyParallelPolicy):
         self.legs = {agent: 0 for agent in file}
         self._static = {agent: True for agent in file}
 
-    def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, int]:
-        """Movers keep advancing; of the robots the pipeline lets start, the farthest from its goal starts."""
+    def plan(
+        self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]
+    ) -> tuple[dict[str, int], list[str]]:
+        """:meth:`GreedyParallelPolicy.plan` with only the starts the pipeline allows (see the
+        module docstring); :meth:`act` starts the first. Counts the legs started since the
+        last call (call it, or :meth:`act`, once per step)."""
         self._count_legs(infos)
-        actions, startable = self.plan(observations, infos)
+        actions, startable = super().plan(observations, infos)
         moving = {agent for agent, action in actions.items() if action == ADVANCE}
-        for agent in startable:
-            if self._may_start(agent, moving, observations):
-                actions[agent] = ADVANCE
-                break
-        return actions
+        return actions, [agent for agent in startable if self._may_start(agent, moving, observations)]
 
     def _count_legs(self, infos: Mapping[str, Mapping[str, Any]]) -> None:
         for agent in self.legs:

@@ -6,7 +6,10 @@ one start (the farthest from its goal), or none. :class:`GreedyRolloutPolicy` tr
 every choice the masks allow at such a step: for each it copies the env, applies the
 choice, lets the greedy policy finish the episode in the copy, and keeps the choice
 whose copy reached every goal soonest (the greedy's own on a tie). This is the rollout
-algorithm of approximate dynamic programming with the greedy policy as its base: the
+algorithm of approximate dynamic programming with the greedy policy as its base (or
+another :class:`~agents.policies.greedy.GreedyParallelPolicy`: with the file pipeline,
+:class:`~agents.policies.pipeline.FilePipelinePolicy`, as ``base``, ``--policy
+pipeline_rollout``, it tries the starts the pipeline allows and lets the pipeline finish): the
 copy carries the env's generators, so its future is the env's own for the same
 actions, and the policy never reaches the goals later than the greedy policy on the
 same seed (:meth:`GreedyRolloutPolicy.act` keeps a choice only when its copy is
@@ -54,7 +57,10 @@ class GreedyRolloutPolicy:
         reuse: take the greedy's choice's time from the rollout of the last choice taken
             while the env follows it (see the module docstring); False rolls it out
             again (the same decisions, one rollout more per decision step).
-        **greedy: settings of the base :class:`GreedyParallelPolicy` (its stall watch).
+        base: the base policy, a :class:`GreedyParallelPolicy` (its :meth:`plan` gives the
+            starts to try; default: a new greedy policy with the ``greedy`` settings), e.g. a
+            :class:`~agents.policies.pipeline.FilePipelinePolicy` on a file of robots.
+        **greedy: settings of the default base :class:`GreedyParallelPolicy` (its stall watch).
 
     Attributes:
         lookaheads: rollouts run since :meth:`reset` (one per choice tried, but the
@@ -69,13 +75,17 @@ class GreedyRolloutPolicy:
 
     env_options: Mapping[str, Any] = GreedyParallelPolicy.env_options
 
-    def __init__(self, wait: bool = True, reuse: bool = True, **greedy: float):
+    def __init__(self, wait: bool = True, reuse: bool = True, base: GreedyParallelPolicy | None = None, **greedy: float):
         for name, value in (("wait", wait), ("reuse", reuse)):
             if not isinstance(value, bool):
                 raise TypeError(f"{name} must be a bool, got {type(value).__name__}")
+        if base is not None and not isinstance(base, GreedyParallelPolicy):
+            raise TypeError(f"base must be a GreedyParallelPolicy, got {type(base).__name__}")
+        if base is not None and greedy:
+            raise ValueError(f"the greedy settings {sorted(greedy)} are for the default base; give them to the base policy")
         self.wait = wait
         self.reuse = reuse
-        self.base = GreedyParallelPolicy(**greedy)
+        self.base = GreedyParallelPolicy(**greedy) if base is None else base
         self._env: MomaParallelEnv | None = None
 
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:

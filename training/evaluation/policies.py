@@ -12,6 +12,8 @@ Specs understood by :func:`load_policy`:
   other robot moving at once between static neighbours; caterpillar files only);
 * ``"rollout"``: ``agents.policies.GreedyRolloutPolicy()`` (the greedy policy with a
   lookahead over its starts in copies of the env: a planner that reads the simulator);
+* ``"pipeline_rollout"``: the same lookahead over the file pipeline's starts
+  (``GreedyRolloutPolicy(base=FilePipelinePolicy())``);
 * ``"random"``: ``agents.policies.RandomPolicy(seed)``;
 * a path: the output folder of ``moma-env train``
   (:class:`agents.learned.LearnedPolicy`, or with ``--backend rllib`` / ``torchrl``
@@ -34,10 +36,10 @@ from typing import Any, Protocol, runtime_checkable
 __all__ = ["Policy", "PolicyLoadError", "PolicyEnvError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "load_policy", "policy_label"]
 
 #: Policy specs that name a built-in policy rather than a file.
-BUILTIN_POLICIES = ("scripted", "greedy", "pipeline", "rollout", "planned", "servo", "random")
+BUILTIN_POLICIES = ("scripted", "greedy", "pipeline", "rollout", "pipeline_rollout", "planned", "servo", "random")
 
 #: The action mode each built-in policy acts in.
-POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "pipeline": "switching", "rollout": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
+POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "pipeline": "switching", "rollout": "switching", "pipeline_rollout": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
 
 
 #: Built-in policies that are an ``agents.policies`` class made without arguments.
@@ -130,8 +132,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
     Args:
         spec: ``"scripted"`` (switching mode), ``"greedy"`` (switching mode, several
             movers at once), ``"pipeline"`` (a file of robots, every other one moving
-            at once), ``"rollout"`` (the greedy with a lookahead over its
-            starts, a planner reading the simulator), ``"planned"`` (follows the MOMA
+            at once), ``"rollout"`` / ``"pipeline_rollout"`` (the greedy / the pipeline
+            with a lookahead over its starts, a planner reading the simulator), ``"planned"`` (follows the MOMA
             navigation planner's plan, velocity mode), ``"servo"`` (the
             caterpillar follower servoing to its stand-off, velocity mode),
             ``"random"``, the path
@@ -172,6 +174,9 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         if cls is None:
             raise PolicyLoadError(f"agents.policies has no {class_name}()")
         policy = cls()
+    elif spec == "pipeline_rollout":
+        module = _agents_policies()
+        policy = module.GreedyRolloutPolicy(base=module.FilePipelinePolicy())
     elif spec == "servo":
         if builtin_configuration != "caterpillar":
             raise PolicyLoadError(f"the servo policy is for the caterpillar configuration, not {configuration!r}")
