@@ -90,3 +90,13 @@ def test_evaluate_names_a_policy_that_refuses_the_scenario_in_one_line_and_write
     assert last.startswith("moma-env evaluate: FilePipelinePolicy cannot act in this env:") and "needs a file of robots" in last
     assert "Traceback" not in err
     assert not out.exists()
+
+
+def test_sweep_names_a_policy_that_refuses_the_scenario_in_one_line(tmp_path, capsys):
+    from training.cli import main
+
+    args = ["sweep", "--scenarios", "top_observer_team4", "--policies", "pipeline", "--seeds", "0:1", "--backend", "local",
+            "--jobs", "1", "--out", str(tmp_path / "sweep")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "moma-env sweep: FilePipelinePolicy cannot act in this env:" in err and "Traceback" not in err
