@@ -319,11 +319,12 @@ def _add_evaluate(sub) -> None:
     )
     ev.add_argument(
         "--policy", default="scripted",
-        help="'scripted' (one mover at a time), 'greedy' (as many movers as the rules allow), 'pipeline' (a file of robots: every other robot moves at once), 'rollout' (the greedy with a "
-        "lookahead over its starts in copies of the env: a planner reading the simulator), 'pipeline_rollout' (the same over the "
-        "pipeline's starts), 'planned' (follows the MOMA "
-        "navigation planner), 'servo' (caterpillar stand-off servo), 'random', the path of a trained policy, or the name of a "
-        "policy published under policies/ ($MOMA_POLICIES_DIR; python -m training.train.publish) (default scripted)",
+        help="'scripted' (one mover at a time), 'greedy' (as many movers as the rules allow), 'pipeline' (a file of "
+        "robots: every other robot moves at once), 'rollout' (the greedy with a lookahead over its starts in copies of the "
+        "env: a planner reading the simulator), 'pipeline_rollout' (the same over the pipeline's starts), 'planned' "
+        "(follows the MOMA navigation planner), 'servo' (caterpillar stand-off servo), 'random', the path of a trained "
+        "policy, or the name of a policy published under policies/ ($MOMA_POLICIES_DIR; python -m training.train.publish) "
+        "(default scripted)",
     )
     ev.add_argument("--episodes", type=int_at_least(1, "episode count"), default=10, help="number of episodes (default 10)")
     ev.add_argument("--seed", type=int_at_least(0, "seed"), default=0, help="seed of the first episode; episode k uses seed+k (default 0)")

@@ -63,14 +63,14 @@ class FilePipelinePolicy(GreedyParallelPolicy):
         file = self.ugvs
         for k, agent in enumerate(file):
             expected = {file[j] for j in (k - 1, k + 1) if 0 <= j < len(file)}
-            if set(shared.get(agent, ())) != expected:
+            if shared[agent] != expected:
                 raise ValueError(
                     f"FilePipelinePolicy needs a file of robots sharing views with the robots just before and after "
-                    f"them ({' - '.join(file)}); {agent!r} shares views with {sorted(shared.get(agent, ()))} in "
+                    f"them ({' - '.join(file)}); {agent!r} shares views with {sorted(shared[agent])} in "
                     f"{env.scenario.name!r}"
                 )
         #: UGV -> the UGVs just before and after it in the file.
-        self.neighbours = {agent: frozenset(shared[agent]) for agent in file}
+        self.neighbours = {agent: shared[agent] for agent in file}
         #: UGV -> legs it has started this episode.
         self.legs = {agent: 0 for agent in file}
         self._static = {agent: True for agent in file}
