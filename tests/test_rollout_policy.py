@@ -144,3 +144,61 @@ def test_the_base_is_a_greedy_policy_and_takes_its_own_settings():
         GreedyRolloutPolicy(base=object())
     with pytest.raises(ValueError, match="for the default base"):
         GreedyRolloutPolicy(base=GreedyParallelPolicy(), stall_s=3.0)
+
+
+def test_candidates_of_the_same_rule_as_the_base_change_no_decision():
+    runs = []
+    for candidates in (None, GreedyParallelPolicy()):
+        env = parallel_env(TASK)
+        observations, infos = env.reset(seed=SEED)
+        policy = GreedyRolloutPolicy(candidates=candidates)
+        policy.reset(env, seed=SEED)
+        chosen, expected = [], []
+        while env.agents and len(expected) < 2:
+            before = policy.lookaheads + policy.reused
+            actions = policy.act(observations, infos)
+            chosen.append(actions)
+            if policy.lookaheads + policy.reused > before:
+                expected.append(policy.expected_time_s)
+            observations, _, _, _, infos = env.step(actions)
+        runs.append((chosen, expected, policy.lookaheads, policy.reused))
+    assert runs[0] == runs[1]
+
+
+def test_every_start_the_masks_allow_is_tried_with_the_pipeline_finishing():
+    from agents.policies import FilePipelinePolicy
+
+    bent, seed = "caterpillar_multi_bend4", 100_000
+    env = parallel_env(bent)
+    observations, infos = env.reset(seed=seed)
+    own = FilePipelinePolicy()
+    own.reset(env, seed=seed)
+    pipeline_starts = own.plan(observations, infos)[1]
+    greedy = GreedyParallelPolicy()
+    greedy.reset(env, seed=seed)
+    mask_starts = greedy.plan(observations, infos)[1]
+    assert set(pipeline_starts) < set(mask_starts), "at the reset the pipeline starts the leader only"
+    tried, expected = {}, {}
+    for name, candidates in (("pipeline", None), ("masks", GreedyParallelPolicy())):
+        policy = GreedyRolloutPolicy(base=FilePipelinePolicy(), candidates=candidates, reuse=False)
+        policy.reset(env, seed=seed)  # both look ahead from the same env, which neither steps
+        chosen = policy.act(observations, infos)
+        tried[name], expected[name] = policy.lookaheads, policy.expected_time_s
+        assert sum(chosen.values()) == 1  # one start, of a robot its candidates allow
+        assert {a for a, action in chosen.items() if action == ADVANCE} <= set(mask_starts if candidates else pipeline_starts)
+    # each start tried, and waiting; a rollout may stop early, but each counts
+    assert tried["pipeline"] == len(pipeline_starts) + 1
+    assert tried["masks"] == len(mask_starts) + 1
+    # more choices, the pipeline's own first: never a later arrival
+    assert expected["masks"] <= expected["pipeline"] < math.inf
+    policy = load_policy("pipeline_rollout_masks", bent)
+    assert isinstance(policy.base, FilePipelinePolicy)
+    assert type(policy.candidates) is GreedyParallelPolicy
+
+
+def test_the_candidates_are_another_greedy_policy():
+    with pytest.raises(TypeError, match="candidates must be a GreedyParallelPolicy"):
+        GreedyRolloutPolicy(candidates=object())
+    base = GreedyParallelPolicy()
+    with pytest.raises(ValueError, match="another policy than base"):
+        GreedyRolloutPolicy(base=base, candidates=base)

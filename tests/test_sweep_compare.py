@@ -101,3 +101,64 @@ def test_schedule_columns_split_the_time_to_goal_and_old_sweeps_are_refused():
     assert row == "| greedy | 100 % | 23.0 ± 2.0 | 14.0 | 5.0 | 4.0 | 17.5 |"
     with pytest.raises(CompareError, match="waiting_s"):
         comparison_table([_entry("greedy", 1.0, 23.0, 0.0065)], columns=SCHEDULE_COLUMNS)
+
+
+def _result_rows() -> list[dict[str, str]]:
+    """``results.csv`` rows: base ``pipeline`` and two policies over seeds 1..4 of one scenario."""
+    times = {
+        "pipeline": {1: 50.0, 2: 40.0, 3: 60.0, 4: 30.0},
+        "lookahead": {1: 45.0, 2: 40.0, 3: 57.0, 4: math.nan},  # seed 4 failed
+        "slow": {1: 55.0, 2: 44.0, 3: math.nan, 4: 33.0},
+    }
+    rows = []
+    for policy, per_seed in times.items():
+        for seed, t in per_seed.items():
+            rows.append({"scenario": "caterpillar_multi_bend4", "policy": policy, "seed": str(seed),
+                         "success": "0" if math.isnan(t) else "1", "time_to_goal_s": "" if math.isnan(t) else repr(t)})
+    return rows
+
+
+def test_paired_rows_count_the_seeds_both_reached_and_the_time_saved():
+    from training.sweep.compare import paired_table
+
+    lines = paired_table(_result_rows(), "pipeline", labels={"slow": "a slow one"}).splitlines()
+    assert lines[0].startswith("| policy | seeds both reached | sooner | as soon | later |")
+    assert len(lines) == 4 and "pipeline |" not in "".join(lines[2:])
+    # lookahead: seeds 1-3 (4 failed): 5 s and 3 s sooner, one as soon
+    cells = [c.strip() for c in lines[2].strip("|").split("|")]
+    assert cells[:5] == ["lookahead", "3", "2", "1", "0"]
+    assert float(cells[5]) == pytest.approx((5 + 0 + 3) / 3, abs=0.005)
+    assert float(cells[6]) == pytest.approx((10.0 + 0.0 + 5.0) / 3, abs=0.05)
+    assert float(cells[7]) == pytest.approx(10.0)
+    # the slow one, under its label: seeds 1, 2 and 4, later on each
+    cells = [c.strip() for c in lines[3].strip("|").split("|")]
+    assert cells[:5] == ["a slow one", "3", "0", "0", "3"]
+    assert float(cells[5]) == pytest.approx(-(5 + 4 + 3) / 3, abs=0.005)
+    assert float(cells[7]) == pytest.approx(-10.0)
+
+
+def test_paired_refuses_an_unknown_base_and_a_repeated_seed(tmp_path, capsys):
+    from training.sweep.compare import paired_table
+
+    with pytest.raises(CompareError, match="'greedy': not swept"):
+        paired_table(_result_rows(), "greedy")
+    rows = _result_rows()
+    with pytest.raises(CompareError, match="seed 1 twice"):
+        paired_table(rows + rows[:1], "pipeline")
+    assert main([str(tmp_path), "--paired", "pipeline"]) == 2
+    assert "results.csv" in capsys.readouterr().err
+    assert main([str(tmp_path), "--paired", "pipeline", "--schedule"]) == 2
+    assert "--paired makes its own table" in capsys.readouterr().err
+
+
+def test_paired_reads_a_sweeps_results_csv(tmp_path, capsys):
+    import csv
+
+    rows = _result_rows()
+    with open(tmp_path / "results.csv", "w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    assert main([str(tmp_path), "--paired", "pipeline"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[2].startswith("| lookahead | 3 | 2 | 1 | 0 |")

@@ -9,7 +9,9 @@ whose copy reached every goal soonest (the greedy's own on a tie). This is the r
 algorithm of approximate dynamic programming with the greedy policy as its base (or
 another :class:`~agents.policies.greedy.GreedyParallelPolicy`: with the file pipeline,
 :class:`~agents.policies.pipeline.FilePipelinePolicy`, as ``base``, ``--policy
-pipeline_rollout``, it tries the starts the pipeline allows and lets the pipeline finish): the
+pipeline_rollout``, it tries the starts the pipeline allows and lets the pipeline finish;
+with a greedy policy as ``candidates`` as well, ``--policy pipeline_rollout_masks``, it tries
+every start the masks allow, neighbours of movers included, and lets the pipeline finish): the
 copy carries the env's generators, so its future is the env's own for the same
 actions, and the policy never reaches the goals later than the greedy policy on the
 same seed (:meth:`GreedyRolloutPolicy.act` keeps a choice only when its copy is
@@ -60,6 +62,11 @@ class GreedyRolloutPolicy:
         base: the base policy, a :class:`GreedyParallelPolicy` (its :meth:`plan` gives the
             starts to try; default: a new greedy policy with the ``greedy`` settings), e.g. a
             :class:`~agents.policies.pipeline.FilePipelinePolicy` on a file of robots.
+        candidates: None (the base's starts are tried), or another :class:`GreedyParallelPolicy`
+            whose :meth:`~GreedyParallelPolicy.plan` gives the starts to try at each step (the
+            base's own start, or none, is still tried first), e.g. a greedy policy beside the
+            pipeline as base: every start the masks allow, with the pipeline finishing each
+            rollout. It acts on the env only through this policy's choices.
         **greedy: settings of the default base :class:`GreedyParallelPolicy` (its stall watch).
 
     Attributes:
@@ -75,22 +82,36 @@ class GreedyRolloutPolicy:
 
     env_options: Mapping[str, Any] = GreedyParallelPolicy.env_options
 
-    def __init__(self, wait: bool = True, reuse: bool = True, base: GreedyParallelPolicy | None = None, **greedy: float):
+    def __init__(
+        self,
+        wait: bool = True,
+        reuse: bool = True,
+        base: GreedyParallelPolicy | None = None,
+        candidates: GreedyParallelPolicy | None = None,
+        **greedy: float,
+    ):
         for name, value in (("wait", wait), ("reuse", reuse)):
             if not isinstance(value, bool):
                 raise TypeError(f"{name} must be a bool, got {type(value).__name__}")
         if base is not None and not isinstance(base, GreedyParallelPolicy):
             raise TypeError(f"base must be a GreedyParallelPolicy, got {type(base).__name__}")
+        if candidates is not None and not isinstance(candidates, GreedyParallelPolicy):
+            raise TypeError(f"candidates must be a GreedyParallelPolicy, got {type(candidates).__name__}")
+        if candidates is not None and candidates is base:
+            raise ValueError("candidates must be another policy than base (each keeps its own state)")
         if base is not None and greedy:
             raise ValueError(f"the greedy settings {sorted(greedy)} are for the default base; give them to the base policy")
         self.wait = wait
         self.reuse = reuse
         self.base = GreedyParallelPolicy(**greedy) if base is None else base
+        self.candidates = candidates
         self._env: MomaParallelEnv | None = None
 
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
         """Reset the base policy on ``env`` (already reset) and keep ``env`` as the model."""
         self.base.reset(env, seed)
+        if self.candidates is not None:
+            self.candidates.reset(env, seed)
         self._env = env
         self.lookaheads = 0
         self.reused = 0
@@ -103,10 +124,14 @@ class GreedyRolloutPolicy:
         if self._env is None:
             raise RuntimeError("call reset(env) before act()")
         actions, startable = self.base.plan(observations, infos)
+        own = actions | {startable[0]: ADVANCE} if startable else actions  # the base's act()
+        if self.candidates is not None:
+            startable = self.candidates.plan(observations, infos)[1]
         if not startable:
-            return actions
-        choices = [actions | {agent: ADVANCE} for agent in startable]
-        if self.wait:
+            return own
+        # The base's choice first (a tie keeps it, and the reuse below continues its rollout).
+        choices = [own] + [actions | {agent: ADVANCE} for agent in startable if actions | {agent: ADVANCE} != own]
+        if self.wait and own is not actions:
             choices.append(actions)
         if len(choices) == 1:
             return choices[0]  # nothing to choose: no lookahead (expected_time_s stays)

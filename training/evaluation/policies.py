@@ -14,6 +14,9 @@ Specs understood by :func:`load_policy`:
   lookahead over its starts in copies of the env: a planner that reads the simulator);
 * ``"pipeline_rollout"``: the same lookahead over the file pipeline's starts
   (``GreedyRolloutPolicy(base=FilePipelinePolicy())``);
+* ``"pipeline_rollout_masks"``: the lookahead over every start the masks allow, the
+  pipeline finishing each rollout
+  (``GreedyRolloutPolicy(base=FilePipelinePolicy(), candidates=GreedyParallelPolicy())``);
 * ``"random"``: ``agents.policies.RandomPolicy(seed)``;
 * a path: the output folder of ``moma-env train``
   (:class:`agents.learned.LearnedPolicy`, or with ``--backend rllib`` / ``torchrl``
@@ -36,10 +39,12 @@ from typing import Any, Protocol, runtime_checkable
 __all__ = ["Policy", "PolicyLoadError", "PolicyEnvError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "load_policy", "policy_label"]
 
 #: Policy specs that name a built-in policy rather than a file.
-BUILTIN_POLICIES = ("scripted", "greedy", "pipeline", "rollout", "pipeline_rollout", "planned", "servo", "random")
+BUILTIN_POLICIES = (
+    "scripted", "greedy", "pipeline", "rollout", "pipeline_rollout", "pipeline_rollout_masks", "planned", "servo", "random",
+)
 
 #: The action mode each built-in policy acts in.
-POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "pipeline": "switching", "rollout": "switching", "pipeline_rollout": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
+POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "pipeline": "switching", "rollout": "switching", "pipeline_rollout": "switching", "pipeline_rollout_masks": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
 
 
 #: Built-in policies that are an ``agents.policies`` class made without arguments.
@@ -133,7 +138,9 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         spec: ``"scripted"`` (switching mode), ``"greedy"`` (switching mode, several
             movers at once), ``"pipeline"`` (a file of robots, every other one moving
             at once), ``"rollout"`` / ``"pipeline_rollout"`` (the greedy / the pipeline
-            with a lookahead over its starts, a planner reading the simulator), ``"planned"`` (follows the MOMA
+            with a lookahead over its starts, a planner reading the simulator),
+            ``"pipeline_rollout_masks"`` (the pipeline with a lookahead over every start the
+            masks allow), ``"planned"`` (follows the MOMA
             navigation planner's plan, velocity mode), ``"servo"`` (the
             caterpillar follower servoing to its stand-off, velocity mode),
             ``"random"``, the path
@@ -177,6 +184,9 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
     elif spec == "pipeline_rollout":
         module = _agents_policies()
         policy = module.GreedyRolloutPolicy(base=module.FilePipelinePolicy())
+    elif spec == "pipeline_rollout_masks":
+        module = _agents_policies()
+        policy = module.GreedyRolloutPolicy(base=module.FilePipelinePolicy(), candidates=module.GreedyParallelPolicy())
     elif spec == "servo":
         if builtin_configuration != "caterpillar":
             raise PolicyLoadError(f"the servo policy is for the caterpillar configuration, not {configuration!r}")

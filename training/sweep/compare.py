@@ -23,6 +23,13 @@ row's three parts add up to its time to goal; and the schedule bound
 moves could arrive). Sweeps written before those were
 recorded are refused with ``--schedule``.
 
+``--paired BASE`` compares every other policy of the scenario with policy ``BASE``
+seed by seed instead, from the sweep's ``results.csv`` (:func:`paired_table`): over the
+seeds where both reached every goal, on how many each was sooner, as soon and later,
+and the time it saved, in s and as a share of the base's time per seed (their means,
+and the largest), so a lookahead or a learned policy is judged on the same layouts as
+the policy it is meant to beat.
+
 Units: time in s, errors in cm, rates in %, counts per episode. (The table of
 ``moma-env evaluate`` folders is :mod:`training.train.compare`.)
 """
@@ -36,13 +43,18 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import csv
+
 from scipy import stats
 
 from moma_env.io import read_json_in
 from training.evaluation.harness import mean_std
 from training.sweep.table import TABLE_FILES
 
-__all__ = ["COLUMNS", "SCHEDULE_COLUMNS", "CompareError", "seed_interval", "policy_cells", "group_cells", "comparison_table", "main"]
+__all__ = [
+    "COLUMNS", "SCHEDULE_COLUMNS", "CompareError", "seed_interval", "policy_cells", "group_cells", "comparison_table",
+    "paired_table", "main",
+]
 
 #: Column title -> (summary key, how a policy's value is read, scale to the shown unit).
 COLUMNS: Mapping[str, tuple[str, str, float]] = {
@@ -187,6 +199,75 @@ def comparison_table(
     return "\n".join(lines)
 
 
+def _read_results(folder: Path) -> list[dict[str, str]]:
+    path = folder / TABLE_FILES["csv"]
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            rows = list(csv.DictReader(handle))
+    except FileNotFoundError:
+        raise CompareError(f"{str(path)!r} does not exist: is the sweep finished?") from None
+    needed = {"scenario", "policy", "seed", "success", "time_to_goal_s"}
+    if rows and not needed <= set(rows[0]):
+        raise CompareError(f"{str(path)!r} lacks the columns {sorted(needed - set(rows[0]))}")
+    return rows
+
+
+def paired_table(
+    rows: Sequence[Mapping[str, str]], base: str, scenario: str | None = None, labels: Mapping[str, str] | None = None
+) -> str:
+    """The Markdown table of ``--paired``: every policy of ``scenario`` (None: the sweep's
+    only one) but ``base`` against ``base``, over the seeds where both reached every goal
+    (``rows``: ``results.csv``'s rows, one per episode). Columns: those seeds, on how many
+    the policy was sooner, as soon and later than ``base``, the mean time saved (s, base
+    less policy), and the mean and the largest of the time saved as a share of the base's
+    time on each seed (%). Policies are shown as ``labels`` names them.
+
+    Raises:
+        CompareError: no such scenario, several and none chosen, ``base`` not swept on it, or
+            a seed that appears twice for one policy.
+    """
+    scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
+    if scenario is None:
+        if len(scenarios) != 1:
+            raise CompareError(f"the sweep has scenarios {scenarios}; choose one with --scenario")
+        scenario = scenarios[0]
+    times: dict[str, dict[int, float]] = {}
+    for row in rows:
+        if row["scenario"] != scenario:
+            continue
+        per_seed = times.setdefault(row["policy"], {})
+        seed = int(row["seed"])
+        if seed in per_seed:
+            raise CompareError(f"policy {row['policy']!r} has seed {seed} twice on {scenario}")
+        per_seed[seed] = float(row["time_to_goal_s"]) if int(row["success"]) else math.nan
+    if not times:
+        raise CompareError(f"scenario {scenario!r} is not in the sweep; it has {scenarios}")
+    if base not in times:
+        raise CompareError(f"--paired {base!r}: not swept on {scenario}; swept: {list(times)}")
+    lines = [
+        "| policy | seeds both reached | sooner | as soon | later | time saved s | saved per seed % | largest saving % |",
+        "|---" * 8 + "|",
+    ]
+    reference = times[base]
+    labels = dict(labels or {})
+    for policy, per_seed in times.items():
+        if policy == base:
+            continue
+        name = labels.get(policy, policy)
+        pairs = [(reference[s], per_seed[s]) for s in sorted(per_seed) if s in reference
+                 and math.isfinite(reference[s]) and math.isfinite(per_seed[s])]
+        if not pairs:
+            lines.append(f"| {name} | 0 | - | - | - | - | - | - |")
+            continue
+        saved = [b - t for b, t in pairs]
+        shares = [100.0 * (b - t) / b for b, t in pairs]
+        lines.append(
+            f"| {name} | {len(pairs)} | {sum(d > 0 for d in saved)} | {sum(d == 0 for d in saved)} | {sum(d < 0 for d in saved)} "
+            f"| {sum(saved) / len(saved):.2f} | {sum(shares) / len(shares):.1f} | {max(shares):.1f} |"
+        )
+    return "\n".join(lines)
+
+
 def _pairs(texts: Sequence[str], option: str) -> list[tuple[str, str]]:
     out = []
     for text in texts:
@@ -208,8 +289,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="a row TEXT pooling these policies (training seeds) with a 95 %% t interval (default: none)")
     parser.add_argument("--schedule", action="store_true",
                         help="where the time to goal went (moving, waiting, still) instead of the default columns")
+    parser.add_argument("--paired", default=None, metavar="BASE",
+                        help="every other policy against policy BASE, seed by seed over the seeds both reached every goal "
+                             "(from results.csv) instead of the default columns")
     args = parser.parse_args(argv)
     try:
+        if args.paired is not None:
+            if args.schedule or args.seeds:
+                raise CompareError("--paired makes its own table: give it without --schedule and --seeds")
+            print(paired_table(_read_results(args.sweep), args.paired, args.scenario, dict(_pairs(args.label, "--label"))))
+            return 0
         seeds = {name: [p for p in value.split(",") if p] for name, value in _pairs(args.seeds, "--seeds")}
         table = comparison_table(_read_summary(args.sweep), args.scenario, dict(_pairs(args.label, "--label")), seeds,
                                  SCHEDULE_COLUMNS if args.schedule else COLUMNS)
