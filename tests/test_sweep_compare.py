@@ -146,6 +146,9 @@ def test_paired_refuses_an_unknown_base_and_a_repeated_seed(tmp_path, capsys):
     with pytest.raises(CompareError, match="seed 1 twice"):
         paired_table(rows + rows[:1], "pipeline")
     assert main([str(tmp_path), "--paired", "pipeline"]) == 2
+    assert "is the sweep finished?" in capsys.readouterr().err
+    (tmp_path / "summary.json").write_text(json.dumps({"groups": []}), encoding="utf-8")
+    assert main([str(tmp_path), "--paired", "pipeline"]) == 2
     assert "results.csv" in capsys.readouterr().err
     assert main([str(tmp_path), "--paired", "pipeline", "--schedule"]) == 2
     assert "--paired makes its own table" in capsys.readouterr().err
@@ -155,6 +158,7 @@ def test_paired_reads_a_sweeps_results_csv(tmp_path, capsys):
     import csv
 
     rows = _result_rows()
+    (tmp_path / "summary.json").write_text(json.dumps({"groups": []}), encoding="utf-8")
     with open(tmp_path / "results.csv", "w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()

@@ -200,6 +200,7 @@ def comparison_table(
 
 
 def _read_results(folder: Path) -> list[dict[str, str]]:
+    _read_summary(folder)  # written last: a sweep without it is not finished (or not a sweep)
     path = folder / TABLE_FILES["csv"]
     try:
         with open(path, newline="", encoding="utf-8") as handle:
