@@ -130,7 +130,7 @@ class GreedyRolloutPolicy:
         if not startable:
             return own
         # The base's choice first (a tie keeps it, and the reuse below continues its rollout).
-        choices = [own] + [actions | {agent: ADVANCE} for agent in startable if actions | {agent: ADVANCE} != own]
+        choices = [own] + [choice for choice in (actions | {agent: ADVANCE} for agent in startable) if choice != own]
         if self.wait and own is not actions:
             choices.append(actions)
         if len(choices) == 1:

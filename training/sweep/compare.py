@@ -37,13 +37,12 @@ Units: time in s, errors in cm, rates in %, counts per episode. (The table of
 from __future__ import annotations
 
 import argparse
+import csv
 import math
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
-
-import csv
 
 from scipy import stats
 
