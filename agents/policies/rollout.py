@@ -123,15 +123,14 @@ class GreedyRolloutPolicy:
         """The greedy's actions, with the start that reaches the goals soonest in a copy of the env."""
         if self._env is None:
             raise RuntimeError("call reset(env) before act()")
-        actions, startable = self.base.plan(observations, infos)
-        own = actions | {startable[0]: ADVANCE} if startable else actions  # the base's act()
-        if self.candidates is not None:
-            startable = self.candidates.plan(observations, infos)[1]
+        actions, base_starts = self.base.plan(observations, infos)
+        own = actions | {base_starts[0]: ADVANCE} if base_starts else actions  # the base's act()
+        startable = base_starts if self.candidates is None else self.candidates.plan(observations, infos)[1]
         if not startable:
             return own
         # The base's choice first (a tie keeps it, and the reuse below continues its rollout).
         choices = [own] + [choice for choice in (actions | {agent: ADVANCE} for agent in startable) if choice != own]
-        if self.wait and own is not actions:
+        if self.wait and base_starts:  # waiting is not already the base's choice
             choices.append(actions)
         if len(choices) == 1:
             return choices[0]  # nothing to choose: no lookahead (expected_time_s stays)

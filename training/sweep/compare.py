@@ -154,6 +154,19 @@ def _read_summary(folder: Path) -> list[dict[str, Any]]:
     return groups
 
 
+def _one_scenario(names: Sequence[str], scenario: str | None) -> str:
+    """``scenario``, or the sweep's only scenario when None, checked against the sweep's
+    scenarios ``names`` (one per row; CompareError: several and none chosen, or not in them)."""
+    scenarios = list(dict.fromkeys(names))
+    if scenario is None:
+        if len(scenarios) != 1:
+            raise CompareError(f"the sweep has scenarios {scenarios}; choose one with --scenario")
+        return scenarios[0]
+    if scenario not in scenarios:
+        raise CompareError(f"scenario {scenario!r} is not in the sweep; it has {scenarios}")
+    return scenario
+
+
 def comparison_table(
     summary: Sequence[Mapping[str, Any]],
     scenario: str | None = None,
@@ -170,14 +183,8 @@ def comparison_table(
         CompareError: no such scenario, several and none chosen, or a group naming a
             policy the scenario was not swept with.
     """
-    scenarios = list(dict.fromkeys(e["scenario"] for e in summary))
-    if scenario is None:
-        if len(scenarios) != 1:
-            raise CompareError(f"the sweep has scenarios {scenarios}; choose one with --scenario")
-        scenario = scenarios[0]
+    scenario = _one_scenario([e["scenario"] for e in summary], scenario)
     entries = {e["policy"]: e for e in summary if e["scenario"] == scenario}
-    if not entries:
-        raise CompareError(f"scenario {scenario!r} is not in the sweep; it has {scenarios}")
     labels = dict(labels or {})
     seeds = dict(seeds or {})
     for name, policies in seeds.items():
@@ -226,11 +233,7 @@ def paired_table(
         CompareError: no such scenario, several and none chosen, ``base`` not swept on it, or
             a seed that appears twice for one policy.
     """
-    scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
-    if scenario is None:
-        if len(scenarios) != 1:
-            raise CompareError(f"the sweep has scenarios {scenarios}; choose one with --scenario")
-        scenario = scenarios[0]
+    scenario = _one_scenario([r["scenario"] for r in rows], scenario)
     times: dict[str, dict[int, float]] = {}
     for row in rows:
         if row["scenario"] != scenario:
@@ -240,8 +243,6 @@ def paired_table(
         if seed in per_seed:
             raise CompareError(f"policy {row['policy']!r} has seed {seed} twice on {scenario}")
         per_seed[seed] = float(row["time_to_goal_s"]) if int(row["success"]) else math.nan
-    if not times:
-        raise CompareError(f"scenario {scenario!r} is not in the sweep; it has {scenarios}")
     if base not in times:
         raise CompareError(f"--paired {base!r}: not swept on {scenario}; swept: {list(times)}")
     lines = [
