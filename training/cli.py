@@ -38,6 +38,8 @@ from training.cli_args import (
     PRESET_NAMES,
     SCENARIO_NAMES,
     choice,
+    field_assignment,
+    field_assignments,
     int_at_least,
     name_list,
     positive_float,
@@ -346,6 +348,10 @@ def _add_evaluate(sub) -> None:
         "--sample-actions", action="store_true",
         help="a trained policy samples its actions (seeded by the episode's seed) instead of taking the most likely one",
     )
+    ev.add_argument(
+        "--set", dest="overrides", action="append", type=field_assignment, metavar="FIELD=VALUE", default=None,
+        help="a field of the configuration's dataclass, for every layout (random ones keep the rig's settings: estimator, leg_length, dwell_s, goal tolerances, max_cycles), e.g. --set leg_length=1.5; the value is read as JSON; repeatable (default: none)",
+    )
     ev.set_defaults(handler=_run_evaluate)
 
 
@@ -356,6 +362,8 @@ def _add_train(sub) -> None:
 
 
 def _run_evaluate(args: argparse.Namespace) -> int:
+    from moma_env.config import ConfigError
+    from moma_env.env.factory import checked_overrides
     from moma_env.io import run_folder, to_jsonable
     from moma_env.tasks import TASKS
     from training.evaluation import PolicyEnvError, PolicyLoadError, evaluate, load_policy, policy_label
@@ -366,8 +374,11 @@ def _run_evaluate(args: argparse.Namespace) -> int:
 
     rig = TASKS[args.scenario].configuration if args.scenario in TASKS else args.scenario
     try:
+        overrides = checked_overrides(args.scenario, field_assignments(args.overrides))
+        if "max_cycles" in overrides:
+            raise ConfigError("max_cycles", "set the episode length with --max-cycles, not --set")
         policy = load_policy(args.policy, args.scenario, args.seed, sample_actions=args.sample_actions)
-    except PolicyLoadError as err:
+    except (PolicyLoadError, ConfigError) as err:
         print(f"moma-env evaluate: {err}", file=sys.stderr)
         return 2
     label = policy_label(args.policy) + ("_sampled" if args.sample_actions else "")
@@ -396,6 +407,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
                     frame_sink=recorder,
                     progress=lambda _episode: bar.update(),
                     **env_options,
+                    **overrides,
                 )
             result = dataclasses.replace(result, policy=label)
             paths = write_outputs(result, run.path)

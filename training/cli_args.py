@@ -11,8 +11,11 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import json
 from collections.abc import Callable, Sequence
+from typing import Any
 
+from moma_env.config import ConfigError
 from moma_env.registration import CONFIGURATION_NAMES
 from moma_env.tasks import TASKS
 
@@ -25,6 +28,8 @@ __all__ = [
     "name_list",
     "int_at_least",
     "int_at_least_or",
+    "field_assignment",
+    "field_assignments",
     "positive_float",
     "choice",
 ]
@@ -54,6 +59,30 @@ def int_at_least(minimum: int, what: str) -> Callable[[str], int]:
         return value
 
     return parse
+
+
+def field_assignment(text: str) -> tuple[str, Any]:
+    """An argparse type: ``FIELD=VALUE``, the value read as JSON (``1.5``, ``true``,
+    ``{"window": 20}``) or, failing that, as the string itself."""
+    name, sep, raw = text.partition("=")
+    name = name.strip()
+    if not sep or not name.isidentifier():
+        raise argparse.ArgumentTypeError(f"expected FIELD=VALUE (e.g. leg_length=1.5), got {text!r}")
+    try:
+        value = json.loads(raw)
+    except json.JSONDecodeError:
+        value = raw
+    return name, value
+
+
+def field_assignments(pairs: Sequence[tuple[str, Any]] | None) -> dict[str, Any]:
+    """``--set`` pairs as a dict; ConfigError naming a field set twice."""
+    out: dict[str, Any] = {}
+    for name, value in pairs or ():
+        if name in out:
+            raise ConfigError(name, "given twice with --set")
+        out[name] = value
+    return out
 
 
 def int_at_least_or(word: str, minimum: int, what: str) -> Callable[[str], int | str]:

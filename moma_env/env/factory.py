@@ -12,6 +12,7 @@ reset from the env's seeded generator (:class:`RandomScenarios`).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
@@ -32,6 +33,7 @@ __all__ = [
     "centralised_env",
     "scenario_factory",
     "RandomScenarios",
+    "checked_overrides",
     "versioned_constructors",
 ]
 
@@ -50,7 +52,10 @@ class RandomScenarios:
     ``f(None)`` is the base configuration's scenario (the env's first layout);
     ``f(rng)`` a random configuration drawn from ``rng`` (the configuration's
     ``random``) that keeps the base configuration's team fields (``TEAM_FIELDS``,
-    e.g. ``n_ugvs``), so every layout has the same agents. The other overrides
+    e.g. ``n_ugvs``), so every layout has the same agents, and the rig's settings
+    among the overrides (``SETTING_FIELDS``: the estimator, ``leg_length``,
+    ``dwell_s``, the goal tolerances, ``max_cycles``), so every layout is run alike. The
+    other overrides (what ``random`` draws: formation, goals, camera, obstacles, ...)
     shape the base layout only. Instances pickle as their arguments.
 
     Args:
@@ -71,6 +76,7 @@ class RandomScenarios:
         self._overrides = dict(overrides or {})
         self._base = from_mapping(spec.config_type, self._overrides, name=configuration)
         self._team = spec.config_type.check_team({name: getattr(self._base, name) for name in spec.team_fields})
+        self._settings = {name: getattr(self._base, name) for name in spec.config_type.SETTING_FIELDS if name in self._overrides}
         self._base_scenario = self._base.scenario()
         if len(self._base_scenario.world.uavs) > 1:
             raise ConfigError(
@@ -98,11 +104,19 @@ class RandomScenarios:
         """The team fields every random layout keeps, e.g. ``{"n_ugvs": 2}``."""
         return dict(self._team)
 
+    @property
+    def settings(self) -> dict[str, Any]:
+        """The rig's settings every random layout keeps (those among the overrides), e.g. ``{"leg_length": 1.5}``."""
+        return dict(self._settings)
+
     def __call__(self, rng: np.random.Generator | None) -> Scenario:
         """The base scenario for ``rng=None``, else a random one drawn from ``rng``."""
         if rng is None:
             return self._base_scenario
-        return _spec(self._configuration).random(rng, **self._team).scenario()
+        config = _spec(self._configuration).random(rng, **self._team)
+        if self._settings:
+            config = replace(config, **self._settings)
+        return config.scenario()
 
     def __reduce__(self) -> tuple[type[RandomScenarios], tuple[str, dict[str, Any]]]:
         return (type(self), (self._configuration, self._overrides))
@@ -118,6 +132,26 @@ def scenario_factory(configuration: str, random_scenarios: bool = False, **overr
         return RandomScenarios(configuration, overrides)
     spec = _spec(configuration)
     return from_mapping(spec.config_type, overrides, name=configuration).scenario()
+
+
+def checked_overrides(name: str, overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """``overrides`` (fields of the configuration's dataclass, e.g. ``{"leg_length": 1.5}``)
+    for configuration or task ``name``, checked: each a field of the configuration, and
+    the configuration, with the task's own fields, valid with them.
+
+    Raises:
+        ConfigError: naming the configuration's field (an unknown field, a bad value)
+            or ``configuration`` (an unknown name).
+    """
+    configuration, options = task_options(name) if isinstance(name, str) and name in TASKS else (name, {})
+    config_type = _spec(configuration).config_type
+    known = [f.name for f in fields(config_type)]
+    for key in overrides:
+        if key not in known:
+            raise ConfigError(f"{configuration}.{key}", f"no such field of the {configuration} configuration; known: {known}")
+    own = {key: value for key, value in options.items() if key in known}
+    from_mapping(config_type, {**own, **overrides}, name=configuration)
+    return dict(overrides)
 
 
 def parallel_env(configuration: str, **options: Any) -> MomaParallelEnv:

@@ -165,6 +165,18 @@ class ScenarioConfig(ABC):
     #: Random layouts of an env (``random_scenarios=True``) keep its configuration's
     #: values. Empty: the team is always the same.
     TEAM_FIELDS: ClassVar[Mapping[str, tuple[float, float]]] = MappingProxyType({})
+    #: The rig's settings: fields that :meth:`random` never draws (it leaves them at
+    #: their defaults). Random layouts of an env (``random_scenarios=True``) keep the
+    #: values its configuration was given, so ``leg_length=1.5`` or an ``estimator``
+    #: applies to every layout, not only the first.
+    SETTING_FIELDS: ClassVar[tuple[str, ...]] = (
+        "estimator",
+        "leg_length",
+        "dwell_s",
+        "goal_tolerance_m",
+        "goal_tolerance_rad",
+        "max_cycles",
+    )
 
     arena: tuple[float, float] | None = None
     arena_origin: tuple[float, float] | None = None

@@ -45,6 +45,8 @@ class EvaluationResult:
         robots: the scored robots, in env order.
         episodes: the episodes in order.
         summary: see :func:`summarise`.
+        options: the other env options and configuration fields given (``**overrides``
+            of :func:`evaluate`, e.g. ``{"leg_length": 1.5}``).
     """
 
     configuration: str
@@ -56,6 +58,7 @@ class EvaluationResult:
     robots: tuple[str, ...]
     episodes: tuple[EpisodeResult, ...]
     summary: Mapping[str, Any] = field(repr=False)
+    options: Mapping[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """Everything for ``summary.json`` (NaN kept as float; the JSON writer makes it null)."""
@@ -67,6 +70,7 @@ class EvaluationResult:
             "random_scenarios": self.random_scenarios,
             "action_mode": self.action_mode,
             "max_cycles": self.max_cycles,
+            "options": dict(self.options),
             "robots": list(self.robots),
             "summary": dict(self.summary),
             "episodes": [episode_dict(ep) for ep in self.episodes],
@@ -239,4 +243,5 @@ def evaluate(
         robots=robots,
         episodes=tuple(results),
         summary=summarise(results, robots),
+        options=dict(overrides),
     )

@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from moma_env.config import ConfigError
 from training.evaluation.harness import evaluate
 from training.evaluation.policies import BUILTIN_POLICIES, POLICY_ACTION_MODES, load_policy
 from training.sweep.spec import Cell
@@ -32,8 +33,9 @@ def run_cell(cell: Cell, options: Mapping[str, Any]) -> dict[str, Any]:
 
     Args:
         cell: the scenario, policy spec and reset seed.
-        options: ``random_scenarios``, ``max_cycles`` and ``sample_actions`` (a trained policy
-            samples; :attr:`training.sweep.spec.SweepSpec.options`).
+        options: ``random_scenarios``, ``max_cycles``, ``sample_actions`` (a trained policy
+            samples) and ``overrides`` (configuration fields);
+            :attr:`training.sweep.spec.SweepSpec.options`.
 
     Raises:
         PolicyLoadError: the policy spec names no loadable policy.
@@ -43,6 +45,11 @@ def run_cell(cell: Cell, options: Mapping[str, Any]) -> dict[str, Any]:
     policy = load_policy(cell.policy, cell.scenario, cell.seed, sample_actions=sample)
     env_options = dict(getattr(policy, "env_options", {}))  # a trained policy says which env it fits
     action_mode = env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(cell.policy, "switching")
+    overrides = dict(options.get("overrides", {}))
+    for name in overrides.keys() & env_options.keys():
+        if overrides[name] != env_options[name]:
+            raise ConfigError(f"overrides.{name}", f"the policy {cell.policy!r} was trained with {name}={env_options[name]!r}")
+        del overrides[name]
     result = evaluate(
         cell.scenario,
         policy,
@@ -52,6 +59,7 @@ def run_cell(cell: Cell, options: Mapping[str, Any]) -> dict[str, Any]:
         action_mode=action_mode,
         max_cycles=options["max_cycles"],
         **env_options,
+        **overrides,
     )
     episode = result.episodes[0].row()
     del episode["episode"], episode["seed"]

@@ -10,10 +10,12 @@ byte for byte and a resumed sweep equal to an uninterrupted one.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any
 
 from moma_env.config import ConfigError, check_bool, check_count, check_unique, from_mapping
+from moma_env.env.factory import checked_overrides
 from moma_env.scenarios import CONFIGURATIONS
 from moma_env.tasks import TASKS
 
@@ -83,6 +85,9 @@ class SweepSpec:
         max_cycles: episode length limit in steps (None: the scenario's).
         sample_actions: trained policies sample their actions (seeded by the episode's
             seed) instead of taking the most likely one; built-in policies are unchanged.
+        overrides: fields of every scenario's configuration dataclass, e.g.
+            ``{"leg_length": 1.5}`` (random layouts keep the rig's settings,
+            ``ScenarioConfig.SETTING_FIELDS``); not ``max_cycles`` (the field above).
     """
 
     scenarios: tuple[str, ...]
@@ -91,6 +96,7 @@ class SweepSpec:
     random_scenarios: bool = True
     max_cycles: int | None = None
     sample_actions: bool = False
+    overrides: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name in ("scenarios", "policies", "seeds"):
@@ -111,6 +117,13 @@ class SweepSpec:
         check_bool("sample_actions", self.sample_actions)
         if self.max_cycles is not None:
             check_count("max_cycles", self.max_cycles, 1)
+        if not isinstance(self.overrides, Mapping):
+            raise ConfigError("overrides", f"must be a mapping field -> value, got {self.overrides!r}")
+        if "max_cycles" in self.overrides:
+            raise ConfigError("overrides.max_cycles", "set the episode length with max_cycles (--max-cycles), not as an override")
+        for scenario in self.scenarios:
+            checked_overrides(scenario, self.overrides)
+        object.__setattr__(self, "overrides", MappingProxyType(dict(self.overrides)))
 
     def cells(self) -> list[Cell]:
         """Every cell, in table order: scenarios, then policies, then seeds, as given."""
@@ -125,6 +138,7 @@ class SweepSpec:
             "random_scenarios": self.random_scenarios,
             "max_cycles": self.max_cycles,
             "sample_actions": self.sample_actions,
+            "overrides": dict(self.overrides),
         }
 
     @classmethod
@@ -139,7 +153,12 @@ class SweepSpec:
     @property
     def options(self) -> dict[str, Any]:
         """The episode options every cell shares (what :func:`training.sweep.cells.run_cell` takes)."""
-        return {"random_scenarios": self.random_scenarios, "max_cycles": self.max_cycles, "sample_actions": self.sample_actions}
+        return {
+            "random_scenarios": self.random_scenarios,
+            "max_cycles": self.max_cycles,
+            "sample_actions": self.sample_actions,
+            "overrides": dict(self.overrides),
+        }
 
 
 def chunks(cells: Sequence[Cell], size: int) -> list[list[Cell]]:
