@@ -20,6 +20,10 @@ the reference, so there is little to coordinate):
   random layouts, arriving twice (1.5 times) as spread out as they start, so the
   UAV climbs to keep the team in view and its ceiling bounds the spread; several
   robots may move at once as long as each stays observed from a static reference.
+* ``top_observer_team4_legs``: ``top_observer_team4`` where each robot also chooses
+  how far a leg goes (0.5, 1, 1.5 or 2 m; ``EnvConfig.leg_lengths``): short legs stop
+  often and wait out a switch window each time, long ones carry a robot out of the
+  UAV's view; the same layouts and objective.
 * ``caterpillar_multi_bend4``: a file of 4 robots, each follower's camera on the
   board of the robot ahead, that must jog 1 m sideways around a wall on random
   layouts: the file bends, so a follower keeps its board in view only if the
@@ -72,6 +76,11 @@ TEAM_REWARDS: Mapping[str, float] = MappingProxyType(
     {"progress": 1.0, "localisation_error": -0.5, "refused": -0.05, "goal_bonus": 5.0, "time": -0.01, "final_error": -50.0}
 )
 
+#: The leg lengths (m) of ``top_observer_team4_legs``: the task's own 0.5 m and up to
+#: 2 m, beyond which the greedy policy's robots lose track in about a third of the
+#: episodes (docs/baselines.md).
+TEAM4_LEG_LENGTHS = (0.5, 1.0, 1.5, 2.0)
+
 _TASK_LIST = (
     Task(
         "top_observer_team4",
@@ -102,6 +111,22 @@ _TASK_LIST = (
             "rewards": dict(TEAM_REWARDS),
         },
         "6 UGVs to spread goals under one UAV: time, goals, localisation error on the way and at the end, refusals",
+    ),
+    Task(
+        "top_observer_team4_legs",
+        "moma_env/TopObserverTeam4Legs-v0",
+        "top_observer",
+        {
+            "n_ugvs": 4,
+            "goal_spread": 2.0,
+            "random_scenarios": True,
+            "action_mode": "switching",
+            "action_masks": True,
+            "commit_legs": True,
+            "leg_lengths": TEAM4_LEG_LENGTHS,
+            "rewards": dict(TEAM_REWARDS),
+        },
+        "4 UGVs to spread goals under one UAV, each leg's length chosen: time, goals, localisation error on the way and at the end, refusals",
     ),
     Task(
         "caterpillar_multi_bend4",

@@ -65,7 +65,7 @@ class GreedyParallelPolicy:
             space = env.action_space(agent)
             if not isinstance(space, spaces.Discrete):
                 raise ValueError(f"GreedyParallelPolicy needs action_mode='switching'; {agent} has {space}")
-            if space.n != 2:
+            if agent in env.action_mode.tows:
                 raise ValueError(f"GreedyParallelPolicy does not reel sleds; {agent} tows one ({space})")
         self.reader = GoalReader(env, self.ugvs)
         stall_steps = max(1, int(round(self.stall_s * env.scenario.world.control_hz)))

@@ -184,6 +184,14 @@ class SwitchingActions(ActionMode):
     allows only ``advance``; a robot whose estimate is not localised (it waits for
     it) can still be held. The leg still ends early when it is blocked.
 
+    With ``leg_lengths`` (``EnvConfig.leg_lengths``, K lengths in m), a UGV chooses how
+    far each leg goes: ``Discrete(1 + K)``, 0 holds and ``k`` (1 to K) advances a leg of
+    ``leg_lengths[k - 1]`` m instead of the scenario's ``leg_length``; a towing robot's
+    reel is ``1 + K``. Every advance action of one robot has the same mask (the rules
+    do not depend on how far a leg goes); a committed robot's mask allows ``1`` only,
+    and any advance action continues its leg. Without it, K is 1 and the one leg is the
+    scenario's ``leg_length``.
+
     The executive owns its state: the legs being driven, the sleds being reeled in,
     and the progress that tells a blocked leg or a stuck sled.
     """
@@ -191,9 +199,22 @@ class SwitchingActions(ActionMode):
     name = "switching"
     HOLD, ADVANCE, REEL = 0, 1, 2
 
-    def __init__(self, tows: Mapping[str, str], max_speeds: Mapping[str, tuple[float, float]], commit_legs: bool = False):
+    def __init__(
+        self,
+        tows: Mapping[str, str],
+        max_speeds: Mapping[str, tuple[float, float]],
+        commit_legs: bool = False,
+        leg_lengths: tuple[float, ...] | None = None,
+    ):
         super().__init__(tows, max_speeds)
         self.commit_legs = commit_legs
+        #: The leg lengths (m) the advance actions ``1..K`` choose from; None: the scenario's ``leg_length``.
+        self.leg_lengths = None if leg_lengths is None else tuple(float(x) for x in leg_lengths)
+        #: K, how many advance actions a UGV has (1 without ``leg_lengths``).
+        self.n_advances = 1 if self.leg_lengths is None else len(self.leg_lengths)
+        #: The reel action of a towing robot (2 without ``leg_lengths``).
+        self.reel = 1 + self.n_advances
+        self._chosen: dict[str, float] = {}  # robot -> leg length (m) of the advance it asked for this step
         self.committed: set[str] = set()  # with commit_legs: robots driving a leg on a localised estimate
         self.follower = WaypointFollower(WaypointFollowerConfig(max_speed=0.3, position_tolerance=0.02, yaw_tolerance=0.04))
         self.legs: dict[str, tuple[float, float, float]] = {}
@@ -207,8 +228,12 @@ class SwitchingActions(ActionMode):
         return spaces.Discrete(self.n_actions(agent))
 
     def n_actions(self, agent: str) -> int:
-        """How many actions UGV ``agent`` has: hold and advance, and reel when it tows a sled."""
-        return 3 if agent in self.tows else 2
+        """How many actions UGV ``agent`` has: hold, the advances, and reel when it tows a sled."""
+        return 1 + self.n_advances + (1 if agent in self.tows else 0)
+
+    def is_advance(self, action: int) -> bool:
+        """Whether ``action`` advances a leg (1 to K)."""
+        return 1 <= action <= self.n_advances
 
     def reset(self, simulation: Simulation) -> None:
         self.legs = {}
@@ -226,15 +251,20 @@ class SwitchingActions(ActionMode):
 
     def requests(self, actions: Mapping[str, Any], mobile: frozenset[str]) -> dict[str, bool]:
         wants: dict[str, bool] = {}
+        lengths = self.leg_lengths
+        self._chosen = {}
         for agent, action in actions.items():
-            if action != self.ADVANCE and agent in self.committed:
+            advance = 1 <= action <= self.n_advances
+            if not advance and agent in self.committed:
                 continue  # the leg runs to its end
-            if action == self.ADVANCE:
+            if advance:
                 wants[agent] = True
+                if lengths is not None:
+                    self._chosen[agent] = lengths[action - 1]
             elif agent in mobile:  # hold, or reel (the camera must be static)
                 wants[agent] = False
             sled = self.tows.get(agent)
-            if sled is not None and action == self.REEL and sled not in mobile:
+            if sled is not None and action == self.reel and sled not in mobile:
                 wants[sled] = True
         return wants
 
@@ -250,7 +280,8 @@ class SwitchingActions(ActionMode):
                     self._reel_progress[device] = (math.inf, t)
                     simulation.set_reel(device, 1.0)
                 else:
-                    self.legs[device] = self._next_leg(device, simulation)
+                    length = self._chosen.get(device, simulation.scenario.leg_length)
+                    self.legs[device] = self._next_leg(device, simulation, length)
                     self._leg_progress[device] = (math.inf, math.inf, t)
 
     def _stopped(self, device: str) -> None:
@@ -263,8 +294,8 @@ class SwitchingActions(ActionMode):
         simulation.declare(device, static=True)
         self._stopped(device)
 
-    def _next_leg(self, device: str, simulation: Simulation) -> tuple[float, float, float]:
-        """Target of the next advance: at most ``leg_length`` towards the next via pose
+    def _next_leg(self, device: str, simulation: Simulation, length: float) -> tuple[float, float, float]:
+        """Target of the next advance: at most ``length`` (m) towards the next via pose
         of the route or the goal, from the estimate."""
         scenario = simulation.scenario
         goal = scenario.goals.get(device)
@@ -278,12 +309,12 @@ class SwitchingActions(ActionMode):
         if route is not None:
             s = route.project(x, y, not_before=self._route_s[device] - scenario.leg_length)
             self._route_s[device] = s
-            return route.pose_at(s + scenario.leg_length)
+            return route.pose_at(s + length)
         dx, dy = goal[0] - x, goal[1] - y
         dist = math.hypot(dx, dy)
-        if dist <= scenario.leg_length:
+        if dist <= length:
             return goal
-        f = scenario.leg_length / dist
+        f = length / dist
         return (x + f * dx, y + f * dy, yaw)
 
     def _leg_blocked(self, device: str, pose: tuple[float, float, float], leg: tuple[float, float, float], t: float) -> bool:
@@ -362,15 +393,16 @@ class SwitchingActions(ActionMode):
         mobile = simulation.mobile
         check = simulation.check_mobile
         if agent not in mobile:
-            mask[self.ADVANCE] = check(agent, mobile, references) is None
+            mask[self.ADVANCE : self.ADVANCE + self.n_advances] = check(agent, mobile, references) is None
         sled = self.tows.get(agent)
         if sled is not None and sled not in mobile:
+            reel = self.reel
             if agent not in mobile:
-                mask[self.REEL] = check(sled, mobile, references) is None
+                mask[reel] = check(sled, mobile, references) is None
             elif simulation.rules is None or simulation.rules.dwell_s <= 0.0:  # no dwell: the robot stops, then the sled is judged
-                mask[self.REEL] = check(sled, mobile - {agent}, references) is None
+                mask[reel] = check(sled, mobile - {agent}, references) is None
             else:
-                mask[self.REEL] = 0
+                mask[reel] = 0
         return mask
 
 
@@ -379,16 +411,20 @@ ACTION_MODE_TYPES: Mapping[str, type[ActionMode]] = MappingProxyType({cls.name: 
 
 
 def action_mode(
-    name: str, tows: Mapping[str, str], max_speeds: Mapping[str, tuple[float, float]], commit_legs: bool = False
+    name: str,
+    tows: Mapping[str, str],
+    max_speeds: Mapping[str, tuple[float, float]],
+    commit_legs: bool = False,
+    leg_lengths: tuple[float, ...] | None = None,
 ) -> ActionMode:
     """The action mode called ``name`` (one of :data:`ACTION_MODE_TYPES`); ``commit_legs``
-    is :class:`SwitchingActions`'s (switching mode only)."""
+    and ``leg_lengths`` are :class:`SwitchingActions`'s (switching mode only)."""
     try:
         cls = ACTION_MODE_TYPES[name]
     except KeyError:
         raise ValueError(f"unknown action mode {name!r}; known: {sorted(ACTION_MODE_TYPES)}") from None
     if cls is SwitchingActions:
-        return SwitchingActions(tows, max_speeds, commit_legs=commit_legs)
-    if commit_legs:
-        raise ValueError(f"commit_legs exists only in switching mode, not {name!r}")
+        return SwitchingActions(tows, max_speeds, commit_legs=commit_legs, leg_lengths=leg_lengths)
+    if commit_legs or leg_lengths is not None:
+        raise ValueError(f"commit_legs and leg_lengths exist only in switching mode, not {name!r}")
     return cls(tows, max_speeds)

@@ -8,7 +8,7 @@ config, the reward is a weighted sum of named terms.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any
 
@@ -24,6 +24,7 @@ from moma_env.config import (
     check_finite,
     check_non_negative,
     check_numbers,
+    check_positive,
 )
 from moma_env.estimator.registry import check_estimator_name, localiser_factory
 
@@ -109,6 +110,10 @@ class EnvConfig:
             ``hold`` from a UGV driving a leg on a localised estimate is ignored
             and masked (see :class:`moma_env.env.actions.SwitchingActions`). Off
             by default.
+        leg_lengths: in ``switching`` mode, the lengths (m, positive, distinct) a UGV
+            chooses its legs from: action ``k`` (1 to K) advances ``leg_lengths[k - 1]``
+            m, 0 holds (see :class:`moma_env.env.actions.SwitchingActions`). None (the
+            default): one advance, of the scenario's ``leg_length``.
         pad_observations: pad every agent's vector observation with zeros to
             the longest one, and give every agent one observation space (the
             union of their bounds), so that parameter-sharing wrappers (SuperSuit's
@@ -131,6 +136,7 @@ class EnvConfig:
     observer_image: tuple[int, int] | None = None
     action_masks: bool = False
     commit_legs: bool = False
+    leg_lengths: tuple[float, ...] | None = None
     pad_observations: bool = False
     localiser: Callable[[Any], Any] | None = None
 
@@ -176,6 +182,17 @@ class EnvConfig:
         check_bool("env.commit_legs", self.commit_legs)
         if self.commit_legs and self.action_mode != "switching":
             raise ConfigError("env.commit_legs", "exists only for the legs of action_mode='switching'")
+        if self.leg_lengths is not None:
+            if self.action_mode != "switching":
+                raise ConfigError("env.leg_lengths", "exist only for the legs of action_mode='switching'")
+            if isinstance(self.leg_lengths, (str, bytes)) or not isinstance(self.leg_lengths, Sequence) or not self.leg_lengths:
+                raise ConfigError("env.leg_lengths", f"must be a non-empty sequence of lengths (m), got {self.leg_lengths!r}")
+            for k, length in enumerate(self.leg_lengths):
+                check_positive(f"env.leg_lengths[{k}]", length)
+            lengths = tuple(float(length) for length in self.leg_lengths)
+            if len(set(lengths)) != len(lengths):
+                raise ConfigError("env.leg_lengths", f"must be distinct, got {list(lengths)}")
+            object.__setattr__(self, "leg_lengths", lengths)
 
     @property
     def localiser_factory(self) -> Callable[[Any], Any] | None:

@@ -177,6 +177,7 @@ def configuration_env(
     observer_image: tuple[int, int] | None = None,
     action_masks: bool = False,
     commit_legs: bool = False,
+    leg_lengths: tuple[float, ...] | None = None,
     pad_observations: bool = False,
     localiser: Any = None,
     **overrides: Any,
@@ -184,7 +185,7 @@ def configuration_env(
     """The PettingZoo parallel env of ``configuration`` (see the module docstring).
 
     ``camera_backend``, ``render``, ``floor``, ``observer_image``,
-    ``action_masks``, ``commit_legs``, ``pad_observations`` and ``localiser`` are the
+    ``action_masks``, ``commit_legs``, ``leg_lengths``, ``pad_observations`` and ``localiser`` are the
     :class:`EnvConfig` fields of the same names
     (``render`` and ``floor`` may be mappings of their fields).
     """
@@ -207,6 +208,7 @@ def configuration_env(
         observer_image=observer_image,
         action_masks=action_masks,
         commit_legs=commit_legs,
+        leg_lengths=leg_lengths,
         pad_observations=pad_observations,
         localiser=localiser,
     )
