@@ -81,67 +81,41 @@ TEAM_REWARDS: Mapping[str, float] = MappingProxyType(
 #: episodes (docs/baselines.md).
 TEAM4_LEG_LENGTHS = (0.5, 1.0, 1.5, 2.0)
 
+
+def _coordination(**fields: Any) -> dict[str, Any]:
+    """A coordination task's options: ``fields`` (its team and layouts) and what every task
+    fixes: random layouts, switching mode with the masks and committed legs, the team objective."""
+    common = {"random_scenarios": True, "action_mode": "switching", "action_masks": True, "commit_legs": True}
+    return {**fields, **common, "rewards": dict(TEAM_REWARDS)}
+
+
 _TASK_LIST = (
     Task(
         "top_observer_team4",
         "moma_env/TopObserverTeam4-v0",
         "top_observer",
-        {
-            "n_ugvs": 4,
-            "goal_spread": 2.0,
-            "random_scenarios": True,
-            "action_mode": "switching",
-            "action_masks": True,
-            "commit_legs": True,
-            "rewards": dict(TEAM_REWARDS),
-        },
+        _coordination(n_ugvs=4, goal_spread=2.0),
         "4 UGVs to spread goals under one UAV: time, goals, localisation error on the way and at the end, refusals",
     ),
     Task(
         "top_observer_team6",
         "moma_env/TopObserverTeam6-v0",
         "top_observer",
-        {
-            "n_ugvs": 6,
-            "goal_spread": 1.5,
-            "random_scenarios": True,
-            "action_mode": "switching",
-            "action_masks": True,
-            "commit_legs": True,
-            "rewards": dict(TEAM_REWARDS),
-        },
+        _coordination(n_ugvs=6, goal_spread=1.5),
         "6 UGVs to spread goals under one UAV: time, goals, localisation error on the way and at the end, refusals",
     ),
     Task(
         "top_observer_team4_legs",
         "moma_env/TopObserverTeam4Legs-v0",
         "top_observer",
-        {
-            "n_ugvs": 4,
-            "goal_spread": 2.0,
-            "random_scenarios": True,
-            "action_mode": "switching",
-            "action_masks": True,
-            "commit_legs": True,
-            "leg_lengths": TEAM4_LEG_LENGTHS,
-            "rewards": dict(TEAM_REWARDS),
-        },
+        _coordination(n_ugvs=4, goal_spread=2.0, leg_lengths=TEAM4_LEG_LENGTHS),
         "4 UGVs to spread goals under one UAV, each leg's length chosen: time, goals, localisation error on the way and at the end, refusals",
     ),
     Task(
         "caterpillar_multi_bend4",
         "moma_env/CaterpillarMultiBend4-v0",
         "caterpillar_multi",
-        {
-            "n_ugvs": 4,
-            "bend": 0.5,
-            "goal_distance": 2.5,
-            "random_scenarios": True,
-            "action_mode": "switching",
-            "action_masks": True,
-            "commit_legs": True,
-            "rewards": dict(TEAM_REWARDS),
-        },
+        _coordination(n_ugvs=4, bend=0.5, goal_distance=2.5),
         "a file of 4 robots around a wall: time, goals, localisation error on the way and at the end, refusals",
     ),
 )
