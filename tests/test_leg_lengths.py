@@ -101,3 +101,35 @@ def test_the_leg_task_is_registered_and_batched():
     obs, _ = envs.reset(seed=0)
     assert obs.shape[0] == 2 and envs.action_masks().shape == (2, 20)
     envs.close()
+
+
+def test_greedy_at_a_leg_length_is_the_greedy_policy_on_the_env_with_that_leg_length():
+    from training.evaluation.harness import evaluate
+
+    chosen = evaluate("top_observer_team4_legs", "greedy@1.5", 3, 1000000)
+    plain = evaluate("top_observer_team4", "greedy", 3, 1000000, leg_length=1.5)
+    for a, b in zip(chosen.episodes, plain.episodes):
+        assert a.success and b.success
+        assert (a.time_to_goal_s, a.n_switches) == (b.time_to_goal_s, b.n_switches)
+    first = evaluate("top_observer_team4_legs", "greedy", 1, 1000000).episodes[0]
+    default = evaluate("top_observer_team4", "greedy", 1, 1000000).episodes[0]
+    assert (first.time_to_goal_s, first.n_switches) == (default.time_to_goal_s, default.n_switches)  # action 1: 0.5 m
+
+
+def test_greedy_leg_specs_are_checked():
+    from agents.policies import GreedyParallelPolicy
+    from training.evaluation.policies import PolicyEnvError, PolicyLoadError, builtin_name, load_policy, policy_label
+    from training.evaluation.harness import evaluate
+
+    assert builtin_name("greedy@1.5") == "greedy" and builtin_name("greedy") == "greedy" and builtin_name("runs/x@1") is None
+    assert policy_label("greedy@1.5") == "greedy@1.5"
+    assert load_policy("greedy@1.5", "top_observer_team4_legs").leg_m == 1.5
+    for spec in ("greedy@x", "greedy@-1", "greedy@inf", "greedy@"):
+        with pytest.raises(PolicyLoadError, match="leg length after '@'"):
+            load_policy(spec, "top_observer_team4_legs")
+    with pytest.raises(PolicyEnvError, match=r"leg_m=1\.5\) needs an env that offers that leg length"):
+        evaluate("top_observer_team4", "greedy@1.5", 1, 0)
+    with pytest.raises(PolicyEnvError, match=r"leg_lengths \[0\.5, 1\.0, 1\.5, 2\.0\]"):
+        evaluate("top_observer_team4_legs", "greedy@1.25", 1, 0)
+    with pytest.raises(ValueError, match="leg_m"):
+        GreedyParallelPolicy(leg_m=0.0)

@@ -321,7 +321,8 @@ def _add_evaluate(sub) -> None:
     )
     ev.add_argument(
         "--policy", default="scripted",
-        help="'scripted' (one mover at a time), 'greedy' (as many movers as the rules allow), 'pipeline' (a file of "
+        help="'scripted' (one mover at a time), 'greedy' (as many movers as the rules allow; 'greedy@L' starts legs of L m on "
+        "an env with leg_lengths), 'pipeline' (a file of "
         "robots: every other robot moves at once), 'rollout' (the greedy with a lookahead over its starts in copies of the "
         "env: a planner reading the simulator), 'pipeline_rollout' (the same over the pipeline's starts), "
         "'pipeline_rollout_masks' (the same over every start the masks allow, the pipeline finishing), 'planned' "
@@ -367,7 +368,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     from moma_env.io import run_folder, to_jsonable
     from moma_env.tasks import TASKS
     from training.evaluation import PolicyEnvError, PolicyLoadError, evaluate, load_policy, policy_label
-    from training.evaluation.policies import POLICY_ACTION_MODES
+    from training.evaluation.policies import POLICY_ACTION_MODES, builtin_name
     from training.evaluation.progress import EpisodeProgress
     from training.evaluation.report import format_table, write_outputs
     from training.evaluation.video import GifRecorder
@@ -402,7 +403,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
                     args.episodes,
                     args.seed,
                     random_scenarios=args.random_scenarios,
-                    action_mode=args.action_mode or env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(args.policy, "switching"),
+                    action_mode=args.action_mode or env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(builtin_name(args.policy) or "", "switching"),
                     max_cycles=args.max_cycles,
                     frame_sink=recorder,
                     progress=lambda _episode: bar.update(),

@@ -20,10 +20,15 @@ It reads only what an agent may read: observations (goal distance, dwell), and t
 non-truth infos ``static`` and ``action_mask`` (so the env needs
 ``action_masks=True``, which :attr:`GreedyParallelPolicy.env_options` says).
 Robots towing sleds are not handled (their sleds need reeling turns).
+
+On an env whose robots choose their leg lengths (``EnvConfig.leg_lengths``), it starts
+every leg with the first length, or with ``leg_m`` when given (one of the env's
+lengths): ``GreedyParallelPolicy(leg_m=1.5)``, the spec ``greedy@1.5``.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -42,16 +47,24 @@ class GreedyParallelPolicy:
     Args:
         stall_s: a mover whose estimated pose moved less than ``stall_m`` (m) and
             turned less than ``stall_rad`` (rad) for this long (s) is stopped.
+        leg_m: the leg length (m) to start legs with, one of the env's
+            ``leg_lengths``; None: the first advance action (the env's first length,
+            or its one leg of ``leg_length``).
     """
 
     #: The env options this policy needs (read by the evaluation harness).
     env_options: Mapping[str, Any] = {"action_mode": "switching", "action_masks": True}
 
-    def __init__(self, stall_s: float = 2.0, stall_m: float = 0.02, stall_rad: float = 0.08):
+    def __init__(self, stall_s: float = 2.0, stall_m: float = 0.02, stall_rad: float = 0.08, leg_m: float | None = None):
         check_stall_settings(stall_s=stall_s, stall_m=stall_m, stall_rad=stall_rad)
+        if leg_m is not None and (isinstance(leg_m, bool) or not isinstance(leg_m, (int, float)) or not 0.0 < leg_m < math.inf):
+            raise ValueError(f"leg_m must be None or a positive length (m), got {leg_m!r}")
         self.stall_s = float(stall_s)
         self.stall_m = float(stall_m)
         self.stall_rad = float(stall_rad)
+        self.leg_m = None if leg_m is None else float(leg_m)
+        #: The action that starts a leg (``ADVANCE`` unless ``leg_m`` picks another; set by :meth:`reset`).
+        self.start_action = ADVANCE
         self._ready = False
 
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
@@ -67,6 +80,13 @@ class GreedyParallelPolicy:
                 raise ValueError(f"GreedyParallelPolicy needs action_mode='switching'; {agent} has {space}")
             if agent in env.action_mode.tows:
                 raise ValueError(f"GreedyParallelPolicy does not reel sleds; {agent} tows one ({space})")
+        self.start_action = ADVANCE
+        if self.leg_m is not None:
+            lengths = env.action_mode.leg_lengths
+            if lengths is None or self.leg_m not in lengths:
+                offered = "one leg of the scenario's leg_length" if lengths is None else f"leg_lengths {list(lengths)}"
+                raise ValueError(f"GreedyParallelPolicy(leg_m={self.leg_m}) needs an env that offers that leg length; this one has {offered}")
+            self.start_action = ADVANCE + lengths.index(self.leg_m)
         self.reader = GoalReader(env, self.ugvs)
         stall_steps = max(1, int(round(self.stall_s * env.scenario.world.control_hz)))
         self._watches = {a: StallWatch(stall_steps, self.stall_m, self.stall_rad) for a in self.ugvs}
@@ -77,7 +97,7 @@ class GreedyParallelPolicy:
         """Movers keep advancing; the farthest static robot the masks allow starts a leg."""
         actions, startable = self.plan(observations, infos)
         if startable:
-            actions[startable[0]] = ADVANCE
+            actions[startable[0]] = self.start_action
         return actions
 
     def plan(

@@ -43,7 +43,6 @@ from typing import Any
 
 import numpy as np
 
-from agents.policies.base import ADVANCE
 from agents.policies.greedy import GreedyParallelPolicy
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.sim import Frame
@@ -124,12 +123,13 @@ class GreedyRolloutPolicy:
         if self._env is None:
             raise RuntimeError("call reset(env) before act()")
         actions, base_starts = self.base.plan(observations, infos)
-        own = actions | {base_starts[0]: ADVANCE} if base_starts else actions  # the base's act()
+        start = self.base.start_action
+        own = actions | {base_starts[0]: start} if base_starts else actions  # the base's act()
         startable = base_starts if self.candidates is None else self.candidates.plan(observations, infos)[1]
         if not startable:
             return own
         # The base's choice first (a tie keeps it, and the reuse below continues its rollout).
-        choices = [own] + [choice for choice in (actions | {agent: ADVANCE} for agent in startable) if choice != own]
+        choices = [own] + [choice for choice in (actions | {agent: start} for agent in startable) if choice != own]
         if self.wait and base_starts:  # waiting is not already the base's choice
             choices.append(actions)
         if len(choices) == 1:

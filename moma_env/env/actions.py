@@ -254,7 +254,7 @@ class SwitchingActions(ActionMode):
         lengths = self.leg_lengths
         self._chosen = {}
         for agent, action in actions.items():
-            advance = 1 <= action <= self.n_advances
+            advance = self.is_advance(action)
             if not advance and agent in self.committed:
                 continue  # the leg runs to its end
             if advance:

@@ -8,6 +8,8 @@ Specs understood by :func:`load_policy`:
 * ``"scripted"``: ``agents.policies.scripted_policy(configuration)``;
 * ``"greedy"``: ``agents.policies.GreedyParallelPolicy()`` (as many movers as the
   rules allow; it needs the env's action masks, which its ``env_options`` ask for);
+  ``"greedy@L"`` starts every leg with ``L`` m, one of the env's ``leg_lengths``
+  (``GreedyParallelPolicy(leg_m=L)``, e.g. ``greedy@1.5`` on ``top_observer_team4_legs``);
 * ``"pipeline"``: ``agents.policies.FilePipelinePolicy()`` (a file of robots, every
   other robot moving at once between static neighbours; caterpillar files only);
 * ``"rollout"``: ``agents.policies.GreedyRolloutPolicy()`` (the greedy policy with a
@@ -36,7 +38,9 @@ import importlib
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["Policy", "PolicyLoadError", "PolicyEnvError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "load_policy", "policy_label"]
+__all__ = [
+    "Policy", "PolicyLoadError", "PolicyEnvError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "builtin_name", "load_policy", "policy_label",
+]
 
 #: Policy specs that name a built-in policy rather than a file.
 BUILTIN_POLICIES = (
@@ -69,9 +73,36 @@ class Policy(Protocol):
     def act(self, observations: dict, infos: dict) -> dict: ...
 
 
+#: The built-in policies that take a leg length: ``"greedy@1.5"``.
+_LEG_POLICIES = ("greedy",)
+
+
+def _leg_spec(spec: str) -> tuple[str, float] | None:
+    """``(name, leg m)`` of a spec ``NAME@L`` whose name takes a leg length, else None;
+    PolicyLoadError for such a name with a bad length."""
+    name, sep, text = spec.partition("@")
+    if not sep or name not in _LEG_POLICIES:
+        return None
+    try:
+        leg_m = float(text)
+    except ValueError:
+        leg_m = float("nan")
+    if not 0.0 < leg_m < float("inf"):
+        raise PolicyLoadError(f"policy {spec!r}: the leg length after '@' must be a positive number of metres, got {text!r}")
+    return name, leg_m
+
+
+def builtin_name(spec: str) -> str | None:
+    """The built-in policy a spec names (``"greedy"`` for ``"greedy"`` and ``"greedy@1.5"``), else None."""
+    if spec in BUILTIN_POLICIES:
+        return spec
+    name, sep, _ = spec.partition("@")
+    return name if sep and name in _LEG_POLICIES else None
+
+
 def policy_label(spec: str) -> str:
     """A short name of a policy spec for folders and tables (a path gives its stem)."""
-    if spec in BUILTIN_POLICIES:
+    if builtin_name(spec) is not None:
         return spec
     return Path(spec).stem or "policy"
 
@@ -164,9 +195,12 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         builtin_configuration = configuration
     if not isinstance(spec, str) or not spec:
         raise PolicyLoadError(f"policy must be 'scripted', 'random' or a path, got {spec!r}")
-    if sample_actions and spec in BUILTIN_POLICIES:
+    if sample_actions and builtin_name(spec) is not None:
         raise PolicyLoadError(f"sampling actions applies to a trained policy (a path), not {spec!r}")
-    if spec == "scripted":
+    leg = _leg_spec(spec)
+    if leg is not None:
+        policy = _agents_policies().GreedyParallelPolicy(leg_m=leg[1])
+    elif spec == "scripted":
         module = _agents_policies()
         factory = getattr(module, "scripted_policy", None)
         if factory is None:

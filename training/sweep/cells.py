@@ -19,7 +19,7 @@ from typing import Any
 
 from moma_env.config import ConfigError
 from training.evaluation.harness import evaluate
-from training.evaluation.policies import BUILTIN_POLICIES, POLICY_ACTION_MODES, load_policy
+from training.evaluation.policies import POLICY_ACTION_MODES, builtin_name, load_policy
 from training.sweep.spec import Cell
 
 __all__ = ["run_cell", "run_cells", "CELL_KEYS"]
@@ -41,10 +41,11 @@ def run_cell(cell: Cell, options: Mapping[str, Any]) -> dict[str, Any]:
         PolicyLoadError: the policy spec names no loadable policy.
         ConfigError: a bad scenario or option.
     """
-    sample = bool(options.get("sample_actions", False)) and cell.policy not in BUILTIN_POLICIES
+    builtin = builtin_name(cell.policy)
+    sample = bool(options.get("sample_actions", False)) and builtin is None
     policy = load_policy(cell.policy, cell.scenario, cell.seed, sample_actions=sample)
     env_options = dict(getattr(policy, "env_options", {}))  # a trained policy says which env it fits
-    action_mode = env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(cell.policy, "switching")
+    action_mode = env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(builtin or "", "switching")
     overrides = dict(options.get("overrides", {}))
     for name in overrides.keys() & env_options.keys():
         if overrides[name] != env_options[name]:
