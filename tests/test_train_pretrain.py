@@ -68,6 +68,16 @@ def test_the_pipeline_teacher_demonstrates_two_movers_on_the_bent_file():
     assert not ((actions[:, :-1] == ADVANCE) & (actions[:, 1:] == ADVANCE)).any()  # never two neighbours
 
 
+def test_a_greedy_teacher_with_a_leg_length_starts_its_legs_with_it():
+    config = tiny(scenario="top_observer_team4_legs", pretrain="greedy@1.5", route="centralised", max_cycles=200)
+    demos = collect_demonstrations(env_spec(config), "greedy@1.5", 2, 400, seed=0, route="centralised")
+    actions = demos.actions.reshape(len(demos), -1)
+    masks = demos.masks.reshape(len(demos), actions.shape[1], -1)
+    assert masks.shape[2] == 5 and np.take_along_axis(masks, actions[:, :, None], axis=2).all()
+    assert set(np.unique(actions)) <= {HOLD, ADVANCE, 3}  # 3: the 1.5 m leg; movers continue with ADVANCE
+    assert (actions == 3).any()
+
+
 def test_with_a_learner_the_learner_acts_and_the_teacher_labels():
     # A learner that holds wherever holding is allowed: no robot starts a leg, so the
     # observations never change much, while the teacher's labels ask robots to advance.
@@ -151,6 +161,8 @@ def test_a_pretrained_run_records_its_cloning_and_is_reproducible(tmp_path):
         ({"algo": "dqn"}, "PPO"),
         ({"algo": "ppo", "action_mode": "velocity"}, "switching"),
         ({"pretrain": "planned"}, "greedy"),
+        ({"pretrain": "greedy@x"}, "leg length"),
+        ({"pretrain": "pipeline@1.5"}, "greedy@L"),
         ({"dagger_rounds": -1}, "dagger_rounds"),
         ({"dagger_rows": 0}, "dagger_rows"),
     ],

@@ -38,18 +38,11 @@ import importlib
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
+from training.policy_specs import BUILTIN_POLICIES, POLICY_ACTION_MODES, builtin_name, leg_spec
+
 __all__ = [
     "Policy", "PolicyLoadError", "PolicyEnvError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "builtin_name", "load_policy", "policy_label",
 ]
-
-#: Policy specs that name a built-in policy rather than a file.
-BUILTIN_POLICIES = (
-    "scripted", "greedy", "pipeline", "rollout", "pipeline_rollout", "pipeline_rollout_masks", "planned", "servo", "random",
-)
-
-#: The action mode each built-in policy acts in.
-POLICY_ACTION_MODES = {"scripted": "switching", "greedy": "switching", "pipeline": "switching", "rollout": "switching", "pipeline_rollout": "switching", "pipeline_rollout_masks": "switching", "planned": "velocity", "servo": "velocity", "random": "switching"}
-
 
 #: Built-in policies that are an ``agents.policies`` class made without arguments.
 _CLASS_POLICIES = {"greedy": "GreedyParallelPolicy", "pipeline": "FilePipelinePolicy", "rollout": "GreedyRolloutPolicy", "planned": "PlannedPolicy"}
@@ -71,33 +64,6 @@ class Policy(Protocol):
     def reset(self, env: Any, seed: int | None = None) -> None: ...
 
     def act(self, observations: dict, infos: dict) -> dict: ...
-
-
-#: The built-in policies that take a leg length: ``"greedy@1.5"``.
-_LEG_POLICIES = ("greedy",)
-
-
-def _leg_spec(spec: str) -> tuple[str, float] | None:
-    """``(name, leg m)`` of a spec ``NAME@L`` whose name takes a leg length, else None;
-    PolicyLoadError for such a name with a bad length."""
-    name, sep, text = spec.partition("@")
-    if not sep or name not in _LEG_POLICIES:
-        return None
-    try:
-        leg_m = float(text)
-    except ValueError:
-        leg_m = float("nan")
-    if not 0.0 < leg_m < float("inf"):
-        raise PolicyLoadError(f"policy {spec!r}: the leg length after '@' must be a positive number of metres, got {text!r}")
-    return name, leg_m
-
-
-def builtin_name(spec: str) -> str | None:
-    """The built-in policy a spec names (``"greedy"`` for ``"greedy"`` and ``"greedy@1.5"``), else None."""
-    if spec in BUILTIN_POLICIES:
-        return spec
-    name, sep, _ = spec.partition("@")
-    return name if sep and name in _LEG_POLICIES else None
 
 
 def policy_label(spec: str) -> str:
@@ -197,7 +163,10 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         raise PolicyLoadError(f"policy must be 'scripted', 'random' or a path, got {spec!r}")
     if sample_actions and builtin_name(spec) is not None:
         raise PolicyLoadError(f"sampling actions applies to a trained policy (a path), not {spec!r}")
-    leg = _leg_spec(spec)
+    try:
+        leg = leg_spec(spec)
+    except ValueError as err:
+        raise PolicyLoadError(str(err)) from None
     if leg is not None:
         policy = _agents_policies().GreedyParallelPolicy(leg_m=leg[1])
     elif spec == "scripted":

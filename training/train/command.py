@@ -18,7 +18,7 @@ from moma_env.config import ConfigError
 from moma_env.tasks import TASKS
 from training.cli_args import ACTION_MODE_NAMES, SCENARIO_NAMES, choice, int_at_least, int_at_least_or
 from training.train.command_common import AUTO, report_training, resolved_workers, scenario_rewards
-from training.train.config import ALGORITHMS, NETWORKS, ROUTES, TEACHERS, TrainConfig
+from training.train.config import ALGORITHMS, NETWORKS, ROUTES, TEACHERS, TrainConfig, check_teacher
 
 if TYPE_CHECKING:
     from moma_env.env.config import RewardConfig
@@ -33,6 +33,14 @@ TRAIN_EPILOG = """exit status:
 """
 
 __all__ = ["add_train_parser", "run_train", "config_from_args", "train_command"]
+
+
+def _teacher(text: str) -> str:
+    """An argparse type: a teacher of ``--pretrain`` (:func:`training.train.config.check_teacher`)."""
+    try:
+        return check_teacher("pretrain", text)
+    except ConfigError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def _layers(text: str) -> tuple[int, ...]:
@@ -106,8 +114,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--network", choices=NETWORKS, type=choice(NETWORKS, "network"), default=defaults["network"],
                     help="policy network: SB3's mlp, or team (centralised route: one encoder and head shared by every robot, "
                          "pooled over the team) (default %(default)s)")
-    tr.add_argument("--pretrain", choices=TEACHERS, type=choice(TEACHERS, "teacher"), default=None,
-                    help="clone this scripted policy into the network before learning (behaviour cloning; PPO-like, switching mode) "
+    tr.add_argument("--pretrain", type=_teacher, default=None, metavar="{" + ",".join(TEACHERS) + ",greedy@L}",
+                    help="clone this scripted policy into the network before learning (behaviour cloning; PPO-like, switching mode; "
+                         "greedy@L: the greedy policy starting legs of L m, on a task with leg lengths to choose) "
                          "(default: none, learning starts from random weights)")
     for flag, low, unit, text in (
         ("--pretrain-rows", 1, "row count", "demonstration rows: UGV slot steps (shared route) or env steps (centralised)"),

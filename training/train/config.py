@@ -33,12 +33,13 @@ from typing import TYPE_CHECKING, Any
 from moma_env.config import ConfigError, check_bool, check_choice, check_count, check_non_negative, check_positive, check_range, from_mapping
 from moma_env.registration import CONFIGURATION_NAMES
 from moma_env.tasks import TASKS
+from training.policy_specs import builtin_name, leg_spec
 
 if TYPE_CHECKING:
     from moma_env.env.config import RewardConfig
 
 __all__ = [
-    "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "NETWORKS", "TrainConfig", "reward_overrides",
+    "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "check_teacher", "NETWORKS", "TrainConfig", "reward_overrides",
     "run_env_options", "config_to_dict", "config_from_dict", "BackendTrainConfig", "check_learning_fields", "check_workers",
     "MIN_COPIES_PER_WORKER", "auto_workers", "usable_cores",
 ]
@@ -60,6 +61,19 @@ NETWORKS = ("mlp", "team")
 #: Scripted teachers a run may be cloned from (``pretrain``): built-in switching-mode
 #: policies of :func:`training.evaluation.policies.load_policy`.
 TEACHERS = ("greedy", "pipeline", "scripted")
+
+
+def check_teacher(name: str, teacher: object) -> str:
+    """``teacher`` if it is a teacher: one of :data:`TEACHERS`, or ``greedy@L`` (the greedy
+    policy starting legs of ``L`` m on an env with ``leg_lengths``); ConfigError naming ``name``."""
+    if isinstance(teacher, str):
+        try:
+            leg_spec(teacher)
+        except ValueError as err:
+            raise ConfigError(name, str(err)) from None
+        if builtin_name(teacher) in TEACHERS:
+            return teacher
+    raise ConfigError(name, f"must be one of {list(TEACHERS)} or greedy@L (L m legs), got {teacher!r}")
 def check_learning_fields(config: Any) -> None:
     """ConfigError naming the first bad one of the fields every training configuration has
     (:class:`TrainConfig`, :class:`BackendTrainConfig`): ``max_cycles``,
@@ -240,7 +254,7 @@ class TrainConfig:
             raise ConfigError("network", "the team network gives each robot of the centralised team its switching action: "
                               "use --route centralised --action-mode switching with --algo ppo or maskable_ppo")
         if self.pretrain is not None:
-            check_choice("pretrain", self.pretrain, TEACHERS)
+            check_teacher("pretrain", self.pretrain)
             if self.algo not in PRETRAINABLE:
                 raise ConfigError("pretrain", f"behaviour cloning initialises PPO's actor and critic: use --algo {' or '.join(sorted(PRETRAINABLE))}")
             if self.action_mode != "switching":

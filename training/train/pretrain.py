@@ -42,7 +42,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from moma_env.vector import MomaVectorEnv
 from training.evaluation.policies import load_policy
-from training.train.config import TEACHERS, TrainConfig
+from training.train.config import TrainConfig, check_teacher
 from training.train.envs import env_spec
 from training.train.team_slots import SLOT_LAYOUTS, EnvSpec
 
@@ -106,7 +106,7 @@ def collect_demonstrations(
         spec: the run's env (its options are the training env's; the teacher's own
             env options, e.g. ``action_masks=True``, are added, which change no
             observation, action or reward).
-        teacher: one of :data:`TEACHERS`.
+        teacher: one of :data:`TEACHERS`, or ``greedy@L`` (:func:`~training.train.config.check_teacher`).
         n_copies: copies stepped together.
         rows: rows to record at least (whole env steps of every copy).
         seed: copy ``k`` resets first with ``seed + k * N`` (``shared``, ``N`` UGVs) or
@@ -122,8 +122,7 @@ def collect_demonstrations(
         ValueError: an unknown teacher or route, a teacher for another action mode,
             or an env whose UGVs cannot share one policy.
     """
-    if teacher not in TEACHERS:
-        raise ValueError(f"teacher must be one of {TEACHERS}, got {teacher!r}")
+    check_teacher("teacher", teacher)
     if route not in ("shared", "centralised"):
         raise ValueError(f"route must be 'shared' or 'centralised', got {route!r}")
     if spec.options.get("action_mode", "switching") != "switching":
