@@ -202,3 +202,22 @@ def test_the_candidates_are_another_greedy_policy():
     base = GreedyParallelPolicy()
     with pytest.raises(ValueError, match="another policy than base"):
         GreedyRolloutPolicy(base=base, candidates=base)
+
+
+def test_with_lengths_every_leg_length_of_each_start_is_tried_and_it_arrives_no_later():
+    env = parallel_env("top_observer_team4_legs")
+    observations, infos = env.reset(seed=SEED)
+    policy = load_policy("rollout@1.5", "top_observer_team4_legs")
+    assert policy.lengths and policy.base.leg_m == 1.5
+    policy.reset(env, seed=SEED)
+    base = GreedyParallelPolicy(leg_m=1.5)
+    base.reset(env, seed=SEED)
+    _, startable = base.plan(observations, infos)
+    assert startable
+    policy.act(observations, infos)
+    # one rollout per choice: the base's start (1.5 m), every other length of it and every
+    # length of the other robots that may start, and starting none
+    assert policy.lookaheads == 4 * len(startable) + 1
+    rolled = run_episode(parallel_env("top_observer_team4_legs"), load_policy("rollout@1.5", "top_observer_team4_legs"), 0, SEED)
+    greedy = run_episode(parallel_env("top_observer_team4_legs"), load_policy("greedy@1.5", "top_observer_team4_legs"), 0, SEED)
+    assert rolled.success and greedy.success and rolled.time_to_goal_s <= greedy.time_to_goal_s

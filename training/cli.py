@@ -324,7 +324,7 @@ def _add_evaluate(sub) -> None:
         help="'scripted' (one mover at a time), 'greedy' (as many movers as the rules allow; 'greedy@L' starts legs of L m on "
         "an env with leg_lengths), 'pipeline' (a file of "
         "robots: every other robot moves at once), 'rollout' (the greedy with a lookahead over its starts in copies of the "
-        "env: a planner reading the simulator), 'pipeline_rollout' (the same over the pipeline's starts), "
+        "env: a planner reading the simulator; 'rollout@L' over its starts and every leg length, greedy@L finishing), 'pipeline_rollout' (the same over the pipeline's starts), "
         "'pipeline_rollout_masks' (the same over every start the masks allow, the pipeline finishing), 'planned' "
         "(follows the MOMA navigation planner), 'servo' (caterpillar stand-off servo), 'random', the path of a trained "
         "policy, or the name of a policy published under policies/ ($MOMA_POLICIES_DIR; python -m training.train.publish) "

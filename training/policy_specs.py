@@ -25,8 +25,10 @@ POLICY_ACTION_MODES = {
     "pipeline_rollout_masks": "switching", "planned": "velocity", "servo": "velocity", "random": "switching",
 }
 
-#: The built-in policies that take a leg length after ``@``.
-LEG_POLICIES = ("greedy",)
+#: The built-in policies that take a leg length after ``@``: ``greedy@L`` starts every leg
+#: with ``L`` m; ``rollout@L`` is the lookahead over the starts and every leg length, with
+#: ``greedy@L`` as its base.
+LEG_POLICIES = ("greedy", "rollout")
 
 
 def leg_spec(spec: str) -> tuple[str, float] | None:

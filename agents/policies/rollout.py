@@ -66,6 +66,9 @@ class GreedyRolloutPolicy:
             base's own start, or none, is still tried first), e.g. a greedy policy beside the
             pipeline as base: every start the masks allow, with the pipeline finishing each
             rollout. It acts on the env only through this policy's choices.
+        lengths: also try every leg length the env offers for each start (an env with
+            ``EnvConfig.leg_lengths``; the base's own start, with its length, first), so
+            that the lookahead chooses how far each leg goes as well as who starts.
         **greedy: settings of the default base :class:`GreedyParallelPolicy` (its stall watch).
 
     Attributes:
@@ -87,9 +90,10 @@ class GreedyRolloutPolicy:
         reuse: bool = True,
         base: GreedyParallelPolicy | None = None,
         candidates: GreedyParallelPolicy | None = None,
+        lengths: bool = False,
         **greedy: float,
     ):
-        for name, value in (("wait", wait), ("reuse", reuse)):
+        for name, value in (("wait", wait), ("reuse", reuse), ("lengths", lengths)):
             if not isinstance(value, bool):
                 raise TypeError(f"{name} must be a bool, got {type(value).__name__}")
         if base is not None and not isinstance(base, GreedyParallelPolicy):
@@ -102,6 +106,7 @@ class GreedyRolloutPolicy:
             raise ValueError(f"the greedy settings {sorted(greedy)} are for the default base; give them to the base policy")
         self.wait = wait
         self.reuse = reuse
+        self.lengths = lengths
         self.base = GreedyParallelPolicy(**greedy) if base is None else base
         self.candidates = candidates
         self._env: MomaParallelEnv | None = None
@@ -112,6 +117,8 @@ class GreedyRolloutPolicy:
         if self.candidates is not None:
             self.candidates.reset(env, seed)
         self._env = env
+        n_advances = getattr(env.action_mode, "n_advances", 1)
+        self._start_actions = tuple(range(1, 1 + n_advances)) if self.lengths else None
         self.lookaheads = 0
         self.reused = 0
         self.overrides = 0
@@ -129,7 +136,8 @@ class GreedyRolloutPolicy:
         if not startable:
             return own
         # The base's choice first (a tie keeps it, and the reuse below continues its rollout).
-        choices = [own] + [choice for choice in (actions | {agent: start} for agent in startable) if choice != own]
+        tried = (start,) if self._start_actions is None else self._start_actions
+        choices = [own] + [choice for choice in (actions | {agent: a} for agent in startable for a in tried) if choice != own]
         if self.wait and base_starts:  # waiting is not already the base's choice
             choices.append(actions)
         if len(choices) == 1:

@@ -10,6 +10,8 @@ Specs understood by :func:`load_policy`:
   rules allow; it needs the env's action masks, which its ``env_options`` ask for);
   ``"greedy@L"`` starts every leg with ``L`` m, one of the env's ``leg_lengths``
   (``GreedyParallelPolicy(leg_m=L)``, e.g. ``greedy@1.5`` on ``top_observer_team4_legs``);
+  ``"rollout@L"`` the lookahead over its starts and every leg length, ``greedy@L`` finishing
+  (``GreedyRolloutPolicy(base=GreedyParallelPolicy(leg_m=L), lengths=True)``);
 * ``"pipeline"``: ``agents.policies.FilePipelinePolicy()`` (a file of robots, every
   other robot moving at once between static neighbours; caterpillar files only);
 * ``"rollout"``: ``agents.policies.GreedyRolloutPolicy()`` (the greedy policy with a
@@ -168,7 +170,12 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
     except ValueError as err:
         raise PolicyLoadError(str(err)) from None
     if leg is not None:
-        policy = _agents_policies().GreedyParallelPolicy(leg_m=leg[1])
+        module = _agents_policies()
+        name, leg_m = leg
+        if name == "greedy":
+            policy = module.GreedyParallelPolicy(leg_m=leg_m)
+        else:  # rollout
+            policy = module.GreedyRolloutPolicy(base=module.GreedyParallelPolicy(leg_m=leg_m), lengths=True)
     elif spec == "scripted":
         module = _agents_policies()
         factory = getattr(module, "scripted_policy", None)
