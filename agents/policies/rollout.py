@@ -117,8 +117,8 @@ class GreedyRolloutPolicy:
         if self.candidates is not None:
             self.candidates.reset(env, seed)
         self._env = env
-        n_advances = getattr(env.action_mode, "n_advances", 1)
-        self._start_actions = tuple(range(1, 1 + n_advances)) if self.lengths else None
+        # the base's reset checked the switching mode: its advances are actions 1..n_advances
+        self._start_actions = tuple(range(1, 1 + env.action_mode.n_advances)) if self.lengths else None
         self.lookaheads = 0
         self.reused = 0
         self.overrides = 0

@@ -231,10 +231,6 @@ class SwitchingActions(ActionMode):
         """How many actions UGV ``agent`` has: hold, the advances, and reel when it tows a sled."""
         return 1 + self.n_advances + (1 if agent in self.tows else 0)
 
-    def is_advance(self, action: int) -> bool:
-        """Whether ``action`` advances a leg (1 to K)."""
-        return 1 <= action <= self.n_advances
-
     def reset(self, simulation: Simulation) -> None:
         self.legs = {}
         self.reeling = set()
@@ -252,9 +248,11 @@ class SwitchingActions(ActionMode):
     def requests(self, actions: Mapping[str, Any], mobile: frozenset[str]) -> dict[str, bool]:
         wants: dict[str, bool] = {}
         lengths = self.leg_lengths
-        self._chosen = {}
+        if lengths is not None:
+            self._chosen = {}  # without leg lengths it stays empty: no allocation per step
+        last_advance = self.n_advances
         for agent, action in actions.items():
-            advance = self.is_advance(action)
+            advance = 1 <= action <= last_advance
             if not advance and agent in self.committed:
                 continue  # the leg runs to its end
             if advance:

@@ -74,6 +74,8 @@ def check_teacher(name: str, teacher: object) -> str:
         if builtin_name(teacher) in TEACHERS:
             return teacher
     raise ConfigError(name, f"must be one of {list(TEACHERS)} or greedy@L (L m legs), got {teacher!r}")
+
+
 def check_learning_fields(config: Any) -> None:
     """ConfigError naming the first bad one of the fields every training configuration has
     (:class:`TrainConfig`, :class:`BackendTrainConfig`): ``max_cycles``,
