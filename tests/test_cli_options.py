@@ -84,6 +84,7 @@ def test_the_exit_statuses_are_documented_verbatim():
         (["train", "--scenario", "top_observr", "--out", "x"], "did you mean 'top_observer'?"),
         (["train", "--scenario", "top_observer", "--algo", "maskable-ppo", "--out", "x"], "did you mean 'maskable_ppo'?"),
         (["experiment", "square", "--observer", "quadrocopter"], "did you mean 'quadcopter'?"),
+        (["train", "--scenario", "top_observer", "--pretrain", "gredy", "--out", "x"], "did you mean 'greedy'?"),
         (["train", "--scenario", "top_observer", "--steps", "5", "--out", "x"], "unrecognized arguments: --steps"),
     ],
 )

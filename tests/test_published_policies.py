@@ -60,6 +60,14 @@ def _one_error_line(capsys, prefix: str) -> str:
     return lines[0]
 
 
+def test_the_source_folder_is_recorded_as_given_not_as_the_publishers_absolute_path(run_dir, policies, monkeypatch):
+    monkeypatch.chdir(run_dir.parent)
+    assert publish_module.main([run_dir.name, "tiny_relative"]) == 0
+    published = json.loads((policies / "tiny_relative" / MANIFEST).read_text())["published"]
+    assert published["source"] == run_dir.name  # what --out would say, like the command
+    assert published["command"].endswith(f"--out {run_dir.name}")
+
+
 def test_publish_copies_the_final_checkpoint_with_its_manifest(run_dir, policies, capsys):
     assert publish_module.main([str(run_dir), "tiny_ppo"]) == 0
     assert "published 'tiny_ppo'" in capsys.readouterr().out

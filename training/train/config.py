@@ -25,6 +25,7 @@ camera, the simulator) are imported only when a configuration is checked, so tha
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -73,7 +74,9 @@ def check_teacher(name: str, teacher: object) -> str:
             raise ConfigError(name, str(err)) from None
         if builtin_name(teacher) in TEACHERS:
             return teacher
-    raise ConfigError(name, f"must be one of {list(TEACHERS)} or greedy@L (L m legs), got {teacher!r}")
+    close = difflib.get_close_matches(teacher, TEACHERS, n=1, cutoff=0.6) if isinstance(teacher, str) else []
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    raise ConfigError(name, f"must be one of {list(TEACHERS)} or greedy@L (L m legs), got {teacher!r}{hint}")
 
 
 def check_learning_fields(config: Any) -> None:

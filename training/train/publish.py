@@ -6,7 +6,7 @@ the replay buffer) into ``<policies root>/NAME/`` as ``model.zip`` and
 ``vecnormalize.pkl``, with a ``manifest.json``: the run's own manifest (configuration,
 algorithm, route, timesteps, training wall time in s, env version, git commit of
 the training code) with the new file names, their SHA-256, and ``published``:
-the name, the time (UTC), the source folder, the ``moma-env train`` command line
+the name, the time (UTC), the source folder (as given, like the command's ``--out``), the ``moma-env train`` command line
 that remakes the run (and the settings it cannot express), the training seed,
 timesteps and wall time, the git commit at publishing, and the last held-out
 evaluation of ``evaluations.json``.
@@ -98,7 +98,7 @@ def _published_manifest(run_dir: Path, name: str, manifest: dict[str, Any], chec
         "published": {
             "name": name,
             "published_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-            "source": str(run_dir.resolve()),
+            "source": run_dir.as_posix(),  # as given, like the command's --out: no path of the publisher's machine
             "source_model": manifest["model"],
             "command": shlex.join(argv),
             "command_omits": {field: manifest["config"][field] for field in omitted},
