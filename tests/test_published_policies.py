@@ -211,7 +211,7 @@ def test_the_recorded_command_line_remakes_the_configuration():
         TrainConfig(scenario="top_observer_team4", algo="maskable_ppo", progress_bar=True,
                     rewards=reward_overrides(["time=-0.02"], TASKS["top_observer_team4"].options["rewards"])),
         TrainConfig(scenario="top_observer_team6", algo="maskable_ppo", route="centralised", pretrain="greedy", pretrain_rows=1000,
-                    pretrain_epochs=4, dagger_rounds=1, dagger_rows=500, dagger_epochs=2, steps=0),
+                    pretrain_epochs=4, dagger_rounds=1, dagger_rows=500, dagger_epochs=2, dagger_teacher="rollout", steps=0),
     ]
     for config in configs:
         argv, omitted = train_command(config, "out")

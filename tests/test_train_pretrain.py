@@ -155,6 +155,39 @@ def test_a_pretrained_run_records_its_cloning_and_is_reproducible(tmp_path):
     assert not all(torch.equal(weights[0][k], keep.model.policy.state_dict()[k]) for k in weights[0])
 
 
+def test_another_dagger_teacher_labels_the_rounds_and_its_rows_alone_are_cloned(tmp_path):
+    # cloned from 0.5 m legs, corrected by a teacher starting 1.5 m legs
+    config = tiny(scenario="top_observer_team4_legs", route="centralised", pretrain="greedy@0.5", pretrain_rows=240,
+                  dagger_teacher="greedy@1.5", dagger_rounds=2, dagger_rows=200, dagger_epochs=3, steps=0, eval_every=10**6)
+    train(config, tmp_path / "run")
+    record = json.loads((tmp_path / "run" / PRETRAINING).read_text())
+    assert record["teacher"] == "greedy@0.5" and record["dagger_teacher"] == "greedy@1.5"
+    rows = [r["rows"] for r in record["rounds"]]
+    assert rows[0] >= 240 and 200 <= rows[1] < rows[0] + 200 and rows[2] == 2 * rows[1]  # the second teacher's rows only
+    same = json.loads((tmp_path / "run" / "manifest.json").read_text())["config"]
+    assert TrainConfig.from_dict(same) == config
+
+
+def test_the_rollout_teacher_labels_what_it_chooses_on_its_own_env():
+    from moma_env.env.factory import parallel_env
+    from training.evaluation.policies import load_policy
+
+    config = tiny(scenario="top_observer_team4_legs", route="centralised", pretrain="rollout@1.5", max_cycles=None)
+    spec = env_spec(config)
+    demos = collect_demonstrations(spec, "rollout@1.5", 1, 2, seed=3, route="centralised")
+    policy = load_policy("rollout@1.5", spec.configuration)
+    env = parallel_env(spec.configuration, **(spec.options | dict(policy.env_options)))
+    observations, infos = env.reset(seed=3)
+    policy.reset(env, seed=3)
+    expected = []
+    for _ in range(len(demos)):
+        actions = policy.act(observations, infos)
+        expected.append([actions[a] for a in env.possible_agents if a in actions])
+        observations, _, _, _, infos = env.step(actions)
+    assert policy.lookaheads > 0  # a start was chosen by looking ahead
+    assert demos.actions.tolist() == expected
+
+
 @pytest.mark.parametrize(
     "changes, words",
     [
@@ -165,6 +198,10 @@ def test_a_pretrained_run_records_its_cloning_and_is_reproducible(tmp_path):
         ({"pretrain": "pipeline@1.5"}, "greedy@L"),
         ({"dagger_rounds": -1}, "dagger_rounds"),
         ({"dagger_rows": 0}, "dagger_rows"),
+        ({"dagger_teacher": "planned"}, "rollout@L"),
+        ({"dagger_teacher": "gredy", "dagger_rounds": 1}, "did you mean 'greedy'?"),
+        ({"dagger_teacher": "greedy", "dagger_rounds": 0}, "--dagger-rounds"),
+        ({"dagger_teacher": "greedy", "dagger_rounds": 1, "pretrain": None}, "--pretrain"),
     ],
 )
 def test_bad_pretraining_settings_name_the_field(changes, words):

@@ -9,9 +9,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from types import MappingProxyType
-
 from typing import TYPE_CHECKING
 
 from moma_env.config import ConfigError
@@ -35,12 +35,16 @@ TRAIN_EPILOG = """exit status:
 __all__ = ["add_train_parser", "run_train", "config_from_args", "train_command"]
 
 
-def _teacher(text: str) -> str:
-    """An argparse type: a teacher of ``--pretrain`` (:func:`training.train.config.check_teacher`)."""
-    try:
-        return check_teacher("pretrain", text)
-    except ConfigError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
+def _teacher(field: str) -> Callable[[str], str]:
+    """An argparse type: a teacher of the TrainConfig field ``field`` (:func:`training.train.config.check_teacher`)."""
+
+    def parse(text: str) -> str:
+        try:
+            return check_teacher(field, text)
+        except ConfigError as err:
+            raise argparse.ArgumentTypeError(str(err)) from None
+
+    return parse
 
 
 def _layers(text: str) -> tuple[int, ...]:
@@ -114,9 +118,10 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--network", choices=NETWORKS, type=choice(NETWORKS, "network"), default=defaults["network"],
                     help="policy network: SB3's mlp, or team (centralised route: one encoder and head shared by every robot, "
                          "pooled over the team) (default %(default)s)")
-    tr.add_argument("--pretrain", type=_teacher, default=None, metavar="{" + ",".join(TEACHERS) + ",greedy@L}",
+    tr.add_argument("--pretrain", type=_teacher("pretrain"), default=None, metavar="{" + ",".join(TEACHERS) + ",greedy@L,rollout@L}",
                     help="clone this scripted policy into the network before learning (behaviour cloning; PPO-like, switching mode; "
-                         "greedy@L: the greedy policy starting legs of L m, on a task with leg lengths to choose) "
+                         "greedy@L: the greedy policy starting legs of L m, on a task with leg lengths to choose; rollout: a lookahead "
+                         "reading the simulator, seconds per episode) "
                          "(default: none, learning starts from random weights)")
     for flag, low, unit, text in (
         ("--pretrain-rows", 1, "row count", "demonstration rows: UGV slot steps (shared route) or env steps (centralised)"),
@@ -127,6 +132,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     ):
         field = flag[2:].replace("-", "_")
         tr.add_argument(flag, type=int_at_least(low, unit), default=defaults[field], help=text + " (default %(default)s)")
+    tr.add_argument("--dagger-teacher", type=_teacher("dagger_teacher"), default=None, metavar="TEACHER",
+                    help="the teacher labelling the DAgger rounds, e.g. rollout@1.5 after --pretrain greedy@1.5; its rows "
+                         "alone are then cloned (default: the --pretrain teacher)")
     tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
     tr.add_argument("--json", action="store_true", help="print the final manifest as JSON (default: a summary)")
     from training.train.rllib_command import add_rllib_arguments
@@ -174,6 +182,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         dagger_rounds=args.dagger_rounds,
         dagger_rows=args.dagger_rows,
         dagger_epochs=args.dagger_epochs,
+        dagger_teacher=args.dagger_teacher,
     )
 
 
@@ -185,6 +194,7 @@ _VALUE_OPTIONS = MappingProxyType({
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
     "eval_seed": "--eval-seed", "network": "--network", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",
     "dagger_rounds": "--dagger-rounds", "dagger_rows": "--dagger-rows", "dagger_epochs": "--dagger-epochs",
+    "dagger_teacher": "--dagger-teacher",
 })
 #: TrainConfig fields -> (the flag, the field's value when the flag is given; without it, the other).
 _FLAGS = MappingProxyType({"subproc": ("--subproc", True), "normalize": ("--no-normalize", False),

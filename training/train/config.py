@@ -59,14 +59,16 @@ BOX_ONLY = frozenset({"sac", "td3"})
 PRETRAINABLE = frozenset({"ppo", "maskable_ppo"})
 #: Policy networks (``network``): SB3's MLP, or the team network of :mod:`agents.team_network`.
 NETWORKS = ("mlp", "team")
-#: Scripted teachers a run may be cloned from (``pretrain``): built-in switching-mode
-#: policies of :func:`training.evaluation.policies.load_policy`.
-TEACHERS = ("greedy", "pipeline", "scripted")
+#: Scripted teachers a run may be cloned from (``pretrain``, ``dagger_teacher``): built-in
+#: switching-mode policies of :func:`training.evaluation.policies.load_policy` (``rollout``
+#: reads the simulator: a planner with a perfect model, seconds per episode).
+TEACHERS = ("greedy", "pipeline", "scripted", "rollout")
 
 
 def check_teacher(name: str, teacher: object) -> str:
-    """``teacher`` if it is a teacher: one of :data:`TEACHERS`, or ``greedy@L`` (the greedy
-    policy starting legs of ``L`` m on an env with ``leg_lengths``); ConfigError naming ``name``."""
+    """``teacher`` if it is a teacher: one of :data:`TEACHERS`, or ``greedy@L`` / ``rollout@L``
+    (the greedy policy starting legs of ``L`` m on an env with ``leg_lengths``, or the
+    lookahead over its starts and lengths); ConfigError naming ``name``."""
     if isinstance(teacher, str):
         try:
             leg_spec(teacher)
@@ -76,7 +78,7 @@ def check_teacher(name: str, teacher: object) -> str:
             return teacher
     close = difflib.get_close_matches(teacher, TEACHERS, n=1, cutoff=0.6) if isinstance(teacher, str) else []
     hint = f" (did you mean {close[0]!r}?)" if close else ""
-    raise ConfigError(name, f"must be one of {list(TEACHERS)} or greedy@L (L m legs), got {teacher!r}{hint}")
+    raise ConfigError(name, f"must be one of {list(TEACHERS)}, greedy@L or rollout@L (L m legs), got {teacher!r}{hint}")
 
 
 def check_learning_fields(config: Any) -> None:
@@ -197,6 +199,11 @@ class TrainConfig:
             actions, and clones all the rows so far for ``dagger_epochs`` passes.
         dagger_rows: rows per DAgger round.
         dagger_epochs: cloning passes per DAgger round.
+        dagger_teacher: the teacher that labels the DAgger rounds' states (None: ``pretrain``),
+            e.g. ``"rollout@1.5"`` after cloning ``"greedy@1.5"``: a teacher too slow to
+            demonstrate ``pretrain_rows`` rows, which then corrects the clone where it acts.
+            Its labels disagree with the first teacher's on the choices it is there to
+            change, so each round then clones its rows alone (every round's so far).
     """
 
     scenario: str
@@ -233,6 +240,7 @@ class TrainConfig:
     dagger_rounds: int = 3
     dagger_rows: int = 32_000
     dagger_epochs: int = 8
+    dagger_teacher: str | None = None
 
     def __post_init__(self) -> None:
         from moma_env.env.config import ACTION_MODES
@@ -267,6 +275,10 @@ class TrainConfig:
         for name in ("pretrain_rows", "pretrain_epochs", "dagger_rows", "dagger_epochs"):
             check_count(name, getattr(self, name), 1)
         check_count("dagger_rounds", self.dagger_rounds, 0)
+        if self.dagger_teacher is not None:
+            check_teacher("dagger_teacher", self.dagger_teacher)
+            if self.pretrain is None or self.dagger_rounds == 0:
+                raise ConfigError("dagger_teacher", "labels the DAgger rounds after a cloning: give --pretrain and --dagger-rounds of 1 or more")
         if self.algo in DISCRETE_ONLY and (self.action_mode != "switching" or self.route != "shared"):
             raise ConfigError(
                 "algo", f"{self.algo} needs one discrete action per slot: use --action-mode switching --route shared"

@@ -311,7 +311,8 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
     minibatches of ``config.batch_size``. Then each of ``config.dagger_rounds`` DAgger
     rounds adds ``config.dagger_rows`` rows of the states the cloned policy reaches
     (from seeds after the teacher's), labelled with the teacher's actions, and clones
-    every row so far for ``config.dagger_epochs`` passes.
+    every row so far for ``config.dagger_epochs`` passes. With ``config.dagger_teacher``
+    another teacher labels those states, and the rounds clone its rows alone.
 
     Returns:
         the record of ``pretrain.json``: the teacher, its episodes and successes,
@@ -330,16 +331,20 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
     teacher = {"episodes": demonstrations.episodes, "successes": demonstrations.successes}
     epochs = behaviour_clone(model, demonstrations, normalise_obs, normalise_reward, config.pretrain_epochs, config.batch_size, config.seed)
     rounds: list[dict[str, Any]] = [{"rows": len(demonstrations), "epochs": epochs}]
+    labeller = config.pretrain if config.dagger_teacher is None else config.dagger_teacher
+    # Another teacher's labels are cloned alone: the first's disagree where it corrects them.
+    cloned: Demonstrations | None = demonstrations if labeller == config.pretrain else None
     for k in range(1, config.dagger_rounds + 1):
         # DAgger: the states the cloned policy reaches (other layouts than the teacher's), labelled by the teacher
         seed = config.seed + config.pretrain_rows + (k - 1) * config.dagger_rows
-        visited = collect_demonstrations(spec, config.pretrain, config.envs, config.dagger_rows, seed, config.route, _row_policy(model, normalise_obs))
+        visited = collect_demonstrations(spec, labeller, config.envs, config.dagger_rows, seed, config.route, _row_policy(model, normalise_obs))
         rounds[-1]["learner_episodes"], rounds[-1]["learner_successes"] = visited.episodes, visited.successes
-        demonstrations = demonstrations + visited
-        epochs = behaviour_clone(model, demonstrations, normalise_obs, normalise_reward, config.dagger_epochs, config.batch_size, config.seed + k)
-        rounds.append({"rows": len(demonstrations), "epochs": epochs})
+        cloned = visited if cloned is None else cloned + visited
+        epochs = behaviour_clone(model, cloned, normalise_obs, normalise_reward, config.dagger_epochs, config.batch_size, config.seed + k)
+        rounds.append({"rows": len(cloned), "epochs": epochs})
     return {
         "teacher": config.pretrain,
+        "dagger_teacher": labeller,
         "teacher_episodes": teacher["episodes"],
         "teacher_successes": teacher["successes"],
         "wall_time_s": time.perf_counter() - start,
