@@ -188,8 +188,9 @@ class TrainConfig:
             centralised route in switching mode: one encoder and one action head
             shared by every robot, with max and mean pooling over the team,
             :mod:`agents.team_network`); ``net_arch`` gives its hidden sizes.
-        pretrain: a scripted teacher to clone before learning (``"greedy"``,
-            ``"pipeline"`` (files of robots) or ``"scripted"``, :mod:`training.train.pretrain`; None: start from scratch).
+        pretrain: a scripted teacher to clone before learning (:func:`check_teacher`: ``"greedy"``,
+            ``"pipeline"`` (files of robots), ``"scripted"``, ``"rollout"``, or ``greedy@L`` /
+            ``rollout@L``; :mod:`training.train.pretrain`; None: start from scratch).
             PPO-like algorithms in switching mode only.
         pretrain_rows: teacher demonstration rows to record (UGV slot steps on the
             shared route, env steps on the centralised one).
