@@ -95,6 +95,21 @@ def test_with_a_learner_the_learner_acts_and_the_teacher_labels():
     assert np.array_equal(demos.observations[:8], taught.observations[:8])  # from the same first layouts
 
 
+def test_copies_driven_in_two_processes_give_the_rows_of_one():
+    config = tiny()
+    one = collect_demonstrations(env_spec(config), "greedy", 3, 480, seed=5, route="shared")
+    two = collect_demonstrations(env_spec(config), "greedy", 3, 480, seed=5, route="shared", workers=2)  # copies 0-1 here, 2 there
+    assert two.stride == one.stride == 3 * 4 and (two.episodes, two.successes) == (one.episodes, one.successes)
+    for field in ("observations", "actions", "masks", "rewards", "episode_ends", "complete"):
+        assert np.array_equal(getattr(two, field), getattr(one, field)), field
+
+
+@pytest.mark.parametrize("workers", [0, 3, 1.5])
+def test_more_processes_than_copies_are_refused(workers):
+    with pytest.raises(ValueError, match="workers"):
+        collect_demonstrations(env_spec(tiny()), "greedy", 2, 100, seed=0, workers=workers)
+
+
 def test_discounted_returns_restart_at_episode_ends():
     # two slots, three steps; slot 0's episode ends at step 1
     rewards = np.array([1.0, 10.0, 2.0, 20.0, 4.0, 40.0])
@@ -153,6 +168,18 @@ def test_a_pretrained_run_records_its_cloning_and_is_reproducible(tmp_path):
     train(tiny(pretrain=None), tmp_path / "c", callbacks=[keep])
     assert not (tmp_path / "c" / PRETRAINING).exists()
     assert not all(torch.equal(weights[0][k], keep.model.policy.state_dict()[k]) for k in weights[0])
+
+
+def test_a_cloned_run_with_worker_processes_learns_the_weights_of_one_process(tmp_path):
+    # the teacher's rows and the DAgger round's learner (pickled to the worker) split over two processes
+    weights = []
+    for name, workers in (("one", None), ("two", 2)):
+        keep = KeepModel()
+        train(tiny(dagger_rounds=1, workers=workers, eval_every=10**6), tmp_path / name, callbacks=[keep])
+        weights.append(keep.model.policy.state_dict())
+    assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])
+    rounds = [json.loads((tmp_path / name / PRETRAINING).read_text())["rounds"] for name in ("one", "two")]
+    assert [r["rows"] for r in rounds[0]] == [r["rows"] for r in rounds[1]]
 
 
 def test_another_dagger_teacher_labels_the_rounds_and_its_rows_alone_are_cloned(tmp_path):

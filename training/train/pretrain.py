@@ -24,13 +24,20 @@ Everything is seeded: the envs from the run's seed (copy ``k`` resets first with
 ``seed + k * N``, as :class:`~training.train.shared_vec_env.SharedPolicyVecEnv`
 seeds it), the minibatch order from a generator of the run's seed, the network
 from the model's own seeding; the same seed and thread count give the same weights.
+With ``workers`` (the run's ``--workers``) the copies are driven by that many
+processes side by side, each with its own teachers, and the rows joined in copy
+order: the rows, and so the weights, of one process, in less wall time when the
+teacher is slow (the lookahead teachers spend seconds of one core per episode).
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import multiprocessing as mp
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 from dataclasses import dataclass
 
@@ -41,12 +48,13 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from moma_env.vector import MomaVectorEnv
+from moma_env.vector.sharded import default_start_method, shard_sizes
 from training.evaluation.policies import load_policy
 from training.train.config import TrainConfig, check_teacher
 from training.train.envs import env_spec
 from training.train.team_slots import SLOT_LAYOUTS, EnvSpec
 
-__all__ = ["Demonstrations", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
+__all__ = ["Demonstrations", "ModelRowPolicy", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
 
 
 
@@ -98,7 +106,14 @@ RowPolicy = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def collect_demonstrations(
-    spec: EnvSpec, teacher: str, n_copies: int, rows: int, seed: int, route: str = "shared", learner: RowPolicy | None = None
+    spec: EnvSpec,
+    teacher: str,
+    n_copies: int,
+    rows: int,
+    seed: int,
+    route: str = "shared",
+    learner: RowPolicy | None = None,
+    workers: int = 1,
 ) -> Demonstrations:
     """Drive ``n_copies`` copies of ``spec`` with ``teacher`` until at least ``rows`` rows are recorded.
 
@@ -117,30 +132,61 @@ def collect_demonstrations(
         learner: None: the teacher acts. Else the learner acts and the teacher only
             labels every row with what it would have done (DAgger: the states are
             the learner's, the actions the teacher's).
+        workers: processes driving the copies, this one included: the copies are
+            split into ``workers`` contiguous groups (:func:`~moma_env.vector.sharded.shard_sizes`)
+            driven side by side, each with its own teachers, and their rows are joined
+            in copy order. Every copy's episodes are its own, so the rows are those of
+            one process bit for bit, as long as ``learner`` gives a row the same action
+            in a smaller batch; with ``workers > 1`` the learner must pickle
+            (:class:`ModelRowPolicy` does) and runs with this process's torch threads.
 
     Raises:
         ValueError: an unknown teacher or route, a teacher for another action mode,
-            or an env whose UGVs cannot share one policy.
+            an env whose UGVs cannot share one policy, or ``workers`` outside ``[1, n_copies]``.
     """
     check_teacher("teacher", teacher)
     if route not in ("shared", "centralised"):
         raise ValueError(f"route must be 'shared' or 'centralised', got {route!r}")
     if spec.options.get("action_mode", "switching") != "switching":
         raise ValueError(f"the {teacher} teacher acts in the switching action mode, the run trains in {spec.options['action_mode']!r}")
-    policies = [load_policy(teacher, spec.configuration) for _ in range(n_copies)]
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= n_copies:
+        raise ValueError(f"workers must be an integer in [1, n_copies={n_copies}], got {workers!r}")
+    groups: list[tuple[int, int]] = []
+    first = 0
+    for size in shard_sizes(n_copies, workers):
+        groups.append((first, size))
+        first += size
+    drive = functools.partial(_drive_copies, spec, teacher, n_copies, rows, seed, route, learner, torch.get_num_threads())
+    if workers == 1:
+        return drive(*groups[0])
+    context = mp.get_context(default_start_method())
+    with ProcessPoolExecutor(max_workers=workers - 1, mp_context=context) as pool:
+        others = [pool.submit(drive, *group) for group in groups[1:]]  # the first group is driven here meanwhile
+        parts = [drive(*groups[0])] + [future.result() for future in others]
+    return _interleave(parts)
+
+
+def _drive_copies(
+    spec: EnvSpec, teacher: str, n_copies: int, rows: int, seed: int, route: str, learner: RowPolicy | None,
+    torch_threads: int, first: int, size: int,
+) -> Demonstrations:
+    """Copies ``first .. first + size - 1`` of :func:`collect_demonstrations`' ``n_copies``,
+    for as many env steps as all of them need for ``rows`` rows: their rows, in copy order."""
+    torch.set_num_threads(torch_threads)  # a worker process starts with torch's default
+    policies = [load_policy(teacher, spec.configuration) for _ in range(size)]
     options = dict(spec.options) | dict(getattr(policies[0], "env_options", {}))
-    vector = MomaVectorEnv(spec.configuration, n_copies, **options)
+    vector = MomaVectorEnv(spec.configuration, size, **options)
     try:
         shared = route == "shared"
         layout = SLOT_LAYOUTS["ugv" if shared else "team"](vector.envs[0])  # a row per slot of the run's VecEnv
         agents = layout.agents
         n = len(agents)
-        seeds = [seed + k * layout.per_copy for k in range(n_copies)]
+        seeds = [seed + k * layout.per_copy for k in range(first, first + size)]
         observations, infos = vector.reset(seed=seeds)
         for k, policy in enumerate(policies):
             policy.reset(vector.envs[k], seed=seeds[k])
-        stride = n_copies * layout.per_copy  # rows per env step of every copy
-        steps = math.ceil(rows / stride)
+        stride = size * layout.per_copy  # rows per env step of these copies
+        steps = math.ceil(rows / (n_copies * layout.per_copy))  # env steps of every copy
         total = steps * stride
         obs_out = np.empty((total, *layout.observation_space.shape), dtype=np.float32)
         act_out = np.empty((total,) if shared else (total, n), dtype=np.int64)
@@ -150,7 +196,7 @@ def collect_demonstrations(
         episodes = successes = 0
         for t in range(steps):
             masks = vector.action_masks()
-            actions = {a: np.empty(n_copies, dtype=np.int64) for a in agents}
+            actions = {a: np.empty(size, dtype=np.int64) for a in agents}
             for k, policy in enumerate(policies):
                 chosen = policy.act({a: observations[a][k] for a in agents}, infos[k])
                 for a in agents:
@@ -160,10 +206,10 @@ def collect_demonstrations(
             act_out[block] = np.stack([actions[a] for a in agents], axis=1).reshape(act_out[block].shape)  # (K, N): per slot or copy
             mask_out[block] = layout.mask_rows(masks)
             if learner is not None:
-                acted = np.asarray(learner(obs_out[block], mask_out[block]), dtype=np.int64).reshape(n_copies, n)
+                acted = np.asarray(learner(obs_out[block], mask_out[block]), dtype=np.int64).reshape(size, n)
                 actions = {a: acted[:, j].copy() for j, a in enumerate(agents)}
             observations, rewards, terminations, truncations, infos = vector.step(actions)
-            ended = np.zeros(n_copies, dtype=bool)
+            ended = np.zeros(size, dtype=bool)
             for a in agents:
                 ended |= np.asarray(terminations[a], dtype=bool) | np.asarray(truncations[a], dtype=bool)
             reward_out[block] = np.repeat(np.asarray(rewards[agents[0]], dtype=np.float32), layout.per_copy)  # SB3's reward precision
@@ -176,6 +222,24 @@ def collect_demonstrations(
         return Demonstrations(obs_out, act_out, mask_out, reward_out, end_out, _ended_later(end_out, stride), stride, episodes, successes)
     finally:
         vector.close()
+
+
+def _interleave(parts: Sequence[Demonstrations]) -> Demonstrations:
+    """The rows of groups of copies driven apart for the same env steps, joined step by
+    step in copy order (each step's block: the first group's rows, then the next's)."""
+    steps = len(parts[0]) // parts[0].stride
+
+    def join(field: str) -> np.ndarray:
+        blocks = [getattr(p, field).reshape(steps, p.stride, *getattr(p, field).shape[1:]) for p in parts]
+        joined = np.concatenate(blocks, axis=1)
+        return joined.reshape(steps * joined.shape[1], *joined.shape[2:])
+
+    ends = join("episode_ends")
+    stride = sum(p.stride for p in parts)
+    return Demonstrations(
+        join("observations"), join("actions"), join("masks"), join("rewards"), ends, _ended_later(ends, stride), stride,
+        sum(p.episodes for p in parts), sum(p.successes for p in parts),
+    )
 
 
 def seed_normalisation(venv: VecNormalize, demonstrations: Demonstrations) -> None:
@@ -312,7 +376,8 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
     rounds adds ``config.dagger_rows`` rows of the states the cloned policy reaches
     (from seeds after the teacher's), labelled with the teacher's actions, and clones
     every row so far for ``config.dagger_epochs`` passes. With ``config.dagger_teacher``
-    another teacher labels those states, and the rounds clone its rows alone.
+    another teacher labels those states, and the rounds clone its rows alone. The
+    copies are driven by ``config.workers`` processes (:func:`collect_demonstrations`).
 
     Returns:
         the record of ``pretrain.json``: the teacher, its episodes and successes,
@@ -322,7 +387,8 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
     """
     start = time.perf_counter()
     spec = env_spec(config)
-    demonstrations = collect_demonstrations(spec, config.pretrain, config.envs, config.pretrain_rows, config.seed, config.route)
+    workers = 1 if config.workers is None else config.workers  # the processes that step the run's copies drive the teachers'
+    demonstrations = collect_demonstrations(spec, config.pretrain, config.envs, config.pretrain_rows, config.seed, config.route, workers=workers)
     normalise_obs = normalise_reward = None
     if isinstance(venv, VecNormalize):
         seed_normalisation(venv, demonstrations)
@@ -337,7 +403,8 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
     for k in range(1, config.dagger_rounds + 1):
         # DAgger: the states the cloned policy reaches (other layouts than the teacher's), labelled by the teacher
         seed = config.seed + config.pretrain_rows + (k - 1) * config.dagger_rows
-        visited = collect_demonstrations(spec, labeller, config.envs, config.dagger_rows, seed, config.route, _row_policy(model, normalise_obs))
+        learner = ModelRowPolicy(model.policy, venv if isinstance(venv, VecNormalize) else None)
+        visited = collect_demonstrations(spec, labeller, config.envs, config.dagger_rows, seed, config.route, learner, workers)
         rounds[-1]["learner_episodes"], rounds[-1]["learner_successes"] = visited.episodes, visited.successes
         cloned = visited if cloned is None else cloned + visited
         epochs = behaviour_clone(model, cloned, normalise_obs, normalise_reward, config.dagger_epochs, config.batch_size, config.seed + k)
@@ -352,16 +419,24 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
     }
 
 
-def _row_policy(model: BaseAlgorithm, normalise_obs: Callable[[np.ndarray], np.ndarray] | None) -> RowPolicy:
-    """``model``'s most likely actions (among the allowed ones, for a masked model) on demonstration rows."""
-    masked = isinstance(model.policy, MaskableActorCriticPolicy)
+class ModelRowPolicy:
+    """A PPO-like policy's most likely actions on demonstration rows (among the allowed
+    ones, for a masked policy): a :data:`RowPolicy` that pickles, to act in a worker process.
 
-    def act(observations: np.ndarray, masks: np.ndarray) -> np.ndarray:
-        obs = observations if normalise_obs is None else normalise_obs(observations)
-        if masked:
-            actions, _ = model.predict(obs, deterministic=True, action_masks=masks)
+    Args:
+        policy: the model's ``policy`` (SB3 ``ActorCriticPolicy`` or sb3-contrib's maskable one).
+        normalisation: the run's ``VecNormalize`` whose observation statistics the policy
+            sees (pickled without its envs), or None (the rows as they are).
+    """
+
+    def __init__(self, policy: torch.nn.Module, normalisation: VecNormalize | None):
+        self.policy = policy
+        self.normalisation = normalisation if normalisation is not None and normalisation.norm_obs else None
+
+    def __call__(self, observations: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        obs = observations if self.normalisation is None else self.normalisation.normalize_obs(observations)
+        if isinstance(self.policy, MaskableActorCriticPolicy):
+            actions, _ = self.policy.predict(obs, deterministic=True, action_masks=masks)
         else:
-            actions, _ = model.predict(obs, deterministic=True)
+            actions, _ = self.policy.predict(obs, deterministic=True)
         return actions
-
-    return act
