@@ -72,6 +72,7 @@ from moma_env.io import read_json_in
 
 __all__ = [
     "LearnedPolicy",
+    "ObservationScaling",
     "TrainingDirError",
     "read_manifest",
     "sb3_class",
@@ -101,6 +102,44 @@ _REPOSITORY_POLICIES = Path(__file__).resolve().parents[1] / "policies"
 PUBLISHED_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 
 ObservationNormaliser = Callable[[np.ndarray], np.ndarray]
+
+
+class ObservationScaling:
+    """The observation transform of Stable-Baselines3's ``VecNormalize``, its statistics
+    frozen: ``clip((obs - mean) / sqrt(var + epsilon), -clip, clip)`` as float32, the
+    same numbers as ``VecNormalize.normalize_obs`` bit for bit. Unlike a ``VecNormalize``
+    loaded from a run (which pickles only with its envs' attributes) it pickles, so a
+    policy can act in a worker process.
+
+    Args:
+        mean, var: per-feature running mean and variance of the raw observations (float64).
+        clip: bound of the scaled observations.
+        epsilon: added to the variance.
+    """
+
+    def __init__(self, mean: np.ndarray, var: np.ndarray, clip: float, epsilon: float):
+        self.mean = np.array(mean, dtype=np.float64)
+        self.var = np.array(var, dtype=np.float64)
+        self.clip = float(clip)
+        self.epsilon = float(epsilon)
+
+    @classmethod
+    def from_vec_normalize(cls, statistics: Any) -> "ObservationScaling | None":
+        """The transform of a ``VecNormalize`` (live or loaded), None if it leaves observations alone.
+
+        Raises:
+            ValueError: statistics per key of a dict observation (the envs here have one array).
+        """
+        if not statistics.norm_obs:
+            return None
+        rms = statistics.obs_rms
+        if isinstance(rms, dict):
+            raise ValueError("VecNormalize statistics per observation key are not supported: the observations are one array")
+        return cls(rms.mean, rms.var, statistics.clip_obs, statistics.epsilon)
+
+    def __call__(self, observations: np.ndarray) -> np.ndarray:
+        scaled = np.clip((observations - self.mean) / np.sqrt(self.var + self.epsilon), -self.clip, self.clip)
+        return scaled.astype(np.float32)
 
 
 class TrainingDirError(ValueError):
@@ -323,7 +362,7 @@ class LearnedPolicy(TrainedUgvPolicy):
         route: ``"shared"`` or ``"centralised"``.
         action_mode: the env action mode it was trained in.
         normalise: maps a batch of raw observations to the model's inputs
-            (``VecNormalize.normalize_obs``), or None.
+            (an :class:`ObservationScaling`, or ``VecNormalize.normalize_obs``), or None.
         configuration: the configuration name it was trained on, if known.
         torch_threads: torch's thread count while the network runs (>= 1).
         deterministic: act with the mode of the action distribution (True) or
@@ -346,7 +385,7 @@ class LearnedPolicy(TrainedUgvPolicy):
         self.route = route
         self.action_mode = action_mode
         self.configuration = configuration
-        self._normalise = normalise
+        self.normalise = normalise
         self._agents: list[str] = []
         self._team: CentralisedTeamEnv | None = None
         self._discrete = isinstance(model.action_space, spaces.Discrete)
@@ -396,8 +435,11 @@ class LearnedPolicy(TrainedUgvPolicy):
             if not callable(getattr(stats, "normalize_obs", None)):
                 raise TrainingDirError(f"cannot load the normalisation statistics {str(directory / manifest['vecnormalize'])!r}: "
                                        f"a pickled {type(stats).__name__}, not SB3 VecNormalize statistics")
-            if getattr(stats, "norm_obs", False):
-                normalise = stats.normalize_obs
+            try:
+                normalise = ObservationScaling.from_vec_normalize(stats)
+            except (AttributeError, ValueError) as err:
+                raise TrainingDirError(f"cannot use the normalisation statistics {str(directory / manifest['vecnormalize'])!r}: "
+                                       f"{_first_line(err)}") from None
         return cls(model, manifest["route"], config["action_mode"], normalise, trained_on, deterministic=deterministic)
 
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
@@ -416,8 +458,8 @@ class LearnedPolicy(TrainedUgvPolicy):
             raise ValueError(f"the model expects observations of shape {expected}; this env gives {got}")
 
     def _predict(self, batch: np.ndarray, masks: np.ndarray | None = None) -> np.ndarray:
-        if self._normalise is not None:
-            batch = self._normalise(batch)
+        if self.normalise is not None:
+            batch = self.normalise(batch)
         extra = {} if masks is None else {"action_masks": masks}
         with torch_threads(self.torch_threads):
             if self.deterministic:

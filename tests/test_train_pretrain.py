@@ -182,6 +182,24 @@ def test_a_cloned_run_with_worker_processes_learns_the_weights_of_one_process(tm
     assert [r["rows"] for r in rounds[0]] == [r["rows"] for r in rounds[1]]
 
 
+def test_the_frozen_scaling_is_vecnormalizes_and_pickles_after_loading(tmp_path):
+    import pickle
+
+    from agents.learned import ObservationScaling
+
+    config = tiny()
+    venv = wrap_normalisation(make_vec_env(config, 0), config)
+    demos = collect_demonstrations(env_spec(config), "greedy", 2, 400, seed=0)
+    seed_normalisation(venv, demos)
+    venv.save(tmp_path / "stats.pkl")
+    with open(tmp_path / "stats.pkl", "rb") as f:
+        loaded = pickle.load(f)  # as LearnedPolicy.from_dir loads a run's statistics: no envs, and SB3 cannot pickle it again
+    scaling = pickle.loads(pickle.dumps(ObservationScaling.from_vec_normalize(loaded)))
+    rows = demos.observations * np.float32(1.5) + np.float32(0.25)  # some beyond the clip
+    assert np.array_equal(scaling(rows), venv.normalize_obs(rows)) and scaling(rows).dtype == np.float32
+    venv.close()
+
+
 def test_another_dagger_teacher_labels_the_rounds_and_its_rows_alone_are_cloned(tmp_path):
     # cloned from 0.5 m legs, corrected by a teacher starting 1.5 m legs
     config = tiny(scenario="top_observer_team4_legs", route="centralised", pretrain="greedy@0.5", pretrain_rows=240,

@@ -47,6 +47,7 @@ from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
+from agents.learned import ObservationScaling
 from moma_env.vector import MomaVectorEnv
 from moma_env.vector.sharded import default_start_method, shard_sizes
 from training.evaluation.policies import load_policy
@@ -403,7 +404,7 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
     for k in range(1, config.dagger_rounds + 1):
         # DAgger: the states the cloned policy reaches (other layouts than the teacher's), labelled by the teacher
         seed = config.seed + config.pretrain_rows + (k - 1) * config.dagger_rows
-        learner = ModelRowPolicy(model.policy, venv if isinstance(venv, VecNormalize) else None)
+        learner = ModelRowPolicy(model.policy, None if normalise_obs is None else ObservationScaling.from_vec_normalize(venv))
         visited = collect_demonstrations(spec, labeller, config.envs, config.dagger_rows, seed, config.route, learner, workers)
         rounds[-1]["learner_episodes"], rounds[-1]["learner_successes"] = visited.episodes, visited.successes
         cloned = visited if cloned is None else cloned + visited
@@ -425,16 +426,16 @@ class ModelRowPolicy:
 
     Args:
         policy: the model's ``policy`` (SB3 ``ActorCriticPolicy`` or sb3-contrib's maskable one).
-        normalisation: the run's ``VecNormalize`` whose observation statistics the policy
-            sees (pickled without its envs), or None (the rows as they are).
+        normalise: maps the rows to the policy's inputs, or None (the rows as they are);
+            with workers it must pickle (:class:`~agents.learned.ObservationScaling` does).
     """
 
-    def __init__(self, policy: torch.nn.Module, normalisation: VecNormalize | None):
+    def __init__(self, policy: torch.nn.Module, normalise: Callable[[np.ndarray], np.ndarray] | None):
         self.policy = policy
-        self.normalisation = normalisation if normalisation is not None and normalisation.norm_obs else None
+        self.normalise = normalise
 
     def __call__(self, observations: np.ndarray, masks: np.ndarray) -> np.ndarray:
-        obs = observations if self.normalisation is None else self.normalisation.normalize_obs(observations)
+        obs = observations if self.normalise is None else self.normalise(observations)
         if isinstance(self.policy, MaskableActorCriticPolicy):
             actions, _ = self.policy.predict(obs, deterministic=True, action_masks=masks)
         else:
