@@ -112,7 +112,8 @@ class ObservationScaling:
     policy can act in a worker process.
 
     Args:
-        mean, var: per-feature running mean and variance of the raw observations (float64).
+        mean: per-feature running mean of the raw observations (float64).
+        var: per-feature running variance of the raw observations (float64).
         clip: bound of the scaled observations.
         epsilon: added to the variance.
     """
