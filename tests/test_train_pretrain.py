@@ -20,7 +20,7 @@ from moma_env.config import ConfigError
 from training.train.config import TrainConfig
 from training.train.envs import env_spec, make_vec_env, wrap_normalisation
 from training.train.models import build_model
-from training.train.pretrain import behaviour_clone, collect_demonstrations, discounted_returns, seed_normalisation
+from training.train.pretrain import Demonstrations, behaviour_clone, choice_agreement, collect_demonstrations, discounted_returns, seed_normalisation
 from training.train.run import PRETRAINING, train
 
 TASK = "top_observer_team4"  # greedy parallel turns: several movers, commit_legs, action masks
@@ -93,6 +93,33 @@ def test_with_a_learner_the_learner_acts_and_the_teacher_labels():
     taught = collect_demonstrations(env_spec(config), "greedy", 2, 400, seed=0)
     assert not np.array_equal(demos.observations, taught.observations)  # the states are the learner's
     assert np.array_equal(demos.observations[:8], taught.observations[:8])  # from the same first layouts
+
+
+def test_a_collection_reports_each_tenth_of_its_steps_and_its_rows_stay_the_same():
+    config = tiny(route="centralised")
+    lines = []
+    reported = collect_demonstrations(env_spec(config), "greedy", 2, 400, seed=0, route="centralised", report=lines.append)
+    silent = collect_demonstrations(env_spec(config), "greedy", 2, 400, seed=0, route="centralised")
+    assert [line.split(" %")[0] for line in lines] == [str(10 * k) for k in range(1, 10)]
+    assert all("of 200 env steps, copies 0..1" in line for line in lines)  # 400 rows of 2 copies
+    assert np.array_equal(reported.observations, silent.observations) and np.array_equal(reported.actions, silent.actions)
+
+
+def test_the_choice_agreement_counts_the_rows_with_a_choice_only():
+    config = tiny(route="centralised")
+    demos = collect_demonstrations(env_spec(config), "greedy", 2, 400, seed=0, route="centralised")
+    assert choice_agreement(demos, demos.actions) == 1.0
+    per_agent = demos.masks.reshape(len(demos), 4, 2)
+    forced = ~(per_agent.sum(axis=2) > 1).any(axis=1)
+    choice = np.flatnonzero(~forced)
+    other = demos.actions.copy()
+    other[forced] = 1 - other[forced]  # a forced row's action changed: not counted
+    assert choice_agreement(demos, other) == 1.0
+    other[choice[:3]] = 1 - other[choice[:3]]
+    assert choice_agreement(demos, other) == pytest.approx(1.0 - 3 / len(choice))
+    only_forced = Demonstrations(*(getattr(demos, f)[forced] for f in ("observations", "actions", "masks", "rewards", "episode_ends", "complete")),
+                                  demos.stride, demos.episodes, demos.successes)
+    assert np.isnan(choice_agreement(only_forced, only_forced.actions))
 
 
 def test_copies_driven_in_two_processes_give_the_rows_of_one():
@@ -200,15 +227,24 @@ def test_the_frozen_scaling_is_vecnormalizes_and_pickles_after_loading(tmp_path)
     venv.close()
 
 
-def test_another_dagger_teacher_labels_the_rounds_and_its_rows_alone_are_cloned(tmp_path):
+def test_another_dagger_teacher_labels_the_rounds_and_its_rows_alone_are_cloned(tmp_path, capsys):
     # cloned from 0.5 m legs, corrected by a teacher starting 1.5 m legs
     config = tiny(scenario="top_observer_team4_legs", route="centralised", pretrain="greedy@0.5", pretrain_rows=240,
-                  dagger_teacher="greedy@1.5", dagger_rounds=2, dagger_rows=200, dagger_epochs=3, steps=0, eval_every=10**6)
+                  dagger_teacher="greedy@1.5", dagger_rounds=2, dagger_rows=200, dagger_epochs=3, steps=0, eval_every=10**6,
+                  progress_bar=True)
     train(config, tmp_path / "run")
     record = json.loads((tmp_path / "run" / PRETRAINING).read_text())
     assert record["teacher"] == "greedy@0.5" and record["dagger_teacher"] == "greedy@1.5"
     rows = [r["rows"] for r in record["rounds"]]
     assert rows[0] >= 240 and 200 <= rows[1] < rows[0] + 200 and rows[2] == 2 * rows[1]  # the second teacher's rows only
+    # where a robot may start, the 1.5 m teacher starts one with the 1.5 m leg, never in the 0.5 m clone's rows
+    agreement = [r["learner_choice_agreement"] for r in record["rounds"][:2]]
+    assert agreement[0] == 0.0 and 0.0 <= agreement[1] <= 1.0 and "learner_choice_agreement" not in record["rounds"][2]
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("moma-env train: pretraining: 240 rows of greedy@0.5 on 2 copies")
+    assert any("DAgger round 2 of 2: 200 rows" in line for line in err)
+    assert sum("cloned in" in line for line in err) == 3  # the cloning, then each round's fit
+    assert any(f"chose as greedy@1.5 on {agreement[0]:.1%}" in line for line in err)
     same = json.loads((tmp_path / "run" / "manifest.json").read_text())["config"]
     assert TrainConfig.from_dict(same) == config
 

@@ -36,7 +36,7 @@ import functools
 import math
 import multiprocessing as mp
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 from dataclasses import dataclass
@@ -55,7 +55,7 @@ from training.train.config import TrainConfig, check_teacher
 from training.train.envs import env_spec
 from training.train.team_slots import SLOT_LAYOUTS, EnvSpec
 
-__all__ = ["Demonstrations", "ModelRowPolicy", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
+__all__ = ["Demonstrations", "ModelRowPolicy", "choice_agreement", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
 
 
 
@@ -115,6 +115,7 @@ def collect_demonstrations(
     route: str = "shared",
     learner: RowPolicy | None = None,
     workers: int = 1,
+    report: Callable[[str], None] | None = None,
 ) -> Demonstrations:
     """Drive ``n_copies`` copies of ``spec`` with ``teacher`` until at least ``rows`` rows are recorded.
 
@@ -140,6 +141,9 @@ def collect_demonstrations(
             one process bit for bit, as long as ``learner`` gives a row the same action
             in a smaller batch; with ``workers > 1`` the learner must pickle
             (:class:`ModelRowPolicy` does) and runs with this process's torch threads.
+        report: called with a line of progress after each tenth of the env steps of the
+            copies driven in this process (the other groups step as many times, each
+            at its own pace), or None (silent).
 
     Raises:
         ValueError: an unknown teacher or route, a teacher for another action mode,
@@ -159,20 +163,21 @@ def collect_demonstrations(
         first += size
     drive = functools.partial(_drive_copies, spec, teacher, n_copies, rows, seed, route, learner, torch.get_num_threads())
     if workers == 1:
-        return drive(*groups[0])
+        return drive(*groups[0], report)
     context = mp.get_context(default_start_method())
     with ProcessPoolExecutor(max_workers=workers - 1, mp_context=context) as pool:
-        others = [pool.submit(drive, *group) for group in groups[1:]]  # the first group is driven here meanwhile
-        parts = [drive(*groups[0])] + [future.result() for future in others]
+        others = [pool.submit(drive, *group, None) for group in groups[1:]]  # the first group is driven here meanwhile
+        parts = [drive(*groups[0], report)] + [future.result() for future in others]
     return _interleave(parts)
 
 
 def _drive_copies(
     spec: EnvSpec, teacher: str, n_copies: int, rows: int, seed: int, route: str, learner: RowPolicy | None,
-    torch_threads: int, first: int, size: int,
+    torch_threads: int, first: int, size: int, report: Callable[[str], None] | None,
 ) -> Demonstrations:
     """Copies ``first .. first + size - 1`` of :func:`collect_demonstrations`' ``n_copies``,
-    for as many env steps as all of them need for ``rows`` rows: their rows, in copy order."""
+    for as many env steps as all of them need for ``rows`` rows: their rows, in copy order
+    (``report``: see :func:`collect_demonstrations`)."""
     torch.set_num_threads(torch_threads)  # a worker process starts with torch's default
     policies = [load_policy(teacher, spec.configuration) for _ in range(size)]
     options = dict(spec.options) | dict(getattr(policies[0], "env_options", {}))
@@ -195,7 +200,14 @@ def _drive_copies(
         reward_out = np.empty(total, dtype=np.float64)
         end_out = np.zeros(total, dtype=bool)
         episodes = successes = 0
+        started = time.perf_counter()
+        tenths = {math.ceil(steps * k / 10): k for k in range(1, 10)}  # step count -> tenth
         for t in range(steps):
+            if report is not None and t in tenths:
+                report(
+                    f"{tenths[t] * 10} % of {steps} env steps, copies {first}..{first + size - 1}: "
+                    f"{episodes} episodes ended, {time.perf_counter() - started:.0f} s"
+                )
             masks = vector.action_masks()
             actions = {a: np.empty(size, dtype=np.int64) for a in agents}
             for k, policy in enumerate(policies):
@@ -367,7 +379,41 @@ def _has_choice(demonstrations: Demonstrations) -> np.ndarray:
     return (per_agent.sum(axis=2) > 1).any(axis=1)
 
 
-def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> dict[str, Any]:
+def choice_agreement(demonstrations: Demonstrations, actions: np.ndarray) -> float:
+    """The share of the rows where the masks left a choice on which ``actions`` (a
+    policy's, one per row as ``demonstrations.actions`` holds them) are the rows' own
+    (every agent's, on the centralised route); NaN without such rows."""
+    choice = _has_choice(demonstrations)
+    if not choice.any():
+        return math.nan
+    same = (np.asarray(actions).reshape(demonstrations.actions.shape) == demonstrations.actions).reshape(len(demonstrations), -1).all(axis=1)
+    return float(same[choice].mean())
+
+
+def _silent(line: str) -> None:
+    """A progress report that reports nothing."""
+
+
+def _collected(demonstrations: Demonstrations, start: float) -> str:
+    """A progress line: what a collection gathered, at the pretraining's wall time since ``start``."""
+    return (
+        f"{len(demonstrations)} rows, {demonstrations.episodes} episodes ended, {demonstrations.successes} reaching every goal; "
+        f"{time.perf_counter() - start:.0f} s"
+    )
+
+
+def _cloned(epochs: Sequence[Mapping[str, float]], start: float) -> str:
+    """A progress line: the last epoch of a fit, at the pretraining's wall time since ``start``."""
+    last = epochs[-1]
+    return (
+        f"cloned in {len(epochs)} epochs: accuracy {last['accuracy']:.1%}, on the rows with a choice "
+        f"{last['choice_accuracy']:.1%}; {time.perf_counter() - start:.0f} s"
+    )
+
+
+def pretrain_model(
+    model: BaseAlgorithm, venv: VecEnv, config: TrainConfig, report: Callable[[str], None] | None = None
+) -> dict[str, Any]:
     """Clone ``config.pretrain`` into a new run's ``model`` (and its ``venv``'s normalisation).
 
     The teacher's demonstrations come from ``config.envs`` copies of the run's env
@@ -379,17 +425,26 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
     every row so far for ``config.dagger_epochs`` passes. With ``config.dagger_teacher``
     another teacher labels those states, and the rounds clone its rows alone. The
     copies are driven by ``config.workers`` processes (:func:`collect_demonstrations`).
+    ``report`` (None: silent) is called with a line of progress at each stage and each
+    tenth of a collection.
 
     Returns:
         the record of ``pretrain.json``: the teacher, its episodes and successes,
         wall time (s), and per round the rows, the per-epoch losses and accuracies
-        and the cloned policy's episodes and successes while it gathered the next
-        round's states.
+        and, for the states of the next DAgger round, the cloned policy's episodes and
+        successes and ``learner_choice_agreement``: the share of the rows where the masks
+        left a choice on which the policy's most likely action was the labeller's (before
+        the round's fit).
     """
+    say = report if report is not None else _silent
     start = time.perf_counter()
     spec = env_spec(config)
     workers = 1 if config.workers is None else config.workers  # the processes that step the run's copies drive the teachers'
-    demonstrations = collect_demonstrations(spec, config.pretrain, config.envs, config.pretrain_rows, config.seed, config.route, workers=workers)
+    say(f"pretraining: {config.pretrain_rows} rows of {config.pretrain} on {config.envs} copies in {workers} process(es)")
+    demonstrations = collect_demonstrations(
+        spec, config.pretrain, config.envs, config.pretrain_rows, config.seed, config.route, workers=workers, report=say
+    )
+    say(_collected(demonstrations, start))
     normalise_obs = normalise_reward = None
     if isinstance(venv, VecNormalize):
         seed_normalisation(venv, demonstrations)
@@ -397,6 +452,7 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
         normalise_reward = venv.normalize_reward if venv.norm_reward else None
     teacher = {"episodes": demonstrations.episodes, "successes": demonstrations.successes}
     epochs = behaviour_clone(model, demonstrations, normalise_obs, normalise_reward, config.pretrain_epochs, config.batch_size, config.seed)
+    say(_cloned(epochs, start))
     rounds: list[dict[str, Any]] = [{"rows": len(demonstrations), "epochs": epochs}]
     labeller = config.pretrain if config.dagger_teacher is None else config.dagger_teacher
     # Another teacher's labels are cloned alone: the first's disagree where it corrects them.
@@ -405,10 +461,16 @@ def pretrain_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig) -> d
         # DAgger: the states the cloned policy reaches (other layouts than the teacher's), labelled by the teacher
         seed = config.seed + config.pretrain_rows + (k - 1) * config.dagger_rows
         learner = ModelRowPolicy(model.policy, None if normalise_obs is None else ObservationScaling.from_vec_normalize(venv))
-        visited = collect_demonstrations(spec, labeller, config.envs, config.dagger_rows, seed, config.route, learner, workers)
+        say(f"DAgger round {k} of {config.dagger_rounds}: {config.dagger_rows} rows of the cloned policy's states, labelled by {labeller}")
+        visited = collect_demonstrations(spec, labeller, config.envs, config.dagger_rows, seed, config.route, learner, workers, report=say)
+        say(_collected(visited, start))
+        agreement = choice_agreement(visited, learner(visited.observations, visited.masks))
         rounds[-1]["learner_episodes"], rounds[-1]["learner_successes"] = visited.episodes, visited.successes
+        rounds[-1]["learner_choice_agreement"] = agreement
+        say(f"the cloned policy chose as {labeller} on {agreement:.1%} of the rows with a choice")
         cloned = visited if cloned is None else cloned + visited
         epochs = behaviour_clone(model, cloned, normalise_obs, normalise_reward, config.dagger_epochs, config.batch_size, config.seed + k)
+        say(_cloned(epochs, start))
         rounds.append({"rows": len(cloned), "epochs": epochs})
     return {
         "teacher": config.pretrain,

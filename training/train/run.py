@@ -15,6 +15,7 @@ identical to an uninterrupted one (its envs restart at new layouts).
 from __future__ import annotations
 
 import json
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -55,6 +56,11 @@ def _earlier_records(out: Path, up_to: int) -> list[dict]:
         return []
     records = json.loads(path.read_text(encoding="utf-8")).get("records", [])
     return [r for r in records if r.get("num_timesteps", 0) <= up_to]
+
+
+def _print_progress(line: str) -> None:
+    """A line of the pretraining's progress on stderr (stdout may carry ``--json``'s record)."""
+    print(f"moma-env train: {line}", file=sys.stderr, flush=True)
 
 
 def train(config: TrainConfig, out: str | Path, resume: bool = False, callbacks: Sequence[BaseCallback] = ()) -> dict[str, Any]:
@@ -121,7 +127,8 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
         if config.pretrain is not None and not resume:
             from training.train.pretrain import pretrain_model
 
-            write_json(out / PRETRAINING, pretrain_model(model, venv, config))
+            report = _print_progress if config.progress_bar else None
+            write_json(out / PRETRAINING, pretrain_model(model, venv, config, report))
             if config.eval_every > 0:  # where the cloned policy starts the curves
                 evaluation.init_callback(model)
                 evaluation.evaluate_now()
