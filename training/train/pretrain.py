@@ -37,8 +37,7 @@ import math
 import multiprocessing as mp
 import time
 from collections.abc import Callable, Mapping, Sequence
-import threading
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 from dataclasses import dataclass
 
@@ -50,7 +49,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents.learned import ObservationScaling
 from moma_env.vector import MomaVectorEnv
-from moma_env.vector.sharded import default_start_method
+from moma_env.vector.sharded import default_start_method, shard_sizes
 from training.evaluation.policies import load_policy
 from training.train.config import TrainConfig, check_teacher
 from training.train.envs import env_spec
@@ -135,15 +134,16 @@ def collect_demonstrations(
         learner: None: the teacher acts. Else the learner acts and the teacher only
             labels every row with what it would have done (DAgger: the states are
             the learner's, the actions the teacher's).
-        workers: processes driving the copies, this one included. With more than one,
-            each copy is driven alone, with its own teacher, by the next process free
-            (the copies' costs differ: a lookahead's by the states it meets), and their
-            rows are joined in copy order. Every copy's episodes are its own, so the rows
-            are those of one process bit for bit, as long as ``learner`` gives a row the
-            same action in a smaller batch; the learner must then pickle
+        workers: processes driving the copies, this one included: the copies are
+            split into ``workers`` contiguous groups (:func:`~moma_env.vector.sharded.shard_sizes`)
+            driven side by side, each with its own teachers, and their rows are joined
+            in copy order. Every copy's episodes are its own, so the rows are those of
+            one process bit for bit, as long as ``learner`` gives a row the same action
+            in a smaller batch; with ``workers > 1`` the learner must pickle
             (:class:`ModelRowPolicy` does) and runs with this process's torch threads.
-        report: called with a line of progress, or None (silent): in one process after
-            each tenth of the env steps, in several as each copy is done.
+        report: called with a line of progress after each tenth of the env steps of the
+            copies driven in this process (the other groups step as many times, each
+            at its own pace), or None (silent).
 
     Raises:
         ValueError: an unknown teacher or route, a teacher for another action mode,
@@ -156,60 +156,19 @@ def collect_demonstrations(
         raise ValueError(f"the {teacher} teacher acts in the switching action mode, the run trains in {spec.options['action_mode']!r}")
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= n_copies:
         raise ValueError(f"workers must be an integer in [1, n_copies={n_copies}], got {workers!r}")
+    groups: list[tuple[int, int]] = []
+    first = 0
+    for size in shard_sizes(n_copies, workers):
+        groups.append((first, size))
+        first += size
     drive = functools.partial(_drive_copies, spec, teacher, n_copies, rows, seed, route, learner, torch.get_num_threads())
     if workers == 1:
-        return drive(0, n_copies, report)
-    return _interleave(_drive_each_copy(drive, n_copies, workers, report))
-
-
-def _drive_each_copy(
-    drive: Callable[[int, int, Callable[[str], None] | None], Demonstrations],
-    n_copies: int,
-    workers: int,
-    report: Callable[[str], None] | None,
-) -> list[Demonstrations]:
-    """Every copy's rows (``drive(k, 1, None)``), in copy order, driven in ``workers`` processes:
-    this one and ``workers - 1`` others, each taking the next copy not yet taken when it is
-    free (a lookahead's cost differs from copy to copy; equal groups would wait for the
-    costliest). ``report`` gets a line as each copy is done. The first error stops the
-    taking and is raised once the copies already taken are done."""
-    taking = threading.Lock()
-    remaining = iter(range(n_copies))
-    failed = threading.Event()
-    parts: list[Demonstrations | None] = [None] * n_copies
-    started = time.perf_counter()
-
-    def take() -> int | None:
-        with taking:
-            return None if failed.is_set() else next(remaining, None)
-
-    def done(k: int, part: Demonstrations) -> None:
-        with taking:
-            parts[k] = part
-            finished = sum(p is not None for p in parts)
-        if report is not None:
-            report(f"copy {k} done ({finished} of {n_copies}): {part.episodes} episodes ended, {time.perf_counter() - started:.0f} s")
-
-    def run(step: Callable[[int], Demonstrations]) -> None:
-        try:
-            while (k := take()) is not None:
-                done(k, step(k))
-        except BaseException:
-            failed.set()
-            raise
-
+        return drive(*groups[0], report)
     context = mp.get_context(default_start_method())
-    with ProcessPoolExecutor(max_workers=workers - 1, mp_context=context) as pool, ThreadPoolExecutor(workers - 1) as feeders:
-        # each feeder thread keeps one worker process busy; this thread drives copies here meanwhile
-        fed = [feeders.submit(run, lambda k: pool.submit(drive, k, 1, None).result()) for _ in range(workers - 1)]
-        try:
-            run(lambda k: drive(k, 1, None))
-        finally:
-            for future in fed:
-                future.exception()  # wait for the copies already taken
-        for future in fed:
-            future.result()  # a worker's error
-    return [p for p in parts if p is not None]
+    with ProcessPoolExecutor(max_workers=workers - 1, mp_context=context) as pool:
+        others = [pool.submit(drive, *group, None) for group in groups[1:]]  # the first group is driven here meanwhile
+        parts = [drive(*groups[0], report)] + [future.result() for future in others]
+    return _interleave(parts)
 
 
 def _drive_copies(
