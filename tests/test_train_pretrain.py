@@ -131,6 +131,22 @@ def test_copies_driven_in_two_processes_give_the_rows_of_one():
         assert np.array_equal(getattr(two, field), getattr(one, field)), field
 
 
+def learner_refusing_in_workers(observations, masks):
+    """A learner (module-level: it pickles to a worker) that holds in this process and
+    refuses to act in a worker process."""
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:
+        raise ValueError("this learner refuses to act in a worker")
+    return np.zeros((len(observations), 4), dtype=np.int64)
+
+
+def test_an_error_in_a_worker_process_is_raised_here():
+    config = tiny(route="centralised")
+    with pytest.raises(ValueError, match="refuses to act in a worker"):
+        collect_demonstrations(env_spec(config), "greedy", 3, 120, seed=0, route="centralised", learner=learner_refusing_in_workers, workers=2)
+
+
 @pytest.mark.parametrize("workers", [0, 3, 1.5])
 def test_more_processes_than_copies_are_refused(workers):
     with pytest.raises(ValueError, match="workers"):
