@@ -442,7 +442,7 @@ def pretrain_model(
     workers = 1 if config.workers is None else config.workers  # the processes that step the run's copies drive the teachers'
     say(f"pretraining: {config.pretrain_rows} rows of {config.pretrain} on {config.envs} copies in {workers} process(es)")
     demonstrations = collect_demonstrations(
-        spec, config.pretrain, config.envs, config.pretrain_rows, config.seed, config.route, workers=workers, report=say
+        spec, config.pretrain, config.envs, config.pretrain_rows, config.seed, config.route, workers=workers, report=report
     )
     say(_collected(demonstrations, start))
     normalise_obs = normalise_reward = None
@@ -462,7 +462,7 @@ def pretrain_model(
         seed = config.seed + config.pretrain_rows + (k - 1) * config.dagger_rows
         learner = ModelRowPolicy(model.policy, None if normalise_obs is None else ObservationScaling.from_vec_normalize(venv))
         say(f"DAgger round {k} of {config.dagger_rounds}: {config.dagger_rows} rows of the cloned policy's states, labelled by {labeller}")
-        visited = collect_demonstrations(spec, labeller, config.envs, config.dagger_rows, seed, config.route, learner, workers, report=say)
+        visited = collect_demonstrations(spec, labeller, config.envs, config.dagger_rows, seed, config.route, learner, workers, report=report)
         say(_collected(visited, start))
         agreement = choice_agreement(visited, learner(visited.observations, visited.masks))
         rounds[-1]["learner_episodes"], rounds[-1]["learner_successes"] = visited.episodes, visited.successes
