@@ -221,3 +221,19 @@ def test_with_lengths_every_leg_length_of_each_start_is_tried_and_it_arrives_no_
     rolled = run_episode(parallel_env("top_observer_team4_legs"), load_policy("rollout@1.5", "top_observer_team4_legs"), 0, SEED)
     greedy = run_episode(parallel_env("top_observer_team4_legs"), load_policy("greedy@1.5", "top_observer_team4_legs"), 0, SEED)
     assert rolled.success and greedy.success and rolled.time_to_goal_s <= greedy.time_to_goal_s
+
+
+def test_rollout_nowait_tries_every_start_and_length_but_not_starting_none():
+    env = parallel_env("top_observer_team4_legs")
+    observations, infos = env.reset(seed=SEED)
+    policy = load_policy("rollout_nowait@1.5", "top_observer_team4_legs")
+    assert policy.lengths and not policy.wait and policy.base.leg_m == 1.5
+    assert not load_policy("rollout_nowait", "top_observer_team4").wait
+    policy.reset(env, seed=SEED)
+    base = GreedyParallelPolicy(leg_m=1.5)
+    base.reset(env, seed=SEED)
+    _, startable = base.plan(observations, infos)
+    assert startable
+    actions = policy.act(observations, infos)
+    assert policy.lookaheads == 4 * len(startable)  # rollout@1.5 tries one more: starting none
+    assert any(actions[agent] != 0 for agent in startable)  # a robot that may start does

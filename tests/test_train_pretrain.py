@@ -296,6 +296,8 @@ def test_the_rollout_teacher_labels_what_it_chooses_on_its_own_env():
         ({"dagger_rounds": -1}, "dagger_rounds"),
         ({"dagger_rows": 0}, "dagger_rows"),
         ({"dagger_teacher": "planned"}, "rollout@L"),
+        ({"pretrain": "rollout_nowait@0"}, "leg length"),
+        ({"pretrain": "rollout_nowat@1.5"}, "rollout_nowait@L"),
         ({"dagger_teacher": "gredy", "dagger_rounds": 1}, "did you mean 'greedy'?"),
         ({"dagger_teacher": "greedy", "dagger_rounds": 0}, "--dagger-rounds"),
         ({"dagger_teacher": "greedy", "dagger_rounds": 1, "pretrain": None}, "--pretrain"),

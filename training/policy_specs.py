@@ -16,19 +16,21 @@ __all__ = ["BUILTIN_POLICIES", "POLICY_ACTION_MODES", "LEG_POLICIES", "builtin_n
 
 #: Policy specs that name a built-in policy rather than a file.
 BUILTIN_POLICIES = (
-    "scripted", "greedy", "pipeline", "rollout", "pipeline_rollout", "pipeline_rollout_masks", "planned", "servo", "random",
+    "scripted", "greedy", "pipeline", "rollout", "rollout_nowait", "pipeline_rollout", "pipeline_rollout_masks", "planned", "servo",
+    "random",
 )
 
 #: The action mode each built-in policy acts in.
 POLICY_ACTION_MODES = {
-    "scripted": "switching", "greedy": "switching", "pipeline": "switching", "rollout": "switching", "pipeline_rollout": "switching",
-    "pipeline_rollout_masks": "switching", "planned": "velocity", "servo": "velocity", "random": "switching",
+    "scripted": "switching", "greedy": "switching", "pipeline": "switching", "rollout": "switching", "rollout_nowait": "switching",
+    "pipeline_rollout": "switching", "pipeline_rollout_masks": "switching", "planned": "velocity", "servo": "velocity", "random": "switching",
 }
 
 #: The built-in policies that take a leg length after ``@``: ``greedy@L`` starts every leg
 #: with ``L`` m; ``rollout@L`` is the lookahead over the starts and every leg length, with
-#: ``greedy@L`` as its base.
-LEG_POLICIES = ("greedy", "rollout")
+#: ``greedy@L`` as its base; ``rollout_nowait@L`` the same lookahead without the choice of
+#: starting no robot where one may start.
+LEG_POLICIES = ("greedy", "rollout", "rollout_nowait")
 
 
 def leg_spec(spec: str) -> tuple[str, float] | None:

@@ -12,10 +12,14 @@ Specs understood by :func:`load_policy`:
   (``GreedyParallelPolicy(leg_m=L)``, e.g. ``greedy@1.5`` on ``top_observer_team4_legs``);
   ``"rollout@L"`` the lookahead over its starts and every leg length, ``greedy@L`` finishing
   (``GreedyRolloutPolicy(base=GreedyParallelPolicy(leg_m=L), lengths=True)``);
+  ``"rollout_nowait@L"`` the same without waiting (``wait=False``: where a robot may
+  start, one does);
 * ``"pipeline"``: ``agents.policies.FilePipelinePolicy()`` (a file of robots, every
   other robot moving at once between static neighbours; caterpillar files only);
 * ``"rollout"``: ``agents.policies.GreedyRolloutPolicy()`` (the greedy policy with a
   lookahead over its starts in copies of the env: a planner that reads the simulator);
+* ``"rollout_nowait"``: the same lookahead without the choice of starting no robot where
+  one may start (``GreedyRolloutPolicy(wait=False)``);
 * ``"pipeline_rollout"``: the same lookahead over the file pipeline's starts
   (``GreedyRolloutPolicy(base=FilePipelinePolicy())``);
 * ``"pipeline_rollout_masks"``: the lookahead over every start the masks allow, the
@@ -137,7 +141,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         spec: ``"scripted"`` (switching mode), ``"greedy"`` (switching mode, several
             movers at once), ``"pipeline"`` (a file of robots, every other one moving
             at once), ``"rollout"`` / ``"pipeline_rollout"`` (the greedy / the pipeline
-            with a lookahead over its starts, a planner reading the simulator),
+            with a lookahead over its starts, a planner reading the simulator;
+            ``"rollout_nowait"``: never starting none where a start is allowed),
             ``"pipeline_rollout_masks"`` (the pipeline with a lookahead over every start the
             masks allow), ``"planned"`` (follows the MOMA
             navigation planner's plan, velocity mode), ``"servo"`` (the
@@ -174,8 +179,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         name, leg_m = leg
         if name == "greedy":
             policy = module.GreedyParallelPolicy(leg_m=leg_m)
-        else:  # rollout
-            policy = module.GreedyRolloutPolicy(base=module.GreedyParallelPolicy(leg_m=leg_m), lengths=True)
+        else:  # rollout, rollout_nowait
+            policy = module.GreedyRolloutPolicy(base=module.GreedyParallelPolicy(leg_m=leg_m), lengths=True, wait=name == "rollout")
     elif spec == "scripted":
         module = _agents_policies()
         factory = getattr(module, "scripted_policy", None)
@@ -191,6 +196,8 @@ def load_policy(spec: str, configuration: str, seed: int | None = None, sample_a
         if cls is None:
             raise PolicyLoadError(f"agents.policies has no {class_name}()")
         policy = cls()
+    elif spec == "rollout_nowait":
+        policy = _agents_policies().GreedyRolloutPolicy(wait=False)
     elif spec == "pipeline_rollout":
         module = _agents_policies()
         policy = module.GreedyRolloutPolicy(base=module.FilePipelinePolicy())

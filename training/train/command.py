@@ -118,10 +118,10 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--network", choices=NETWORKS, type=choice(NETWORKS, "network"), default=defaults["network"],
                     help="policy network: SB3's mlp, or team (centralised route: one encoder and head shared by every robot, "
                          "pooled over the team) (default %(default)s)")
-    tr.add_argument("--pretrain", type=_teacher("pretrain"), default=None, metavar="{" + ",".join(TEACHERS) + ",greedy@L,rollout@L}",
+    tr.add_argument("--pretrain", type=_teacher("pretrain"), default=None, metavar="{" + ",".join(TEACHERS) + ",greedy@L,rollout@L,rollout_nowait@L}",
                     help="clone this scripted policy into the network before learning (behaviour cloning; PPO-like, switching mode; "
                          "greedy@L: the greedy policy starting legs of L m, on a task with leg lengths to choose; rollout: a lookahead "
-                         "reading the simulator, seconds per episode) "
+                         "reading the simulator, seconds per episode; rollout_nowait: the same, never choosing to start no robot) "
                          "(default: none, learning starts from random weights)")
     for flag, low, unit, text in (
         ("--pretrain-rows", 1, "row count", "demonstration rows: UGV slot steps (shared route) or env steps (centralised)"),

@@ -61,14 +61,15 @@ PRETRAINABLE = frozenset({"ppo", "maskable_ppo"})
 NETWORKS = ("mlp", "team")
 #: Scripted teachers a run may be cloned from (``pretrain``, ``dagger_teacher``): built-in
 #: switching-mode policies of :func:`training.evaluation.policies.load_policy` (``rollout``
-#: reads the simulator: a planner with a perfect model, seconds per episode).
-TEACHERS = ("greedy", "pipeline", "scripted", "rollout")
+#: and ``rollout_nowait`` read the simulator: planners with a perfect model, seconds per episode).
+TEACHERS = ("greedy", "pipeline", "scripted", "rollout", "rollout_nowait")
 
 
 def check_teacher(name: str, teacher: object) -> str:
-    """``teacher`` if it is a teacher: one of :data:`TEACHERS`, or ``greedy@L`` / ``rollout@L``
-    (the greedy policy starting legs of ``L`` m on an env with ``leg_lengths``, or the
-    lookahead over its starts and lengths); ConfigError naming ``name``."""
+    """``teacher`` if it is a teacher: one of :data:`TEACHERS`, or ``greedy@L`` /
+    ``rollout@L`` / ``rollout_nowait@L`` (the greedy policy starting legs of ``L`` m on an
+    env with ``leg_lengths``, or the lookahead over its starts and lengths, with or without
+    waiting); ConfigError naming ``name``."""
     if isinstance(teacher, str):
         try:
             leg_spec(teacher)
@@ -78,7 +79,7 @@ def check_teacher(name: str, teacher: object) -> str:
             return teacher
     close = difflib.get_close_matches(teacher, TEACHERS, n=1, cutoff=0.6) if isinstance(teacher, str) else []
     hint = f" (did you mean {close[0]!r}?)" if close else ""
-    raise ConfigError(name, f"must be one of {list(TEACHERS)}, greedy@L or rollout@L (L m legs), got {teacher!r}{hint}")
+    raise ConfigError(name, f"must be one of {list(TEACHERS)}, greedy@L, rollout@L or rollout_nowait@L (L m legs), got {teacher!r}{hint}")
 
 
 def check_learning_fields(config: Any) -> None:
