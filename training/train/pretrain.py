@@ -55,7 +55,7 @@ from training.train.config import TrainConfig, check_teacher
 from training.train.envs import env_spec
 from training.train.team_slots import SLOT_LAYOUTS, EnvSpec
 
-__all__ = ["Demonstrations", "ModelRowPolicy", "choice_agreement", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
+__all__ = ["Demonstrations", "ModelRowPolicy", "choice_agreement", "choice_rows", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
 
 
 
@@ -322,7 +322,7 @@ def behaviour_clone(
     act_t = torch.as_tensor(demonstrations.actions)
     mask_t = torch.as_tensor(demonstrations.masks)
     ret_t = torch.as_tensor(returns, dtype=torch.float32)
-    choice_t = torch.as_tensor(_has_choice(demonstrations))
+    choice_t = torch.as_tensor(choice_rows(demonstrations))
     value_rows = torch.as_tensor(demonstrations.complete, dtype=torch.float32)
     rng = np.random.default_rng(seed)
     records: list[dict[str, float]] = []
@@ -330,7 +330,7 @@ def behaviour_clone(
     for _ in range(epochs):
         order = torch.as_tensor(rng.permutation(len(demonstrations)))
         sums = {"policy_loss": 0.0, "value_loss": 0.0, "accuracy": 0.0, "choice_accuracy": 0.0}
-        choice_rows = 0
+        n_choice = 0
         for start in range(0, len(order), batch_size):
             rows = order[start:start + batch_size]
             if masked:
@@ -353,9 +353,9 @@ def behaviour_clone(
             sums["value_loss"] += float(value_loss.detach()) * len(rows)
             sums["accuracy"] += float(agree.float().sum())
             sums["choice_accuracy"] += float(agree[choice].float().sum())
-            choice_rows += int(choice.sum())
+            n_choice += int(choice.sum())
         record = {k: sums[k] / len(order) for k in ("policy_loss", "value_loss", "accuracy")}
-        record["choice_accuracy"] = sums["choice_accuracy"] / choice_rows if choice_rows else math.nan
+        record["choice_accuracy"] = sums["choice_accuracy"] / n_choice if n_choice else math.nan
         records.append(record)
     policy.set_training_mode(False)
     return records
@@ -372,18 +372,21 @@ def _ended_later(episode_ends: np.ndarray, n_slots: int) -> np.ndarray:
     return out
 
 
-def _has_choice(demonstrations: Demonstrations) -> np.ndarray:
+def choice_rows(demonstrations: Demonstrations) -> np.ndarray:
     """``(T,)`` bool: some agent of the row had more than one action allowed."""
     n_agents = 1 if demonstrations.actions.ndim == 1 else demonstrations.actions.shape[1]
     per_agent = demonstrations.masks.reshape(len(demonstrations), n_agents, -1)
     return (per_agent.sum(axis=2) > 1).any(axis=1)
 
 
-def choice_agreement(demonstrations: Demonstrations, actions: np.ndarray) -> float:
+def choice_agreement(demonstrations: Demonstrations, actions: np.ndarray, rows: np.ndarray | None = None) -> float:
     """The share of the rows where the masks left a choice on which ``actions`` (a
     policy's, one per row as ``demonstrations.actions`` holds them) are the rows' own
-    (every agent's, on the centralised route); NaN without such rows."""
-    choice = _has_choice(demonstrations)
+    (every agent's, on the centralised route), of those rows only where ``rows`` (``(T,)``
+    bool) is true if given; NaN without such rows."""
+    choice = choice_rows(demonstrations)
+    if rows is not None:
+        choice = choice & np.asarray(rows, dtype=bool)
     if not choice.any():
         return math.nan
     same = (np.asarray(actions).reshape(demonstrations.actions.shape) == demonstrations.actions).reshape(len(demonstrations), -1).all(axis=1)
