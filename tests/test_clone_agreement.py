@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from training.clone_agreement import main, teacher_starts
+from training.clone_agreement import main, start_rows
 from training.train.config import TrainConfig
 from training.train.envs import env_spec
 from training.train.pretrain import choice_agreement, choice_rows, collect_demonstrations
@@ -16,18 +16,21 @@ def _greedy_rows():
 
 def test_the_teachers_starts_are_the_choice_rows_where_a_free_robot_advances():
     demos = _greedy_rows()
-    starts, choice = teacher_starts(demos), choice_rows(demos)
+    starts, choice = start_rows(demos), choice_rows(demos)
     per_agent = demos.masks.reshape(len(demos), 4, 5)  # hold and four leg lengths
     for r in range(len(demos)):
         free = per_agent[r].sum(axis=1) > 1
         assert starts[r] == bool((demos.actions[r][free] != 0).any())
     assert (starts & choice).any() and (choice & ~starts).any()  # the greedy starts robots and holds them
     assert not (starts & ~choice).any()  # a robot free to choose makes a choice row
+    held = demos.actions.copy()
+    held[starts] = 0
+    assert not start_rows(demos, held).any() and start_rows(demos, demos.actions).tolist() == starts.tolist()
 
 
 def test_the_agreement_of_a_selection_counts_its_choice_rows_only():
     demos = _greedy_rows()
-    choice, starts = choice_rows(demos), teacher_starts(demos)
+    choice, starts = choice_rows(demos), start_rows(demos)
     other = demos.actions.copy()
     wrong = np.flatnonzero(starts)[:2]
     other[wrong] = np.where(other[wrong] == 0, 3, 0)  # a start held, a hold started
@@ -46,12 +49,14 @@ def test_it_prints_the_agreement_of_a_run_with_its_teacher(tmp_path, capsys):
     assert main([str(tmp_path / "run"), "--copies", "2", "--rows", "200", "--workers", "1"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("greedy on top_observer_team4, 2 copies from seed 2000000: 200 rows")
-    table = {line.split("|")[1].strip(): line.split("|")[2:4] for line in lines[3:]}
+    table = {line.split("|")[1].strip(): line.split("|")[2:4] for line in lines[3:6]}
     assert list(table) == ["all", "the teacher starts a robot", "the teacher starts none"]
     counts = [int(table[k][0]) for k in table]
     assert counts[0] == counts[1] + counts[2] > 0
     shares = [float(table[k][1].strip(" %")) for k in table if table[k][1].strip() != "-"]
     assert all(0.0 <= s <= 100.0 for s in shares)
+    words = lines[-1].split()
+    assert lines[-1].startswith("On ") and int(words[4]) == counts[1] and 0 <= int(words[1]) <= counts[1]
 
 
 @pytest.mark.parametrize(

@@ -6,7 +6,8 @@ teacher (default: the one the run was cloned from, its ``--pretrain``) for ``--r
 rows on the centralised route, copy ``k`` first reset with seed ``--seed + k`` (layouts no
 training run nor held-out sweep here starts from by default), and compares the run's most
 likely actions with the teacher's on the rows where the masks left a choice: on all of
-them, on those where the teacher started a robot, and on those where it started none.
+them, on those where the teacher started a robot, and on those where it started none;
+and on how many of the teacher's starts the policy started no robot.
 The fit's own accuracy (``pretrain.json``) is measured on the rows it was fitted to; this
 is the same measure away from them.
 """
@@ -25,15 +26,17 @@ from training.cli_args import int_at_least
 from training.train.config import check_teacher
 from training.train.pretrain import Demonstrations, choice_agreement, choice_rows
 
-__all__ = ["main", "teacher_starts"]
+__all__ = ["main", "start_rows"]
 
 
-def teacher_starts(demonstrations: Demonstrations) -> np.ndarray:
-    """``(T,)`` bool: some agent with more than one action allowed took one other than 0
-    (hold): on a switching task, the teacher started a robot."""
+def start_rows(demonstrations: Demonstrations, actions: np.ndarray | None = None) -> np.ndarray:
+    """``(T,)`` bool: some agent with more than one action allowed takes one other than 0
+    (hold) in ``actions`` (one per row as ``demonstrations.actions`` holds them; default:
+    the demonstrations' own): on a switching task, a robot is started."""
+    own = demonstrations.actions if actions is None else np.asarray(actions)
     n_agents = 1 if demonstrations.actions.ndim == 1 else demonstrations.actions.shape[1]
     free = demonstrations.masks.reshape(len(demonstrations), n_agents, -1).sum(axis=2) > 1
-    return (free & (demonstrations.actions.reshape(len(demonstrations), n_agents) != 0)).any(axis=1)
+    return (free & (own.reshape(len(demonstrations), n_agents) != 0)).any(axis=1)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -58,7 +61,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     seconds, demonstrations = time_collection(scenario, teacher, args.copies, args.rows, args.workers, seed=args.seed)
     actions = policy(demonstrations.observations, demonstrations.masks)
     choice = choice_rows(demonstrations)
-    starts = teacher_starts(demonstrations) & choice
+    starts = start_rows(demonstrations) & choice
     print(f"{teacher} on {scenario}, {args.copies} copies from seed {args.seed}: {len(demonstrations)} rows, "
           f"{demonstrations.episodes} episodes ended, {seconds:.0f} s")
     print(f"| rows with a choice | rows | {args.run}'s most likely actions = {teacher}'s |")
@@ -66,6 +69,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     for label, rows in (("all", choice), ("the teacher starts a robot", starts), ("the teacher starts none", choice & ~starts)):
         share = choice_agreement(demonstrations, actions, rows)
         print(f"| {label} | {int(rows.sum())} | {'-' if np.isnan(share) else f'{100 * share:.1f} %'} |")
+    held = int((starts & ~start_rows(demonstrations, actions)).sum())
+    print(f"On {held} of the {int(starts.sum())} rows where the teacher starts a robot, the policy starts none.")
     return 0
 
 
