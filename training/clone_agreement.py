@@ -24,7 +24,7 @@ from agents.learned import read_manifest
 from training.bench_demonstrations import run_learner, time_collection
 from training.cli_args import int_at_least
 from training.train.config import check_teacher
-from training.train.pretrain import Demonstrations, choice_agreement, choice_rows
+from training.train.pretrain import Demonstrations, choice_agents, choice_agreement, choice_rows
 
 __all__ = ["main", "start_rows"]
 
@@ -33,10 +33,9 @@ def start_rows(demonstrations: Demonstrations, actions: np.ndarray | None = None
     """``(T,)`` bool: some agent with more than one action allowed takes one other than 0
     (hold) in ``actions`` (one per row as ``demonstrations.actions`` holds them; default:
     the demonstrations' own): on a switching task, a robot is started."""
+    free = choice_agents(demonstrations)
     own = demonstrations.actions if actions is None else np.asarray(actions)
-    n_agents = 1 if demonstrations.actions.ndim == 1 else demonstrations.actions.shape[1]
-    free = demonstrations.masks.reshape(len(demonstrations), n_agents, -1).sum(axis=2) > 1
-    return (free & (own.reshape(len(demonstrations), n_agents) != 0)).any(axis=1)
+    return (free & (own.reshape(free.shape) != 0)).any(axis=1)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -55,7 +55,7 @@ from training.train.config import TrainConfig, check_teacher
 from training.train.envs import env_spec
 from training.train.team_slots import SLOT_LAYOUTS, EnvSpec
 
-__all__ = ["Demonstrations", "ModelRowPolicy", "choice_agreement", "choice_rows", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
+__all__ = ["Demonstrations", "ModelRowPolicy", "choice_agents", "choice_agreement", "choice_rows", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
 
 
 
@@ -372,11 +372,16 @@ def _ended_later(episode_ends: np.ndarray, n_slots: int) -> np.ndarray:
     return out
 
 
+def choice_agents(demonstrations: Demonstrations) -> np.ndarray:
+    """``(T, N)`` bool: agent ``n`` of the row had more than one action allowed (``N`` is 1
+    on the shared route, the team's agents on the centralised one)."""
+    n_agents = 1 if demonstrations.actions.ndim == 1 else demonstrations.actions.shape[1]
+    return demonstrations.masks.reshape(len(demonstrations), n_agents, -1).sum(axis=2) > 1
+
+
 def choice_rows(demonstrations: Demonstrations) -> np.ndarray:
     """``(T,)`` bool: some agent of the row had more than one action allowed."""
-    n_agents = 1 if demonstrations.actions.ndim == 1 else demonstrations.actions.shape[1]
-    per_agent = demonstrations.masks.reshape(len(demonstrations), n_agents, -1)
-    return (per_agent.sum(axis=2) > 1).any(axis=1)
+    return choice_agents(demonstrations).any(axis=1)
 
 
 def choice_agreement(demonstrations: Demonstrations, actions: np.ndarray, rows: np.ndarray | None = None) -> float:
