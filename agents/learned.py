@@ -368,6 +368,8 @@ class LearnedPolicy(TrainedUgvPolicy):
         torch_threads: torch's thread count while the network runs (>= 1).
         deterministic: act with the mode of the action distribution (True) or
             sample from it (False; seeded by :meth:`reset`).
+        switch_horizon_s: the ``EnvConfig.switch_horizon_s`` it was trained with, None
+            for the env's default; :meth:`reset` refuses an env with another.
     """
 
     def __init__(
@@ -379,6 +381,7 @@ class LearnedPolicy(TrainedUgvPolicy):
         configuration: str | None = None,
         torch_threads: int = 1,
         deterministic: bool = True,
+        switch_horizon_s: float | None = None,
     ):
         if route not in _ROUTES:
             raise ValueError(f"route must be one of {_ROUTES}, got {route!r}")
@@ -396,6 +399,7 @@ class LearnedPolicy(TrainedUgvPolicy):
         if not isinstance(deterministic, bool):
             raise ValueError(f"deterministic must be a bool, got {deterministic!r}")
         self.deterministic = deterministic
+        self.switch_horizon_s = switch_horizon_s
         self._sampler = np.random.default_rng(0)
         self._masked = _uses_action_masks(model)
         self._env: MomaParallelEnv | None = None
@@ -441,7 +445,8 @@ class LearnedPolicy(TrainedUgvPolicy):
             except (AttributeError, ValueError) as err:
                 raise TrainingDirError(f"cannot use the normalisation statistics {str(directory / manifest['vecnormalize'])!r}: "
                                        f"{_first_line(err)}") from None
-        return cls(model, manifest["route"], config["action_mode"], normalise, trained_on, deterministic=deterministic)
+        return cls(model, manifest["route"], config["action_mode"], normalise, trained_on, deterministic=deterministic,
+                   switch_horizon_s=config.get("switch_horizon_s"))
 
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
         """Check that ``env`` fits the model; read its agents (call after ``env.reset``);

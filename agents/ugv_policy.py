@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from moma_env.env.config import DEFAULT_SWITCH_HORIZON_S
 from moma_env.env.parallel import MomaParallelEnv
 
 __all__ = ["TrainedUgvPolicy"]
@@ -21,15 +22,21 @@ __all__ = ["TrainedUgvPolicy"]
 class TrainedUgvPolicy:
     """Base of the trained UGV team policies: :attr:`env_options` and the checks of ``reset``.
 
-    Subclasses set ``action_mode`` (an attribute or a class attribute).
+    Subclasses set ``action_mode`` (an attribute or a class attribute), and
+    ``switch_horizon_s`` where the policy was trained with another than the env's
+    default (``EnvConfig.switch_horizon_s``).
     """
 
     action_mode: str
+    switch_horizon_s: float | None = None
 
     @property
     def env_options(self) -> dict[str, Any]:
         """Options of ``parallel_env`` that build an env this policy fits."""
-        return {"action_mode": self.action_mode, "observer_agent": False}
+        options: dict[str, Any] = {"action_mode": self.action_mode, "observer_agent": False}
+        if self.switch_horizon_s is not None:
+            options["switch_horizon_s"] = self.switch_horizon_s
+        return options
 
     def _begin_episode(self, env: MomaParallelEnv, seed: int | None) -> None:
         """Seed the action sampler with ``seed`` (0 if None); refuse an env of another action
@@ -39,3 +46,6 @@ class TrainedUgvPolicy:
             raise ValueError(f"the policy was trained in {self.action_mode!r} mode; the env is in {env.config.action_mode!r} mode")
         if env.observer_agents:
             raise ValueError("the policy was trained with the observer flown by its tracking controller: build the env with observer_agent=False")
+        horizon = DEFAULT_SWITCH_HORIZON_S if self.switch_horizon_s is None else self.switch_horizon_s
+        if env.config.switch_horizon_s != horizon:
+            raise ValueError(f"the policy was trained with switch_horizon_s={horizon!r}; the env has {env.config.switch_horizon_s!r}")

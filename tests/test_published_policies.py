@@ -207,7 +207,7 @@ def test_the_recorded_command_line_remakes_the_configuration():
         tiny(progress_bar=True, eval_max_cycles=None),
         TrainConfig(scenario="top_observer", steps=4000, net_arch=(8, 8), learning_rate=1e-3, normalize=False, subproc=True,
                     rewards=reward_overrides(["refused=-0.005", "progress=2"]), eval_sample_actions=True, torch_threads=2),
-        TrainConfig(scenario="top_observer", envs=4, workers=2),
+        TrainConfig(scenario="top_observer", envs=4, workers=2, switch_horizon_s=90.0),
         TrainConfig(scenario="top_observer_team4", algo="maskable_ppo", progress_bar=True,
                     rewards=reward_overrides(["time=-0.02"], TASKS["top_observer_team4"].options["rewards"])),
         TrainConfig(scenario="top_observer_team6", algo="maskable_ppo", route="centralised", pretrain="greedy", pretrain_rows=1000,

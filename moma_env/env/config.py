@@ -81,6 +81,10 @@ class RewardConfig:
         check_non_negative("rewards.lost_error_m", self.lost_error_m)
 
 
+#: The env's default ``EnvConfig.switch_horizon_s`` (s).
+DEFAULT_SWITCH_HORIZON_S = 5.0
+
+
 @dataclass(frozen=True)
 class EnvConfig:
     """How the environment exposes a scenario to learning agents.
@@ -119,6 +123,12 @@ class EnvConfig:
             union of their bounds), so that parameter-sharing wrappers (SuperSuit's
             vector envs) take the observer beside the UGVs in ``velocity`` mode.
             Off by default.
+        switch_horizon_s: the time since the last switch (s) at which the agents'
+            ``time_since_switch`` feature reaches 1; it stays 1 after (clipped). 5 s by
+            default. A team that holds every robot for longer sees the same
+            observation at every step, so a deterministic policy that holds once
+            holds to the end of the episode; a horizon as long as an episode keeps
+            the feature changing (docs/training.md).
         localiser: builds each episode's localiser from the scenario's
             ``EstimatorConfig`` (a :class:`moma_env.sim.Localiser`), or the name
             of one of :data:`moma_env.estimator.registry.ESTIMATORS` (``"moma"``,
@@ -139,6 +149,7 @@ class EnvConfig:
     leg_lengths: tuple[float, ...] | None = None
     pad_observations: bool = False
     localiser: Callable[[Any], Any] | None = None
+    switch_horizon_s: float = DEFAULT_SWITCH_HORIZON_S
 
     def __post_init__(self) -> None:
         check_choice("env.action_mode", self.action_mode, ACTION_MODES)
@@ -170,6 +181,8 @@ class EnvConfig:
                 raise ConfigError("env.observer_image", "needs the observer to be an agent (observer_agent=True)")
 
         check_bool("env.pad_observations", self.pad_observations)
+        check_positive("env.switch_horizon_s", self.switch_horizon_s)
+        object.__setattr__(self, "switch_horizon_s", float(self.switch_horizon_s))
         if isinstance(self.localiser, str):
             check_estimator_name("env.localiser", self.localiser)
         elif self.localiser is not None and not callable(self.localiser):

@@ -21,7 +21,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from moma_env.camera import FloorConfig, RenderConfig
 from moma_env.config import ConfigError, from_mapping
 from moma_env.env.centralised import CentralisedTeamEnv
-from moma_env.env.config import EnvConfig, RewardConfig
+from moma_env.env.config import DEFAULT_SWITCH_HORIZON_S, EnvConfig, RewardConfig
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.scenarios import SCENARIO_SPECS, Scenario, ScenarioConfig, ScenarioSpec
 from moma_env.tasks import TASKS, task_options
@@ -180,12 +180,14 @@ def configuration_env(
     leg_lengths: tuple[float, ...] | None = None,
     pad_observations: bool = False,
     localiser: Any = None,
+    switch_horizon_s: float = DEFAULT_SWITCH_HORIZON_S,
     **overrides: Any,
 ) -> MomaParallelEnv:
     """The PettingZoo parallel env of ``configuration`` (see the module docstring).
 
     ``camera_backend``, ``render``, ``floor``, ``observer_image``,
-    ``action_masks``, ``commit_legs``, ``leg_lengths``, ``pad_observations`` and ``localiser`` are the
+    ``action_masks``, ``commit_legs``, ``leg_lengths``, ``pad_observations``, ``localiser`` and
+    ``switch_horizon_s`` are the
     :class:`EnvConfig` fields of the same names
     (``render`` and ``floor`` may be mappings of their fields).
     """
@@ -211,6 +213,7 @@ def configuration_env(
         leg_lengths=leg_lengths,
         pad_observations=pad_observations,
         localiser=localiser,
+        switch_horizon_s=switch_horizon_s,
     )
     scenarios = scenario_factory(configuration, random_scenarios, **overrides)
     return MomaParallelEnv(

@@ -23,8 +23,9 @@ own state           static (1 if declared static), status one-hot
                     without an estimate)
 goal                dx, dy in the robot's estimated body frame, cos(dyaw),
                     sin(dyaw), distance / 2R, has_goal
-timing              time since the last switch / 5 s (clipped), dwell remaining
-                    / dwell
+timing              time since the last switch / the switch horizon (5 s by
+                    default, ``EnvConfig.switch_horizon_s``; clipped to 1),
+                    dwell remaining / dwell
 seen                1 if its board was detected, or its camera saw a board, in
                     the latest frame
 others (each)       dx, dy in its body frame, cos(dyaw), sin(dyaw), valid,
@@ -53,7 +54,6 @@ __all__ = ["DeviceSnapshot", "Feature", "ObservationLayout", "describe", "device
 
 #: Order of the status one-hot.
 STATUS_ORDER = (Status.LOCALISED, Status.HOLDING, Status.LOST)
-_SWITCH_HORIZON_S = 5.0
 _ALTITUDE_SCALE_M = 4.0
 #: Scales of the position (m) and heading (rad) standard deviations in observations.
 _POSITION_STD_SCALE_M = 0.1
@@ -218,6 +218,8 @@ class ObservationLayout:
         centre: arena centre (x, y) in W (m).
         half_diagonal: arena half-diagonal (m).
         dwell_s: the rules' dwell time (s).
+        switch_horizon_s: the time since the last switch (s) at which its feature
+            reaches 1 (and stays: it is clipped).
     """
 
     def __init__(
@@ -229,6 +231,7 @@ class ObservationLayout:
         centre: tuple[float, float],
         half_diagonal: float,
         dwell_s: float,
+        switch_horizon_s: float,
     ):
         self.devices = tuple(devices)
         self.tows = dict(tows)
@@ -241,6 +244,7 @@ class ObservationLayout:
         self._cx, self._cy = centre
         self._r = half_diagonal
         self._dwell = dwell_s
+        self._switch_horizon = switch_horizon_s
 
     # ------------------------------------------------------------------ helpers
     def _abs_pose(self, out: list[float], pose: tuple[float, float, float] | None) -> None:
@@ -251,7 +255,7 @@ class ObservationLayout:
         out += [(x - self._cx) / self._r, (y - self._cy) / self._r, math.cos(yaw), math.sin(yaw), 1.0]
 
     def _timing(self, out: list[float], since_switch: float, dwell_remaining: float) -> None:
-        out.append(min(1.0, since_switch / _SWITCH_HORIZON_S))
+        out.append(min(1.0, since_switch / self._switch_horizon))
         out.append(0.0 if self._dwell <= 0 else min(1.0, dwell_remaining / self._dwell))
 
     def _finish(self, agent: str, out: list[float]) -> np.ndarray:

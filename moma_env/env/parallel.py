@@ -211,7 +211,7 @@ class MomaParallelEnv(ParallelEnv):
         centre = ((xmin + xmax) / 2.0, (ymin + ymax) / 2.0)
         half_diag = 0.5 * math.hypot(xmax - xmin, ymax - ymin)
         devices = self.simulation.devices
-        self.layout = ObservationLayout(devices, self._ugvs, self._tows, tuple(self._observers), centre, half_diag, scenario.dwell_s)
+        self.layout = ObservationLayout(devices, self._ugvs, self._tows, tuple(self._observers), centre, half_diag, scenario.dwell_s, self.config.switch_horizon_s)
         if not hasattr(self, "_action_spaces"):
             # The spaces are made once: every scenario of the env has the same robots, and a
             # space object (with its sampling generator) stays the same across resets.

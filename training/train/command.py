@@ -94,6 +94,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--route", choices=ROUTES, type=choice(ROUTES, "route"), default=defaults["route"],
                     help="shared policy over the UGV agents, or the centralised team as one agent (default %(default)s)")
     tr.add_argument("--max-cycles", type=int_at_least(1, "step count"), default=None, help="training episode length in steps (default: the scenario's)")
+    tr.add_argument("--switch-horizon", dest="switch_horizon_s", type=float, default=None, metavar="S",
+                    help="seconds since the last switch at which the observations' timer reaches 1 (EnvConfig.switch_horizon_s; "
+                         "default: the env's, 5 s; sb3 backend only)")
     tr.add_argument("--reward", action="append", default=[], metavar="NAME=VALUE",
                     help="override a reward weight of RewardConfig (repeatable), e.g. --reward time=-0.01 (default: the scenario's weights)")
     tr.add_argument("--no-normalize", dest="normalize", action="store_false",
@@ -161,6 +164,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         action_mode=args.action_mode,
         route=args.route,
         max_cycles=args.max_cycles,
+        switch_horizon_s=args.switch_horizon_s,
         rewards=scenario_rewards(args.scenario, args.reward),
         normalize=args.normalize,
         net_arch=tuple(args.net),
@@ -189,7 +193,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
 #: TrainConfig fields -> their ``moma-env train`` option (value options; flags are handled apart).
 _VALUE_OPTIONS = MappingProxyType({
     "algo": "--algo", "steps": "--timesteps", "envs": "--num-envs", "workers": "--workers", "torch_threads": "--torch-threads", "seed": "--seed", "action_mode": "--action-mode",
-    "route": "--route", "max_cycles": "--max-cycles", "n_steps": "--n-steps", "batch_size": "--batch-size",
+    "route": "--route", "max_cycles": "--max-cycles", "switch_horizon_s": "--switch-horizon", "n_steps": "--n-steps", "batch_size": "--batch-size",
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
     "eval_seed": "--eval-seed", "network": "--network", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",

@@ -165,6 +165,9 @@ class TrainConfig:
         action_mode: ``"switching"`` or ``"velocity"``.
         route: ``"centralised"`` or ``"shared"``.
         max_cycles: episode length limit in steps (None: the scenario's).
+        switch_horizon_s: the envs' ``EnvConfig.switch_horizon_s`` (s): the time since
+            the last switch at which the observations' timer reaches 1; None: the
+            env's default (5 s).
         rewards: reward weights; None: the scenario's (a task's objective, else
             :class:`RewardConfig`'s defaults).
         normalize: wrap the envs in ``VecNormalize`` (observations and rewards).
@@ -218,6 +221,7 @@ class TrainConfig:
     action_mode: str = "switching"
     route: str = "shared"
     max_cycles: int | None = None
+    switch_horizon_s: float | None = None
     rewards: RewardConfig | None = None
     normalize: bool = True
     net_arch: tuple[int, ...] = (64, 64)
@@ -259,6 +263,9 @@ class TrainConfig:
         if self.workers is not None and self.subproc:
             raise ConfigError("workers", "subproc runs a process per copy; workers splits the batch over processes: give one")
         check_learning_fields(self)
+        if self.switch_horizon_s is not None:
+            check_positive("switch_horizon_s", self.switch_horizon_s)
+            object.__setattr__(self, "switch_horizon_s", float(self.switch_horizon_s))
         check_bool("normalize", self.normalize)
         check_count("batch_size", self.batch_size, 1)
         check_count("buffer_size", self.buffer_size, 1)
@@ -294,7 +301,7 @@ class TrainConfig:
     def env_options(self) -> dict[str, Any]:
         """Keyword options of :func:`moma_env.env.factory.parallel_env` for this run (a
         task's own options apply beneath them)."""
-        return run_env_options(self.action_mode, self.max_cycles, self.rewards)
+        return run_env_options(self.action_mode, self.max_cycles, self.rewards, self.switch_horizon_s)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for the manifest (tuples as lists)."""
@@ -306,12 +313,17 @@ class TrainConfig:
         return config_from_dict(cls, data)
 
 
-def run_env_options(action_mode: str, max_cycles: int | None, rewards: RewardConfig | None) -> dict[str, Any]:
+def run_env_options(
+    action_mode: str, max_cycles: int | None, rewards: RewardConfig | None, switch_horizon_s: float | None = None
+) -> dict[str, Any]:
     """Keyword options of ``parallel_env`` for a training run's envs: random layouts, the
-    observer flown by its controller, ``rewards`` (None: the scenario's)."""
+    observer flown by its controller, ``rewards`` (None: the scenario's), and
+    ``switch_horizon_s`` (None: the env's default)."""
     options: dict[str, Any] = {"action_mode": action_mode, "observer_agent": False, "max_cycles": max_cycles, "random_scenarios": True}
     if rewards is not None:
         options["rewards"] = dataclasses.asdict(rewards)
+    if switch_horizon_s is not None:
+        options["switch_horizon_s"] = switch_horizon_s
     return options
 
 
