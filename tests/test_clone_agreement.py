@@ -59,6 +59,27 @@ def test_it_prints_the_agreement_of_a_run_with_its_teacher(tmp_path, capsys):
     assert lines[-1].startswith("On ") and int(words[4]) == counts[1] and 0 <= int(words[1]) <= counts[1]
 
 
+def test_the_teacher_drives_envs_with_the_runs_own_timer(tmp_path, capsys, monkeypatch):
+    """A run trained with ``--switch-horizon`` is compared on observations with its timer."""
+    import training.clone_agreement as agreement
+    from training.train.run import train
+
+    config = TrainConfig(scenario="top_observer_team4", algo="maskable_ppo", route="centralised", envs=2, net_arch=(16,),
+                         pretrain="greedy", pretrain_rows=60, pretrain_epochs=1, dagger_rounds=0, steps=0, eval_every=10**6,
+                         switch_horizon_s=60.0)
+    train(config, tmp_path / "run")
+    horizons = []
+    collect = agreement.time_collection
+
+    def recorded(*args, **kwargs):
+        horizons.append(kwargs.get("switch_horizon_s"))
+        return collect(*args, **kwargs)
+
+    monkeypatch.setattr(agreement, "time_collection", recorded)
+    assert main([str(tmp_path / "run"), "--copies", "2", "--rows", "100", "--workers", "1"]) == 0
+    assert horizons == [60.0]
+
+
 @pytest.mark.parametrize(
     "argv, words",
     [

@@ -35,11 +35,13 @@ FIELDS = ("observations", "actions", "masks", "rewards", "episode_ends", "comple
 
 
 def time_collection(
-    scenario: str, teacher: str, copies: int, rows: int, workers: int, learner: ModelRowPolicy | None = None, seed: int = 0
+    scenario: str, teacher: str, copies: int, rows: int, workers: int, learner: ModelRowPolicy | None = None, seed: int = 0,
+    switch_horizon_s: float | None = None,
 ) -> tuple[float, Demonstrations]:
     """Wall time (s) of one collection of ``rows`` rows (copy ``k`` first reset with ``seed + k``)
-    and the collection itself."""
-    spec = env_spec(TrainConfig(scenario=scenario, algo="maskable_ppo", route="centralised", envs=copies, pretrain=teacher, steps=0))
+    and the collection itself; ``switch_horizon_s``: the envs' timer (None: the env's default)."""
+    spec = env_spec(TrainConfig(scenario=scenario, algo="maskable_ppo", route="centralised", envs=copies, pretrain=teacher, steps=0,
+                                switch_horizon_s=switch_horizon_s))
     start = time.perf_counter()
     demonstrations = collect_demonstrations(spec, teacher, copies, rows, seed=seed, route="centralised", learner=learner, workers=workers)
     return time.perf_counter() - start, demonstrations

@@ -57,7 +57,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.workers > args.copies:
         parser.error(f"--workers must be at most --copies ({args.copies}), got {args.workers}")
     torch.set_num_threads(1)
-    seconds, demonstrations = time_collection(scenario, teacher, args.copies, args.rows, args.workers, seed=args.seed)
+    seconds, demonstrations = time_collection(
+        scenario, teacher, args.copies, args.rows, args.workers, seed=args.seed, switch_horizon_s=config.get("switch_horizon_s")
+    )  # the run's own observations: its timer
     actions = policy(demonstrations.observations, demonstrations.masks)
     choice = choice_rows(demonstrations)
     starts = start_rows(demonstrations) & choice
