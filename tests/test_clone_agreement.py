@@ -71,9 +71,9 @@ def test_the_teacher_drives_envs_with_the_runs_own_timer(tmp_path, capsys, monke
     horizons = []
     collect = agreement.time_collection
 
-    def recorded(*args, **kwargs):
-        horizons.append(kwargs.get("switch_horizon_s"))
-        return collect(*args, **kwargs)
+    def recorded(spec, *args, **kwargs):
+        horizons.append(spec.options.get("switch_horizon_s"))
+        return collect(spec, *args, **kwargs)
 
     monkeypatch.setattr(agreement, "time_collection", recorded)
     assert main([str(tmp_path / "run"), "--copies", "2", "--rows", "100", "--workers", "1"]) == 0

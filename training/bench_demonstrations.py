@@ -28,6 +28,7 @@ from training.cli_args import int_at_least
 from training.train.config import TrainConfig, check_teacher
 from training.train.envs import env_spec
 from training.train.pretrain import Demonstrations, ModelRowPolicy, collect_demonstrations
+from training.train.team_slots import EnvSpec
 
 __all__ = ["main", "run_learner", "time_collection"]
 
@@ -35,13 +36,10 @@ FIELDS = ("observations", "actions", "masks", "rewards", "episode_ends", "comple
 
 
 def time_collection(
-    scenario: str, teacher: str, copies: int, rows: int, workers: int, learner: ModelRowPolicy | None = None, seed: int = 0,
-    switch_horizon_s: float | None = None,
+    spec: EnvSpec, teacher: str, copies: int, rows: int, workers: int, learner: ModelRowPolicy | None = None, seed: int = 0
 ) -> tuple[float, Demonstrations]:
-    """Wall time (s) of one collection of ``rows`` rows (copy ``k`` first reset with ``seed + k``)
-    and the collection itself; ``switch_horizon_s``: the envs' timer (None: the env's default)."""
-    spec = env_spec(TrainConfig(scenario=scenario, algo="maskable_ppo", route="centralised", envs=copies, pretrain=teacher, steps=0,
-                                switch_horizon_s=switch_horizon_s))
+    """Wall time (s) of one centralised collection of ``rows`` rows on envs built from ``spec``
+    (copy ``k`` first reset with ``seed + k``) and the collection itself."""
     start = time.perf_counter()
     demonstrations = collect_demonstrations(spec, teacher, copies, rows, seed=seed, route="centralised", learner=learner, workers=workers)
     return time.perf_counter() - start, demonstrations
@@ -68,7 +66,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         check_teacher("teacher", args.teacher)
-        TrainConfig(scenario=args.scenario, algo="maskable_ppo", route="centralised", envs=args.copies, pretrain=args.teacher, steps=0)
+        spec = env_spec(TrainConfig(scenario=args.scenario, algo="maskable_ppo", route="centralised", envs=args.copies, pretrain=args.teacher, steps=0))
         learner = None if args.learner is None else run_learner(args.learner, args.scenario)
     except ValueError as error:  # ConfigError names the field; TrainingDirError the run
         parser.error(str(error))
@@ -79,7 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for _ in range(args.rounds):
         collected = {}
         for workers in rates:
-            seconds, collected[workers] = time_collection(args.scenario, args.teacher, args.copies, args.rows, workers, learner)
+            seconds, collected[workers] = time_collection(spec, args.teacher, args.copies, args.rows, workers, learner)
             rates[workers].append(len(collected[workers]) / seconds)
         one, split = collected[1], collected[args.workers]
         if not all(np.array_equal(getattr(one, f), getattr(split, f)) for f in FIELDS):

@@ -1,7 +1,8 @@
 """How often a cloned policy chooses as its teacher does, on the teacher's own states of new layouts.
 
 ``python -m training.clone_agreement RUN [--teacher T] [--copies 8] [--rows 8000]
-[--seed 2000000] [--workers 2]`` drives ``--copies`` copies of the run's scenario with the
+[--seed 2000000] [--workers 2]`` drives ``--copies`` copies of the run's own env (its
+scenario with the options it trained with) with the
 teacher (default: the one the run was cloned from, its ``--pretrain``) for ``--rows``
 rows on the centralised route, copy ``k`` first reset with seed ``--seed + k`` (layouts no
 training run nor held-out sweep here starts from by default), and compares the run's most
@@ -23,7 +24,8 @@ import torch
 from agents.learned import read_manifest
 from training.bench_demonstrations import run_learner, time_collection
 from training.cli_args import int_at_least
-from training.train.config import check_teacher
+from training.train.config import TrainConfig, check_teacher
+from training.train.envs import env_spec
 from training.train.pretrain import Demonstrations, choice_agents, choice_agreement, choice_rows
 
 __all__ = ["main", "start_rows"]
@@ -50,6 +52,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         config = read_manifest(args.run)["config"]
         scenario = config["scenario"]
+        spec = env_spec(TrainConfig.from_dict(config))  # the run's own envs: its observations' timer, rewards, episode length
         teacher = check_teacher("teacher", args.teacher if args.teacher is not None else config.get("pretrain"))
         policy = run_learner(args.run, scenario)
     except ValueError as error:  # TrainingDirError names the run, ConfigError the teacher
@@ -57,9 +60,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.workers > args.copies:
         parser.error(f"--workers must be at most --copies ({args.copies}), got {args.workers}")
     torch.set_num_threads(1)
-    seconds, demonstrations = time_collection(
-        scenario, teacher, args.copies, args.rows, args.workers, seed=args.seed, switch_horizon_s=config.get("switch_horizon_s")
-    )  # the run's own observations: its timer
+    seconds, demonstrations = time_collection(spec, teacher, args.copies, args.rows, args.workers, seed=args.seed)
     actions = policy(demonstrations.observations, demonstrations.masks)
     choice = choice_rows(demonstrations)
     starts = start_rows(demonstrations) & choice
