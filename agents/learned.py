@@ -370,6 +370,8 @@ class LearnedPolicy(TrainedUgvPolicy):
             sample from it (False; seeded by :meth:`reset`).
         switch_horizon_s: the ``EnvConfig.switch_horizon_s`` it was trained with, None
             for the env's default; :meth:`reset` refuses an env with another.
+        team_action: the ``EnvConfig.team_action`` of a centralised model (``"per_agent"``
+            or ``"one_start"``); :meth:`reset` refuses an env with another.
     """
 
     def __init__(
@@ -382,9 +384,12 @@ class LearnedPolicy(TrainedUgvPolicy):
         torch_threads: int = 1,
         deterministic: bool = True,
         switch_horizon_s: float | None = None,
+        team_action: str = "per_agent",
     ):
         if route not in _ROUTES:
             raise ValueError(f"route must be one of {_ROUTES}, got {route!r}")
+        if team_action != "per_agent" and route != "centralised":
+            raise ValueError(f"team_action {team_action!r} is the centralised route's; this model is {route!r}")
         self.model = model
         self.route = route
         self.action_mode = action_mode
@@ -400,6 +405,7 @@ class LearnedPolicy(TrainedUgvPolicy):
             raise ValueError(f"deterministic must be a bool, got {deterministic!r}")
         self.deterministic = deterministic
         self.switch_horizon_s = switch_horizon_s
+        self.team_action = team_action
         self._sampler = np.random.default_rng(0)
         self._masked = _uses_action_masks(model)
         self._env: MomaParallelEnv | None = None
@@ -446,7 +452,7 @@ class LearnedPolicy(TrainedUgvPolicy):
                 raise TrainingDirError(f"cannot use the normalisation statistics {str(directory / manifest['vecnormalize'])!r}: "
                                        f"{_first_line(err)}") from None
         return cls(model, manifest["route"], config["action_mode"], normalise, trained_on, deterministic=deterministic,
-                   switch_horizon_s=config.get("switch_horizon_s"))
+                   switch_horizon_s=config.get("switch_horizon_s"), team_action=config.get("team_action", "per_agent"))
 
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
         """Check that ``env`` fits the model; read its agents (call after ``env.reset``);
@@ -456,6 +462,8 @@ class LearnedPolicy(TrainedUgvPolicy):
         self._env = env
         expected = self.model.observation_space.shape
         if self.route == "centralised":
+            if env.config.team_action != self.team_action:
+                raise ValueError(f"the policy was trained with team_action={self.team_action!r}; the env has {env.config.team_action!r}")
             self._team = CentralisedTeamEnv(env)
             got = self._team.observation_space.shape
         else:

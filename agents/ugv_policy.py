@@ -24,11 +24,13 @@ class TrainedUgvPolicy:
 
     Subclasses set ``action_mode`` (an attribute or a class attribute), and
     ``switch_horizon_s`` where the policy was trained with another than the env's
-    default (``EnvConfig.switch_horizon_s``).
+    default (``EnvConfig.switch_horizon_s``), and ``team_action`` where it acts through
+    another team action than the default (``EnvConfig.team_action``).
     """
 
     action_mode: str
     switch_horizon_s: float | None = None
+    team_action: str = "per_agent"
 
     @property
     def env_options(self) -> dict[str, Any]:
@@ -36,6 +38,8 @@ class TrainedUgvPolicy:
         options: dict[str, Any] = {"action_mode": self.action_mode, "observer_agent": False}
         if self.switch_horizon_s is not None:
             options["switch_horizon_s"] = self.switch_horizon_s
+        if self.team_action != "per_agent":
+            options["team_action"] = self.team_action
         return options
 
     def _begin_episode(self, env: MomaParallelEnv, seed: int | None) -> None:

@@ -16,7 +16,7 @@ import pytest
 
 from training import bench_cli
 from training.cli import main
-from training.cli_args import ACTION_MODE_NAMES, CAMERA_BACKEND_NAMES, ESTIMATOR_NAMES, PRESET_NAMES, SCENARIO_NAMES
+from training.cli_args import ACTION_MODE_NAMES, CAMERA_BACKEND_NAMES, ESTIMATOR_NAMES, PRESET_NAMES, SCENARIO_NAMES, TEAM_ACTION_NAMES
 
 HEAVY = ("torch", "stable_baselines3", "sb3_contrib", "cv2", "pymunk", "matplotlib", "moma_env.scenarios", "moma_env.sim")
 HELPS = [[], ["experiment"], *[["experiment", e] for e in ("square", "line", "flips", "consistency")], ["bench"], ["evaluate"], ["train"], ["sweep"]]
@@ -62,7 +62,7 @@ def test_the_names_only_registry_matches_the_scenario_specs():
 
 def test_the_parser_offers_the_real_names():
     from moma_env.camera import CAMERA_BACKENDS
-    from moma_env.env.config import ACTION_MODES
+    from moma_env.env.config import ACTION_MODES, TEAM_ACTIONS
     from moma_env.estimator.registry import ESTIMATORS
     from moma_env.scenarios import CONFIGURATIONS
     from moma_env.tasks import TASKS
@@ -72,6 +72,7 @@ def test_the_parser_offers_the_real_names():
     assert CAMERA_BACKEND_NAMES == tuple(CAMERA_BACKENDS)
     assert PRESET_NAMES == tuple(sorted(PRESETS))
     assert sorted(ACTION_MODE_NAMES) == sorted(ACTION_MODES)
+    assert TEAM_ACTION_NAMES == TEAM_ACTIONS
     assert ESTIMATOR_NAMES == tuple(ESTIMATORS)
     from training.experiments.compare import CAMERAS, EXPERIMENTS
 

@@ -24,6 +24,7 @@ __all__ = [
     "CAMERA_BACKEND_NAMES",
     "PRESET_NAMES",
     "ACTION_MODE_NAMES",
+    "TEAM_ACTION_NAMES",
     "ESTIMATOR_NAMES",
     "name_list",
     "int_at_least",
@@ -42,6 +43,8 @@ CAMERA_BACKEND_NAMES: tuple[str, ...] = ("geometric", "rendered")
 PRESET_NAMES: tuple[str, ...] = ("default", "paper")
 #: ``moma_env.env.config.ACTION_MODES`` in the command line's order (the default first).
 ACTION_MODE_NAMES: tuple[str, ...] = ("switching", "velocity")
+#: ``moma_env.env.config.TEAM_ACTIONS`` (the default first).
+TEAM_ACTION_NAMES: tuple[str, ...] = ("per_agent", "one_start")
 #: ``moma_env.estimator.registry.ESTIMATORS`` (the paper's ``moma`` first).
 ESTIMATOR_NAMES: tuple[str, ...] = ("moma", "fused", "ekf", "graph", "graph_vision")
 

@@ -1,11 +1,12 @@
 """A centralised Gymnasium view of a MOMA team: the whole team as one agent.
 
 Observation: the agents' observations concatenated in ``possible_agents`` order
-(a ``Box``). Action: the agents' actions side by side: a ``MultiDiscrete`` when
-every agent is discrete (``switching`` mode), else a ``Box`` in [-1, 1] where a
-discrete agent's slot is decoded by rounding into its range. Reward: the team
-reward. The episode ends when the team's episode ends. ``info`` holds each
-agent's info under its name.
+(a ``Box``). Action (``EnvConfig.team_action``): by default the agents' actions side
+by side, a ``MultiDiscrete`` when every agent is discrete (``switching`` mode), else
+a ``Box`` in [-1, 1] where a discrete agent's slot is decoded by rounding into its
+range; with ``team_action="one_start"`` one ``Discrete`` choice of which static robot
+starts which leg, if any. Reward: the team reward. The episode ends when the team's
+episode ends. ``info`` holds each agent's info under its name.
 
 :class:`TeamLayout` holds that mapping (spaces, observation concatenation,
 action decoding, masks) for one copy or a batch of copies; it is shared by
@@ -21,6 +22,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from moma_env.env.config import TEAM_ACTIONS
 from moma_env.env.parallel import MomaParallelEnv
 
 __all__ = ["CentralisedTeamEnv", "TeamLayout"]
@@ -33,43 +35,85 @@ class TeamLayout:
         agents: the agents in team order (``possible_agents``).
         observation_spaces: each agent's observation space (``Box`` only).
         action_spaces: each agent's action space (``Discrete`` or ``Box``).
+        team_action: one of :data:`moma_env.env.config.TEAM_ACTIONS` (``EnvConfig.team_action``).
 
     Attributes:
         agents: the agents in team order.
         observation_space: ``Box`` of shape ``(D,)`` float32, ``D`` the sum of the
             agents' observation sizes.
-        action_space: ``MultiDiscrete`` of the agents' ``n`` when every agent is
-            discrete (``switching`` mode), else ``Box(-1, 1, (A,))`` float32 with
-            one slot per discrete agent and ``prod(shape)`` slots per ``Box`` agent.
-        discrete: whether ``action_space`` is the ``MultiDiscrete``.
+        action_space: with ``team_action="per_agent"``, ``MultiDiscrete`` of the agents'
+            ``n`` when every agent is discrete (``switching`` mode), else ``Box(-1, 1, (A,))``
+            float32 with one slot per discrete agent and ``prod(shape)`` slots per ``Box``
+            agent. With ``"one_start"``, ``Discrete(1 + S)``: 0 starts no robot, and
+            ``1 .. S`` are the agents' advance actions in team order (agent ``j``'s actions
+            ``1 .. n_j - 1``, then the next agent's; :attr:`starts`); the chosen agent
+            sends that action and every other agent 0 (hold), which a robot driving a
+            committed leg ignores.
+        discrete: whether ``action_space`` is discrete with action masks (``MultiDiscrete``
+            or the ``one_start`` ``Discrete``).
+        team_action: the team action's kind.
+        starts: with ``"one_start"``, ``(agent, action)`` of team actions ``1 .. S``; empty otherwise.
 
     Raises:
-        ValueError: an observation space is not a ``Box`` (e.g. ``observer_image``'s ``Dict``).
+        ValueError: an observation space is not a ``Box`` (e.g. ``observer_image``'s
+            ``Dict``); an unknown ``team_action``; ``"one_start"`` with an agent whose
+            actions are not ``Discrete``.
     """
 
-    def __init__(self, agents: Sequence[str], observation_spaces: Sequence[spaces.Space], action_spaces: Sequence[spaces.Space]):
+    def __init__(
+        self,
+        agents: Sequence[str],
+        observation_spaces: Sequence[spaces.Space],
+        action_spaces: Sequence[spaces.Space],
+        team_action: str = "per_agent",
+    ):
         self.agents: tuple[str, ...] = tuple(agents)
         if not all(isinstance(s, spaces.Box) for s in observation_spaces):
             raise ValueError("the centralised env concatenates vector observations; it cannot take observer_image (a Dict)")
+        if team_action not in TEAM_ACTIONS:
+            raise ValueError(f"team_action must be one of {TEAM_ACTIONS}, got {team_action!r}")
         self.observation_space = spaces.Box(
             low=np.concatenate([s.low for s in observation_spaces]),
             high=np.concatenate([s.high for s in observation_spaces]),
             dtype=np.float32,
         )
         self._act_spaces: tuple[spaces.Space, ...] = tuple(action_spaces)
+        self.team_action = team_action
         self.discrete = all(isinstance(s, spaces.Discrete) for s in action_spaces)
-        self.action_space: spaces.MultiDiscrete | spaces.Box
-        if self.discrete:
+        self.action_space: spaces.MultiDiscrete | spaces.Box | spaces.Discrete
+        self.starts: tuple[tuple[str, int], ...] = ()
+        if team_action == "one_start":
+            if not self.discrete:
+                raise ValueError("team_action='one_start' needs every agent's actions Discrete (switching mode, the observer not an agent)")
+            self.starts = tuple((agent, a) for agent, space in zip(self.agents, action_spaces) for a in range(1, int(space.n)))
+            # team action -> (the agent's position, its action); 0 starts none
+            self._start_agent = np.array([-1] + [self.agents.index(agent) for agent, _ in self.starts], dtype=np.int64)
+            self._start_action = np.array([0] + [a for _, a in self.starts], dtype=np.int64)
+            # agent j's action a is team action offsets[j] + a
+            sizes = [int(space.n) - 1 for space in action_spaces]
+            self._offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+            self.action_space = spaces.Discrete(1 + len(self.starts))
+        elif self.discrete:
             self.action_space = spaces.MultiDiscrete([int(s.n) for s in action_spaces])
         else:
             size = sum(1 if isinstance(s, spaces.Discrete) else int(np.prod(s.shape)) for s in action_spaces)
             self.action_space = spaces.Box(-1.0, 1.0, shape=(size,), dtype=np.float32)
 
+    @property
+    def one_start(self) -> bool:
+        """Whether the team action is the ``one_start`` ``Discrete``."""
+        return self.team_action == "one_start"
+
     @classmethod
     def of(cls, parallel_env: MomaParallelEnv) -> TeamLayout:
-        """The layout of ``parallel_env``'s ``possible_agents``."""
+        """The layout of ``parallel_env``'s ``possible_agents``, with its ``EnvConfig.team_action``."""
         agents = list(parallel_env.possible_agents)
-        return cls(agents, [parallel_env.observation_space(a) for a in agents], [parallel_env.action_space(a) for a in agents])
+        return cls(
+            agents,
+            [parallel_env.observation_space(a) for a in agents],
+            [parallel_env.action_space(a) for a in agents],
+            parallel_env.config.team_action,
+        )
 
     def observation(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
         """The agents' observations concatenated along the last axis, in team order (float32):
@@ -84,11 +128,16 @@ class TeamLayout:
         rounding into ``[0, n)`` (``floor((clip(x, -1, 1) + 1) / 2 * n)``, ``n - 1`` at
         ``x = 1``). A ``Box`` agent gets its slots reshaped to ``(K, *shape)``.
 
+        With ``team_action="one_start"`` the team actions have shape ``(K,)``: copy
+        ``k``'s chosen agent gets its start's action, every other agent 0 (hold).
+
         Raises:
             ValueError: wrong shape, a non-integer or out-of-range ``MultiDiscrete``
                 entry, or a non-finite slot of a discrete agent; naming the agent
                 and the copy.
         """
+        if self.one_start:
+            return self._one_start_actions(actions)
         a = np.asarray(actions)
         expected = (a.shape[0] if a.ndim else 0, *self.action_space.shape)
         if a.ndim != 2 or a.shape != expected:
@@ -122,10 +171,63 @@ class TeamLayout:
                 k += n
         return out
 
+    def _one_start_actions(self, actions: Any) -> dict[str, np.ndarray]:
+        a = np.asarray(actions)
+        n = int(self.action_space.n)
+        if a.ndim != 1:
+            raise ValueError(f"team actions must have shape (num_envs,) for {self.action_space} (team_action='one_start'), got {a.shape}")
+        if a.dtype.kind not in "iu":
+            raise ValueError(f"team actions of {self.action_space} must be integers, got dtype {a.dtype}")
+        bad = np.flatnonzero((a < 0) | (a >= n))
+        if bad.size:
+            raise ValueError(f"team action of copy {int(bad[0])} must be an integer in [0, {n}) (team_action='one_start'), got {a[bad[0]].item()!r}")
+        index = a.astype(np.int64)
+        agent_of, action_of = self._start_agent[index], self._start_action[index]
+        return {agent: np.where(agent_of == j, action_of, 0) for j, agent in enumerate(self.agents)}
+
+    def team_actions(self, actions: Mapping[str, np.ndarray], agent_masks: Mapping[str, np.ndarray]) -> np.ndarray:
+        """``K`` copies' agent actions (agent -> ``(K,)`` integers, switching mode) as the team
+        actions that stand for them, given the masks they were chosen under (agent ->
+        ``(K, n)``): ``(K, N)`` int64 side by side (``"per_agent"``), or ``(K,)`` int64
+        (``"one_start"``): the start of the one agent with a choice (its mask allows more
+        than one action) that takes an action other than 0, 0 if none does. An agent
+        without a choice is left to the decoding (a committed leg goes on).
+
+        Raises:
+            ValueError: the team action is a ``Box``; with ``"one_start"``, two agents
+                with a choice start in the same step of a copy (naming them and the copy).
+        """
+        if not self.discrete:
+            raise ValueError("team actions of agents' actions exist for the discrete actions of action_mode='switching'")
+        if not self.one_start:
+            return np.stack([np.asarray(actions[a], dtype=np.int64) for a in self.agents], axis=1)
+        chosen = np.asarray(actions[self.agents[0]])
+        out = np.zeros(chosen.shape[0], dtype=np.int64)
+        starters: list[np.ndarray] = []
+        for j, agent in enumerate(self.agents):
+            act = np.asarray(actions[agent], dtype=np.int64)
+            free = np.asarray(agent_masks[agent], dtype=bool).sum(axis=-1) > 1
+            start = free & (act != 0)
+            out[start] = self._offsets[j] + act[start]
+            starters.append(start)
+        together = np.stack(starters, axis=1)
+        crowded = np.flatnonzero(together.sum(axis=1) > 1)
+        if crowded.size:
+            k = int(crowded[0])
+            names = [self.agents[j] for j in np.flatnonzero(together[k])]
+            raise ValueError(f"copy {k}: agents {names} start in the same step; team_action='one_start' starts one robot a step")
+        return out
+
     def agent_actions(self, action: Any) -> dict[str, Any]:
-        """One team action, shape ``(A,)``, split into the agents' actions (a discrete
-        agent's as a Python ``int``, a ``Box`` agent's as an array of its shape)."""
+        """One team action, shape ``(A,)`` (one integer with ``"one_start"``), split into
+        the agents' actions (a discrete agent's as a Python ``int``, a ``Box`` agent's
+        as an array of its shape)."""
         a = np.asarray(action)
+        if self.one_start:
+            if a.shape != ():
+                raise ValueError(f"action must be one integer for {self.action_space} (team_action='one_start'), got shape {a.shape}")
+            batch = self._one_start_actions(a[None])
+            return {agent: int(batch[agent][0]) for agent in self.agents}
         if a.shape != self.action_space.shape:
             raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
         if self.discrete:  # any number: int() of it, as the parallel env's parser expects
@@ -145,12 +247,22 @@ class TeamLayout:
         """The agents' action masks side by side along the last axis (bool): ``(sum n,)``
         from one copy's ``action_masks()``, ``(K, sum n)`` from ``(K, n)`` arrays.
 
+        With ``team_action="one_start"``: ``(1 + S,)`` or ``(K, 1 + S)``; starting none is
+        always allowed, and start ``(agent, a)`` where the agent has a choice (its mask
+        allows more than one action) and its mask allows ``a``.
+
         Raises:
-            ValueError: the team action is not the ``MultiDiscrete`` of the switching mode.
+            ValueError: the team action is not discrete (switching mode).
         """
         if not self.discrete:
-            raise ValueError("action masks need the MultiDiscrete team action of action_mode='switching'")
-        return np.concatenate([agent_masks[a] for a in self.agents], axis=-1).astype(bool)
+            raise ValueError("action masks need the discrete team action of action_mode='switching' (the MultiDiscrete, or team_action='one_start')")
+        if not self.one_start:
+            return np.concatenate([agent_masks[a] for a in self.agents], axis=-1).astype(bool)
+        every = [np.asarray(agent_masks[a], dtype=bool) for a in self.agents]
+        columns = [np.ones((*every[0].shape[:-1], 1), dtype=bool)]
+        for mask in every:
+            columns.append(mask[..., 1:] & (mask.sum(axis=-1, keepdims=True) > 1))
+        return np.concatenate(columns, axis=-1)
 
 
 class CentralisedTeamEnv(gym.Env):
@@ -175,10 +287,11 @@ class CentralisedTeamEnv(gym.Env):
         return self.layout.agent_actions(action)
 
     def action_masks(self) -> np.ndarray:
-        """Flat boolean mask over the ``MultiDiscrete`` team action (switching mode): the
-        agents' :meth:`MomaParallelEnv.action_mask` side by side in ``possible_agents``
-        order, the one-dimensional form sb3-contrib's ``MaskablePPO`` asks an env for.
-        Each agent's part assumes the other agents keep their state."""
+        """Flat boolean mask over the discrete team action (switching mode): the agents'
+        :meth:`MomaParallelEnv.action_mask` side by side in ``possible_agents`` order
+        (or the ``one_start`` starts, :meth:`TeamLayout.masks`), the one-dimensional form
+        sb3-contrib's ``MaskablePPO`` asks an env for. Each agent's part assumes the
+        other agents keep their state."""
         return self.layout.masks(self.parallel_env.action_masks() if self.layout.discrete else {})
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:

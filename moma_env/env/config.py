@@ -28,7 +28,7 @@ from moma_env.config import (
 )
 from moma_env.estimator.registry import check_estimator_name, localiser_factory
 
-__all__ = ["ACTION_MODES", "RewardConfig", "EnvConfig", "checked_max_cycles"]
+__all__ = ["ACTION_MODES", "TEAM_ACTIONS", "RewardConfig", "EnvConfig", "checked_max_cycles"]
 
 
 def checked_max_cycles(name: str, value: object) -> int:
@@ -41,6 +41,8 @@ def checked_max_cycles(name: str, value: object) -> int:
 #: ``velocity``: continuous body velocities plus a requested static/mobile state;
 #: ``switching``: discrete hold / advance per UGV, built-in controllers drive.
 ACTION_MODES = ("velocity", "switching")
+#: What the centralised team's action is (``EnvConfig.team_action``).
+TEAM_ACTIONS = ("per_agent", "one_start")
 
 
 @dataclass(frozen=True)
@@ -129,6 +131,17 @@ class EnvConfig:
             observation at every step, so a deterministic policy that holds once
             holds to the end of the episode; a horizon as long as an episode keeps
             the feature changing (docs/training.md).
+        team_action: the action of the whole team as one agent (the centralised
+            views: :class:`moma_env.env.centralised.CentralisedTeamEnv`,
+            ``gymnasium.make``, :class:`moma_env.vector.team.TeamVectorEnv` and the
+            centralised training route; the PettingZoo env's agents keep their own
+            actions). ``"per_agent"`` (the default): every agent's action side by
+            side (a ``MultiDiscrete`` in switching mode). ``"one_start"``: one
+            ``Discrete`` choice a step, no robot starts (0) or one static robot
+            takes one of its advance actions, every other robot holding; needs
+            switching mode with ``commit_legs`` (so that a robot driving a leg
+            goes on whatever the team chooses) and the observer flown by its
+            controller (see :class:`moma_env.env.centralised.TeamLayout`).
         localiser: builds each episode's localiser from the scenario's
             ``EstimatorConfig`` (a :class:`moma_env.sim.Localiser`), or the name
             of one of :data:`moma_env.estimator.registry.ESTIMATORS` (``"moma"``,
@@ -150,6 +163,7 @@ class EnvConfig:
     pad_observations: bool = False
     localiser: Callable[[Any], Any] | None = None
     switch_horizon_s: float = DEFAULT_SWITCH_HORIZON_S
+    team_action: str = "per_agent"
 
     def __post_init__(self) -> None:
         check_choice("env.action_mode", self.action_mode, ACTION_MODES)
@@ -206,6 +220,12 @@ class EnvConfig:
             if len(set(lengths)) != len(lengths):
                 raise ConfigError("env.leg_lengths", f"must be distinct, got {list(lengths)}")
             object.__setattr__(self, "leg_lengths", lengths)
+        check_choice("env.team_action", self.team_action, TEAM_ACTIONS)
+        if self.team_action == "one_start":
+            if not self.commit_legs:
+                raise ConfigError("env.team_action", "'one_start' needs commit_legs=True (a robot driving a leg must go on while another starts)")
+            if self.observer_is_agent:
+                raise ConfigError("env.team_action", "'one_start' needs the observer flown by its controller (observer_agent=False)")
 
     @property
     def localiser_factory(self) -> Callable[[Any], Any] | None:

@@ -181,13 +181,14 @@ def configuration_env(
     pad_observations: bool = False,
     localiser: Any = None,
     switch_horizon_s: float = DEFAULT_SWITCH_HORIZON_S,
+    team_action: str = "per_agent",
     **overrides: Any,
 ) -> MomaParallelEnv:
     """The PettingZoo parallel env of ``configuration`` (see the module docstring).
 
     ``camera_backend``, ``render``, ``floor``, ``observer_image``,
-    ``action_masks``, ``commit_legs``, ``leg_lengths``, ``pad_observations``, ``localiser`` and
-    ``switch_horizon_s`` are the
+    ``action_masks``, ``commit_legs``, ``leg_lengths``, ``pad_observations``, ``localiser``,
+    ``switch_horizon_s`` and ``team_action`` are the
     :class:`EnvConfig` fields of the same names
     (``render`` and ``floor`` may be mappings of their fields).
     """
@@ -214,6 +215,7 @@ def configuration_env(
         pad_observations=pad_observations,
         localiser=localiser,
         switch_horizon_s=switch_horizon_s,
+        team_action=team_action,
     )
     scenarios = scenario_factory(configuration, random_scenarios, **overrides)
     return MomaParallelEnv(

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from moma_env.config import ConfigError
 from moma_env.tasks import TASKS
-from training.cli_args import ACTION_MODE_NAMES, SCENARIO_NAMES, choice, int_at_least, int_at_least_or
+from training.cli_args import ACTION_MODE_NAMES, SCENARIO_NAMES, TEAM_ACTION_NAMES, choice, int_at_least, int_at_least_or
 from training.train.command_common import AUTO, report_training, resolved_workers, scenario_rewards
 from training.train.config import ALGORITHMS, NETWORKS, ROUTES, TEACHERS, TrainConfig, check_teacher
 
@@ -97,6 +97,10 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--switch-horizon", dest="switch_horizon_s", type=float, default=None, metavar="S",
                     help="seconds since the last switch at which the observations' timer reaches 1 (EnvConfig.switch_horizon_s; "
                          "default: the env's, 5 s; sb3 backend only)")
+    tr.add_argument("--team-action", dest="team_action", choices=TEAM_ACTION_NAMES, type=choice(TEAM_ACTION_NAMES, "team action"), default="per_agent",
+                    help="the centralised team's action (EnvConfig.team_action): per_agent, every robot's side by side, or one_start, "
+                         "one choice a step of which static robot starts which leg, if any (centralised route, tasks with committed legs; "
+                         "sb3 backend only) (default %(default)s)")
     tr.add_argument("--reward", action="append", default=[], metavar="NAME=VALUE",
                     help="override a reward weight of RewardConfig (repeatable), e.g. --reward time=-0.01 (default: the scenario's weights)")
     tr.add_argument("--no-normalize", dest="normalize", action="store_false",
@@ -165,6 +169,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         route=args.route,
         max_cycles=args.max_cycles,
         switch_horizon_s=args.switch_horizon_s,
+        team_action=args.team_action,
         rewards=scenario_rewards(args.scenario, args.reward),
         normalize=args.normalize,
         net_arch=tuple(args.net),
@@ -193,7 +198,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
 #: TrainConfig fields -> their ``moma-env train`` option (value options; flags are handled apart).
 _VALUE_OPTIONS = MappingProxyType({
     "algo": "--algo", "steps": "--timesteps", "envs": "--num-envs", "workers": "--workers", "torch_threads": "--torch-threads", "seed": "--seed", "action_mode": "--action-mode",
-    "route": "--route", "max_cycles": "--max-cycles", "switch_horizon_s": "--switch-horizon", "n_steps": "--n-steps", "batch_size": "--batch-size",
+    "route": "--route", "max_cycles": "--max-cycles", "switch_horizon_s": "--switch-horizon", "team_action": "--team-action", "n_steps": "--n-steps", "batch_size": "--batch-size",
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
     "eval_seed": "--eval-seed", "network": "--network", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",

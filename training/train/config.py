@@ -168,6 +168,11 @@ class TrainConfig:
         switch_horizon_s: the envs' ``EnvConfig.switch_horizon_s`` (s): the time since
             the last switch at which the observations' timer reaches 1; None: the
             env's default (5 s).
+        team_action: the centralised team's action (``EnvConfig.team_action``):
+            ``"per_agent"`` (every robot's action side by side, the default) or
+            ``"one_start"`` (one choice a step: which static robot starts which leg,
+            if any); ``"one_start"`` on the centralised route with the ``mlp`` network,
+            on a task with committed legs.
         rewards: reward weights; None: the scenario's (a task's objective, else
             :class:`RewardConfig`'s defaults).
         normalize: wrap the envs in ``VecNormalize`` (observations and rewards).
@@ -222,6 +227,7 @@ class TrainConfig:
     route: str = "shared"
     max_cycles: int | None = None
     switch_horizon_s: float | None = None
+    team_action: str = "per_agent"
     rewards: RewardConfig | None = None
     normalize: bool = True
     net_arch: tuple[int, ...] = (64, 64)
@@ -249,7 +255,7 @@ class TrainConfig:
     dagger_teacher: str | None = None
 
     def __post_init__(self) -> None:
-        from moma_env.env.config import ACTION_MODES
+        from moma_env.env.config import ACTION_MODES, TEAM_ACTIONS
 
         check_choice("scenario", self.scenario, sorted(CONFIGURATION_NAMES) + sorted(TASKS))
         check_choice("algo", self.algo, sorted(ALGORITHMS))
@@ -266,6 +272,13 @@ class TrainConfig:
         if self.switch_horizon_s is not None:
             check_positive("switch_horizon_s", self.switch_horizon_s)
             object.__setattr__(self, "switch_horizon_s", float(self.switch_horizon_s))
+        check_choice("team_action", self.team_action, TEAM_ACTIONS)
+        if self.team_action != "per_agent":
+            committed = [name for name, task in sorted(TASKS.items()) if task.options.get("commit_legs")]
+            if self.route != "centralised" or self.network != "mlp":
+                raise ConfigError("team_action", f"{self.team_action!r} is the centralised team's action: use --route centralised with --network mlp")
+            if self.scenario not in committed:
+                raise ConfigError("team_action", f"{self.team_action!r} needs a task with committed legs, one of {committed}; got {self.scenario!r}")
         check_bool("normalize", self.normalize)
         check_count("batch_size", self.batch_size, 1)
         check_count("buffer_size", self.buffer_size, 1)
@@ -301,7 +314,7 @@ class TrainConfig:
     def env_options(self) -> dict[str, Any]:
         """Keyword options of :func:`moma_env.env.factory.parallel_env` for this run (a
         task's own options apply beneath them)."""
-        return run_env_options(self.action_mode, self.max_cycles, self.rewards, self.switch_horizon_s)
+        return run_env_options(self.action_mode, self.max_cycles, self.rewards, self.switch_horizon_s, self.team_action)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for the manifest (tuples as lists)."""
@@ -314,16 +327,23 @@ class TrainConfig:
 
 
 def run_env_options(
-    action_mode: str, max_cycles: int | None, rewards: RewardConfig | None, switch_horizon_s: float | None = None
+    action_mode: str,
+    max_cycles: int | None,
+    rewards: RewardConfig | None,
+    switch_horizon_s: float | None = None,
+    team_action: str = "per_agent",
 ) -> dict[str, Any]:
     """Keyword options of ``parallel_env`` for a training run's envs: random layouts, the
-    observer flown by its controller, ``rewards`` (None: the scenario's), and
-    ``switch_horizon_s`` (None: the env's default)."""
+    observer flown by its controller, ``rewards`` (None: the scenario's),
+    ``switch_horizon_s`` (None: the env's default) and ``team_action`` (given only
+    when it is not the default, ``"per_agent"``)."""
     options: dict[str, Any] = {"action_mode": action_mode, "observer_agent": False, "max_cycles": max_cycles, "random_scenarios": True}
     if rewards is not None:
         options["rewards"] = dataclasses.asdict(rewards)
     if switch_horizon_s is not None:
         options["switch_horizon_s"] = switch_horizon_s
+    if team_action != "per_agent":
+        options["team_action"] = team_action
     return options
 
 

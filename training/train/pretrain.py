@@ -68,7 +68,9 @@ class Demonstrations:
     Attributes:
         observations: ``(T, D)`` float32, the observation before the action (a robot's
             own, or the team's concatenated).
-        actions: the teacher's switching actions, ``(T,)`` (a robot's) or ``(T, N)`` (the team's) int64.
+        actions: the teacher's switching actions as the slots' actions, int64: ``(T,)`` a
+            robot's (shared route), ``(T, N)`` the team's side by side, or ``(T,)`` the
+            one start that stands for them (``team_action="one_start"``).
         masks: ``(T, M)`` bool, the actions the motion rules would grant then (the team's side by side).
         rewards: ``(T,)`` float64, the team's reward of that step (rounded to float32, as the training envs give it).
         episode_ends: ``(T,)`` bool, the step ended the copy's episode (terminated or truncated).
@@ -186,7 +188,6 @@ def _drive_copies(
         shared = route == "shared"
         layout = SLOT_LAYOUTS["ugv" if shared else "team"](vector.envs[0])  # a row per slot of the run's VecEnv
         agents = layout.agents
-        n = len(agents)
         seeds = [seed + k * layout.per_copy for k in range(first, first + size)]
         observations, infos = vector.reset(seed=seeds)
         for k, policy in enumerate(policies):
@@ -195,7 +196,7 @@ def _drive_copies(
         steps = math.ceil(rows / (n_copies * layout.per_copy))  # env steps of every copy
         total = steps * stride
         obs_out = np.empty((total, *layout.observation_space.shape), dtype=np.float32)
-        act_out = np.empty((total,) if shared else (total, n), dtype=np.int64)
+        act_out = np.empty((total, *layout.action_space.shape), dtype=np.int64)  # (T,) a robot's or a one-start team's, (T, N) the team's
         mask_out = np.empty((total, layout.mask_rows(vector.action_masks()).shape[1]), dtype=bool)
         reward_out = np.empty(total, dtype=np.float64)
         end_out = np.zeros(total, dtype=bool)
@@ -216,11 +217,11 @@ def _drive_copies(
                     actions[a][k] = int(chosen[a])
             block = slice(t * stride, (t + 1) * stride)
             obs_out[block] = layout.rows(observations)
-            act_out[block] = np.stack([actions[a] for a in agents], axis=1).reshape(act_out[block].shape)  # (K, N): per slot or copy
+            act_out[block] = layout.slot_actions(actions, masks)
             mask_out[block] = layout.mask_rows(masks)
             if learner is not None:
-                acted = np.asarray(learner(obs_out[block], mask_out[block]), dtype=np.int64).reshape(size, n)
-                actions = {a: acted[:, j].copy() for j, a in enumerate(agents)}
+                acted = np.asarray(learner(obs_out[block], mask_out[block]), dtype=np.int64)
+                actions = {a: np.array(column, dtype=np.int64) for a, column in layout.agent_actions(acted).items()}
             observations, rewards, terminations, truncations, infos = vector.step(actions)
             ended = np.zeros(size, dtype=bool)
             for a in agents:

@@ -114,6 +114,11 @@ class UGVSlots:
             rows = np.asarray(actions, dtype=np.float32).reshape(k, n, *self.action_space.shape)
         return {agent: rows[:, j] for j, agent in enumerate(self.agents)}
 
+    def slot_actions(self, actions: Mapping[str, np.ndarray], masks: Mapping[str, np.ndarray]) -> np.ndarray:
+        """agent -> ``(K,)`` switching actions as ``(K * N,)`` int64, slot ``k * N + j``
+        (the inverse of :meth:`agent_actions`; ``masks`` unread)."""
+        return self.rows(actions, dtype=np.int64)
+
     def mask_rows(self, masks: Mapping[str, np.ndarray]) -> np.ndarray:
         """agent -> ``(K, n)`` masks as ``(K * N, n)`` bool rows."""
         return self.rows(masks, dtype=bool)
@@ -149,8 +154,13 @@ class TeamSlot:
         """``(K, A)`` team actions as agent -> its ``K`` actions (:meth:`TeamLayout.batch_actions`)."""
         return self.layout.batch_actions(actions)
 
+    def slot_actions(self, actions: Mapping[str, np.ndarray], masks: Mapping[str, np.ndarray]) -> np.ndarray:
+        """agent -> ``(K,)`` switching actions, chosen under ``masks`` (agent -> ``(K, n)``),
+        as the copies' team actions (:meth:`TeamLayout.team_actions`)."""
+        return self.layout.team_actions(actions, masks)
+
     def mask_rows(self, masks: Mapping[str, np.ndarray]) -> np.ndarray:
-        """agent -> ``(K, n)`` masks as ``(K, sum n)`` bool team masks."""
+        """agent -> ``(K, n)`` masks as the ``(K, M)`` bool team masks (:meth:`TeamLayout.masks`)."""
         return self.layout.masks(masks)
 
     def payloads(self, infos: Mapping[str, Mapping[str, Any]]) -> list[Mapping[str, Any]]:
