@@ -487,15 +487,17 @@ class LearnedPolicy(TrainedUgvPolicy):
         return actions
 
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
-        """The model's action of every agent in ``observations`` (infos unread): the
-        distribution's mode, or a sample (see the class)."""
+        """The model's action of every agent in ``observations`` (``infos`` read only by a
+        one-start team action, for which robots move): the distribution's mode, or a
+        sample (see the class)."""
         if not observations:
             return {}
         if self.route == "centralised":
             assert self._team is not None, "call reset(env) first"
-            team = self._team.team_observation(observations)[None, :]
-            masks = self._team.action_masks()[None, :] if self._masked else None
-            return self._team.agent_actions(self._predict(team, masks)[0])
+            layout = self._team.layout
+            team = layout.observation(observations)[None, :]
+            masks = layout.masks(self._env.action_masks(), infos)[None, :] if self._masked else None
+            return layout.agent_actions(self._predict(team, masks)[0], infos)
         agents = [a for a in self._agents if a in observations]
         batch = np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents])
         masks = None

@@ -32,14 +32,20 @@ def one_start_env() -> CentralisedTeamEnv:
     return CentralisedTeamEnv(task_env(team_action="one_start"))
 
 
-def test_the_one_start_action_is_no_start_or_one_robots_advance():
+def infos_of(layout: TeamLayout, static: list[list[bool]]) -> list[dict]:
+    """Copies' infos saying which robots are static (row per copy, column per agent)."""
+    return [{agent: {"static": flag} for agent, flag in zip(layout.agents, row)} for row in static]
+
+
+def test_the_one_start_action_is_no_start_or_one_static_robots_advance_and_the_others_keep_their_state():
     env = one_start_env()
     per_agent = CentralisedTeamEnv(task_env())
     n_ugvs, n_advances = len(per_agent.layout.agents), int(per_agent.action_space.nvec[0]) - 1
     assert isinstance(per_agent.action_space, spaces.MultiDiscrete)  # the default is the old action
     assert env.action_space == spaces.Discrete(1 + n_ugvs * n_advances)
     assert env.layout.starts == tuple((agent, a) for agent in env.layout.agents for a in range(1, n_advances + 1))
-    env.reset(seed=0)
+    _, infos = env.reset(seed=0)
+    assert all(infos[a]["static"] for a in env.layout.agents)
     # Team action s sends start s's action to its robot, hold (0) to every other; 0 holds all.
     for index in range(env.action_space.n):
         actions = env.agent_actions(np.int64(index))
@@ -48,27 +54,34 @@ def test_the_one_start_action_is_no_start_or_one_robots_advance():
             agent, action = env.layout.starts[index - 1]
             expected[agent] = action
         assert actions == expected
-    batch = env.layout.batch_actions(np.arange(env.action_space.n))
+    everyone_static = [dict(infos)] * env.action_space.n
+    batch = env.layout.batch_actions(np.arange(env.action_space.n), everyone_static)
     for k in range(env.action_space.n):
         assert {a: int(batch[a][k]) for a in env.layout.agents} == env.agent_actions(k)
+    # A mobile robot keeps advancing (1) whatever is chosen, a start of it included.
+    layout = env.layout
+    ugv_1_moves = infos_of(layout, [[True, False, True, True]] * 3)
+    chosen = np.array([0, layout.starts.index(("ugv_1", 3)) + 1, layout.starts.index(("ugv_2", 4)) + 1])
+    batch = layout.batch_actions(chosen, ugv_1_moves)
+    assert [[int(batch[a][k]) for a in layout.agents] for k in range(3)] == [[0, 1, 0, 0], [0, 1, 0, 0], [0, 1, 4, 0]]
 
 
-def test_its_masks_allow_no_start_always_and_a_start_only_where_the_robot_has_a_choice():
+def test_its_masks_allow_no_start_always_and_a_start_only_of_a_static_robot_its_mask_allows():
     env = one_start_env()
-    env.reset(seed=4)
-    seen_committed = seen_free = False
+    _, infos = env.reset(seed=4)
+    seen_moving = seen_startable = False
     rng = np.random.default_rng(0)
     for _ in range(120):
         agent_masks = env.parallel_env.action_masks()
         mask = env.action_masks()
         assert mask.shape == (env.action_space.n,) and mask.dtype == bool and mask[0]
         for s, (agent, action) in enumerate(env.layout.starts, start=1):
-            free = agent_masks[agent].sum() > 1
-            seen_committed |= not free and bool(agent_masks[agent][1])
-            seen_free |= free
-            assert mask[s] == (free and bool(agent_masks[agent][action]))
-        env.step(rng.choice(np.flatnonzero(mask)))
-    assert seen_committed and seen_free  # the walk met robots driving committed legs, and free ones
+            static = infos[agent]["static"]
+            seen_moving |= not static
+            seen_startable |= bool(static and agent_masks[agent][action])
+            assert mask[s] == (static and bool(agent_masks[agent][action]))
+        _, _, _, _, infos = env.step(rng.choice(np.flatnonzero(mask)))
+    assert seen_moving and seen_startable  # the walk met moving robots and static ones free to start
 
 
 @pytest.mark.parametrize("seed", [3, 11])
@@ -83,7 +96,7 @@ def test_a_teachers_episode_through_the_encoding_is_the_same_episode_bit_for_bit
     while per_agent.agents:
         masks = per_agent.action_masks()
         actions = teacher.act(observations, infos)
-        team = one_start.layout.team_actions({a: np.array([v]) for a, v in actions.items()}, {a: m[None] for a, m in masks.items()})
+        team = one_start.layout.team_actions({a: np.array([v]) for a, v in actions.items()}, {a: m[None] for a, m in masks.items()}, [infos])
         assert team.shape == (1,) and one_start.action_masks()[team[0]]
         starts += int(team[0] != 0)
         observations, rewards, terminations, truncations, infos = per_agent.step(actions)
@@ -92,21 +105,24 @@ def test_a_teachers_episode_through_the_encoding_is_the_same_episode_bit_for_bit
         assert reward == float(rewards[per_agent.possible_agents[0]])
         assert terminated == any(terminations.values()) and truncated == any(truncations.values())
     assert starts > 0 and terminated  # robots were started, and every goal reached
+    assert teacher.stalls == 0  # a stop of a stalled mobile robot has no one-start action: none here
 
 
 def test_two_starts_in_one_step_cannot_be_encoded_and_the_error_names_them():
     layout = one_start_env().layout
     agents = layout.agents
-    free = np.ones((2, 5), dtype=bool)
-    committed = np.array([[False, True, False, False, False]] * 2)
-    masks = {agents[0]: free, agents[1]: free, agents[2]: committed, agents[3]: free}
-    # copy 0: ugv_1 starts a 1 m leg, ugv_2 drives its committed leg; copy 1: two robots start
+    masks = {a: np.ones((2, 5), dtype=bool) for a in agents}
+    infos = infos_of(layout, [[True, True, False, True]] * 2)  # ugv_2 drives a leg in both copies
+    # copy 0: ugv_1 starts a 1 m leg, ugv_2 advances on its leg; copy 1: two robots start
     actions = {agents[0]: np.array([0, 3]), agents[1]: np.array([2, 0]), agents[2]: np.array([1, 1]), agents[3]: np.array([0, 4])}
     with pytest.raises(ValueError, match=rf"copy 1: agents \['{agents[0]}', '{agents[3]}'\] start in the same step"):
-        layout.team_actions(actions, masks)
+        layout.team_actions(actions, masks, infos)
     actions[agents[3]] = np.array([0, 0])
-    encoded = layout.team_actions(actions, masks)
+    encoded = layout.team_actions(actions, masks, infos)
     assert [layout.starts[i - 1] for i in encoded] == [(agents[1], 2), (agents[0], 3)]
+    # A mobile robot's stop is not a start: it is left out.
+    actions[agents[2]] = np.array([0, 0])
+    assert np.array_equal(layout.team_actions(actions, masks, infos), encoded)
 
 
 @pytest.mark.parametrize(
@@ -119,8 +135,19 @@ def test_two_starts_in_one_step_cannot_be_encoded_and_the_error_names_them():
     ],
 )
 def test_bad_team_actions_are_refused_naming_the_copy_or_the_shape(bad, message):
+    layout = one_start_env().layout
     with pytest.raises(ValueError, match=message):
-        one_start_env().layout.batch_actions(bad)
+        layout.batch_actions(bad, infos_of(layout, [[True] * 4] * len(bad)))
+
+
+def test_the_one_start_action_needs_the_copies_infos():
+    layout = one_start_env().layout
+    with pytest.raises(ValueError, match="give the copies' latest infos"):
+        layout.batch_actions(np.array([0, 1]))
+    with pytest.raises(ValueError, match="reads infos\\[agent\\]\\['static'\\]"):
+        layout.batch_actions(np.array([0]), [{"ugv_0": {}}])
+    with pytest.raises(ValueError, match="infos of 1 copies for 2 team actions"):
+        layout.batch_actions(np.array([0, 1]), infos_of(layout, [[True] * 4]))
 
 
 def test_one_team_action_must_be_one_integer():

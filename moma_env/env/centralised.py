@@ -46,9 +46,9 @@ class TeamLayout:
             float32 with one slot per discrete agent and ``prod(shape)`` slots per ``Box``
             agent. With ``"one_start"``, ``Discrete(1 + S)``: 0 starts no robot, and
             ``1 .. S`` are the agents' advance actions in team order (agent ``j``'s actions
-            ``1 .. n_j - 1``, then the next agent's; :attr:`starts`); the chosen agent
-            sends that action and every other agent 0 (hold), which a robot driving a
-            committed leg ignores.
+            ``1 .. n_j - 1``, then the next agent's; :attr:`starts`): the chosen robot,
+            if static, sends that action, and every other robot keeps its state (a
+            mobile robot advances, a static one holds).
         discrete: whether ``action_space`` is discrete with action masks (``MultiDiscrete``
             or the ``one_start`` ``Discrete``).
         team_action: the team action's kind.
@@ -58,6 +58,11 @@ class TeamLayout:
         ValueError: an observation space is not a ``Box`` (e.g. ``observer_image``'s
             ``Dict``); an unknown ``team_action``; ``"one_start"`` with an agent whose
             actions are not ``Discrete``.
+
+    What the ``one_start`` action means depends on which robots move, so its methods
+    take the copies' latest PettingZoo infos (``infos``: agent -> info for one copy, or a
+    sequence of ``K`` such, as the env's ``reset`` and ``step`` return them), whose
+    ``"static"`` says it; the ``per_agent`` action ignores them.
     """
 
     def __init__(
@@ -120,7 +125,22 @@ class TeamLayout:
         ``(D,)`` for one copy's observations, ``(K, D)`` for ``(K, D_agent)`` arrays."""
         return np.concatenate([observations[a] for a in self.agents], axis=-1).astype(np.float32, copy=False)
 
-    def batch_actions(self, actions: Any) -> dict[str, np.ndarray]:
+    def moving(self, infos: Any) -> np.ndarray:
+        """``(K, N)`` bool: agent ``j`` of copy ``k`` is mobile, from the copies' latest infos
+        (a sequence of ``K`` mappings agent -> info, or one copy's mapping: ``K`` = 1).
+
+        Raises:
+            ValueError: ``infos`` is None or an agent's info has no ``"static"``.
+        """
+        if infos is None:
+            raise ValueError("team_action='one_start' acts on which robots move: give the copies' latest infos (their 'static')")
+        copies = [infos] if isinstance(infos, Mapping) else list(infos)
+        try:
+            return np.array([[not info[agent]["static"] for agent in self.agents] for info in copies], dtype=bool).reshape(len(copies), len(self.agents))
+        except (KeyError, TypeError):
+            raise ValueError(f"team_action='one_start' reads infos[agent]['static'] of every agent {list(self.agents)}") from None
+
+    def batch_actions(self, actions: Any, infos: Any = None) -> dict[str, np.ndarray]:
         """``K`` team actions, shape ``(K, A)``, split into agent -> the agent's ``K`` actions.
 
         A discrete agent gets ``(K,)`` integers: in the ``MultiDiscrete`` mode its
@@ -128,8 +148,10 @@ class TeamLayout:
         rounding into ``[0, n)`` (``floor((clip(x, -1, 1) + 1) / 2 * n)``, ``n - 1`` at
         ``x = 1``). A ``Box`` agent gets its slots reshaped to ``(K, *shape)``.
 
-        With ``team_action="one_start"`` the team actions have shape ``(K,)``: copy
-        ``k``'s chosen agent gets its start's action, every other agent 0 (hold).
+        With ``team_action="one_start"`` the team actions have shape ``(K,)`` and
+        ``infos`` are the copies' latest (see the class): copy ``k``'s chosen robot, if
+        static, gets its start's action; every other robot, and a chosen one that is
+        mobile already, keeps its state (``ADVANCE``, 1, if mobile, else ``HOLD``, 0).
 
         Raises:
             ValueError: wrong shape, a non-integer or out-of-range ``MultiDiscrete``
@@ -137,7 +159,7 @@ class TeamLayout:
                 and the copy.
         """
         if self.one_start:
-            return self._one_start_actions(actions)
+            return self._one_start_actions(actions, self.moving(infos))
         a = np.asarray(actions)
         expected = (a.shape[0] if a.ndim else 0, *self.action_space.shape)
         if a.ndim != 2 or a.shape != expected:
@@ -171,7 +193,7 @@ class TeamLayout:
                 k += n
         return out
 
-    def _one_start_actions(self, actions: Any) -> dict[str, np.ndarray]:
+    def _one_start_actions(self, actions: Any, moving: np.ndarray) -> dict[str, np.ndarray]:
         a = np.asarray(actions)
         n = int(self.action_space.n)
         if a.ndim != 1:
@@ -181,52 +203,57 @@ class TeamLayout:
         bad = np.flatnonzero((a < 0) | (a >= n))
         if bad.size:
             raise ValueError(f"team action of copy {int(bad[0])} must be an integer in [0, {n}) (team_action='one_start'), got {a[bad[0]].item()!r}")
+        if moving.shape != (a.shape[0], len(self.agents)):
+            raise ValueError(f"infos of {moving.shape[0]} copies for {a.shape[0]} team actions")
         index = a.astype(np.int64)
         agent_of, action_of = self._start_agent[index], self._start_action[index]
-        return {agent: np.where(agent_of == j, action_of, 0) for j, agent in enumerate(self.agents)}
+        return {
+            agent: np.where(moving[:, j], 1, np.where(agent_of == j, action_of, 0)).astype(np.int64)
+            for j, agent in enumerate(self.agents)
+        }
 
-    def team_actions(self, actions: Mapping[str, np.ndarray], agent_masks: Mapping[str, np.ndarray]) -> np.ndarray:
+    def team_actions(self, actions: Mapping[str, np.ndarray], agent_masks: Mapping[str, np.ndarray], infos: Any = None) -> np.ndarray:
         """``K`` copies' agent actions (agent -> ``(K,)`` integers, switching mode) as the team
-        actions that stand for them, given the masks they were chosen under (agent ->
-        ``(K, n)``): ``(K, N)`` int64 side by side (``"per_agent"``), or ``(K,)`` int64
-        (``"one_start"``): the start of the one agent with a choice (its mask allows more
-        than one action) that takes an action other than 0, 0 if none does. An agent
-        without a choice is left to the decoding (a committed leg goes on).
+        actions that stand for them: ``(K, N)`` int64 side by side (``"per_agent"``), or
+        ``(K,)`` int64 (``"one_start"``, given the copies' ``infos`` the actions were chosen
+        on): the start of the one static robot that takes an action other than 0 (hold),
+        0 if none does. A mobile robot's action is left to the decoding, which keeps it
+        moving: a scripted policy's stop of a mobile robot (a stalled one that is not
+        driving a committed leg) has no one-start action and is left out.
+        ``agent_masks`` (agent -> ``(K, n)``) are unread: a refused start is a start.
 
         Raises:
-            ValueError: the team action is a ``Box``; with ``"one_start"``, two agents
-                with a choice start in the same step of a copy (naming them and the copy).
+            ValueError: the team action is a ``Box``; with ``"one_start"``, two static
+                robots start in the same step of a copy (naming them and the copy).
         """
         if not self.discrete:
             raise ValueError("team actions of agents' actions exist for the discrete actions of action_mode='switching'")
         if not self.one_start:
             return np.stack([np.asarray(actions[a], dtype=np.int64) for a in self.agents], axis=1)
-        chosen = np.asarray(actions[self.agents[0]])
-        out = np.zeros(chosen.shape[0], dtype=np.int64)
-        starters: list[np.ndarray] = []
-        for j, agent in enumerate(self.agents):
-            act = np.asarray(actions[agent], dtype=np.int64)
-            free = np.asarray(agent_masks[agent], dtype=bool).sum(axis=-1) > 1
-            start = free & (act != 0)
-            out[start] = self._offsets[j] + act[start]
-            starters.append(start)
-        together = np.stack(starters, axis=1)
-        crowded = np.flatnonzero(together.sum(axis=1) > 1)
+        moving = self.moving(infos)
+        chosen = np.stack([np.asarray(actions[a], dtype=np.int64) for a in self.agents], axis=1)  # (K, N)
+        if moving.shape != chosen.shape:
+            raise ValueError(f"infos of {moving.shape[0]} copies for {chosen.shape[0]} copies' actions")
+        starts = ~moving & (chosen != 0)
+        crowded = np.flatnonzero(starts.sum(axis=1) > 1)
         if crowded.size:
             k = int(crowded[0])
-            names = [self.agents[j] for j in np.flatnonzero(together[k])]
+            names = [self.agents[j] for j in np.flatnonzero(starts[k])]
             raise ValueError(f"copy {k}: agents {names} start in the same step; team_action='one_start' starts one robot a step")
+        out = np.zeros(chosen.shape[0], dtype=np.int64)
+        k, j = np.nonzero(starts)
+        out[k] = self._offsets[j] + chosen[k, j]
         return out
 
-    def agent_actions(self, action: Any) -> dict[str, Any]:
-        """One team action, shape ``(A,)`` (one integer with ``"one_start"``), split into
-        the agents' actions (a discrete agent's as a Python ``int``, a ``Box`` agent's
-        as an array of its shape)."""
+    def agent_actions(self, action: Any, infos: Any = None) -> dict[str, Any]:
+        """One team action, shape ``(A,)`` (one integer with ``"one_start"``, given the copy's
+        latest ``infos``, agent -> info), split into the agents' actions (a discrete
+        agent's as a Python ``int``, a ``Box`` agent's as an array of its shape)."""
         a = np.asarray(action)
         if self.one_start:
             if a.shape != ():
                 raise ValueError(f"action must be one integer for {self.action_space} (team_action='one_start'), got shape {a.shape}")
-            batch = self._one_start_actions(a[None])
+            batch = self._one_start_actions(a[None], self.moving(infos))
             return {agent: int(batch[agent][0]) for agent in self.agents}
         if a.shape != self.action_space.shape:
             raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
@@ -243,13 +270,13 @@ class TeamLayout:
         or a ``(K,)`` array from the batched rewards)."""
         return rewards[self.agents[0]]
 
-    def masks(self, agent_masks: Mapping[str, np.ndarray]) -> np.ndarray:
+    def masks(self, agent_masks: Mapping[str, np.ndarray], infos: Any = None) -> np.ndarray:
         """The agents' action masks side by side along the last axis (bool): ``(sum n,)``
         from one copy's ``action_masks()``, ``(K, sum n)`` from ``(K, n)`` arrays.
 
-        With ``team_action="one_start"``: ``(1 + S,)`` or ``(K, 1 + S)``; starting none is
-        always allowed, and start ``(agent, a)`` where the agent has a choice (its mask
-        allows more than one action) and its mask allows ``a``.
+        With ``team_action="one_start"``, given the copies' latest ``infos``: ``(1 + S,)``
+        or ``(K, 1 + S)``; starting none is always allowed, and start ``(agent, a)``
+        where the robot is static and its mask allows ``a``.
 
         Raises:
             ValueError: the team action is not discrete (switching mode).
@@ -259,9 +286,14 @@ class TeamLayout:
         if not self.one_start:
             return np.concatenate([agent_masks[a] for a in self.agents], axis=-1).astype(bool)
         every = [np.asarray(agent_masks[a], dtype=bool) for a in self.agents]
-        columns = [np.ones((*every[0].shape[:-1], 1), dtype=bool)]
-        for mask in every:
-            columns.append(mask[..., 1:] & (mask.sum(axis=-1, keepdims=True) > 1))
+        lead = every[0].shape[:-1]
+        moving = self.moving(infos)
+        if moving.shape[0] != (lead[0] if lead else 1):
+            raise ValueError(f"infos of {moving.shape[0]} copies for masks of shape {every[0].shape}")
+        columns = [np.ones((*lead, 1), dtype=bool)]
+        for j, mask in enumerate(every):
+            static = ~moving[:, j]
+            columns.append(mask[..., 1:] & (static[:, None] if lead else static[0]))
         return np.concatenate(columns, axis=-1)
 
 
@@ -277,14 +309,16 @@ class CentralisedTeamEnv(gym.Env):
         self.layout = TeamLayout.of(parallel_env)
         self.observation_space = self.layout.observation_space
         self.action_space = self.layout.action_space
+        self._infos: Mapping[str, Any] | None = None  # the parallel env's latest infos (the one-start action reads them)
 
     def team_observation(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         """The agents' observations concatenated in ``possible_agents`` order (float32)."""
         return self.layout.observation(obs)
 
     def agent_actions(self, action: Any) -> dict[str, Any]:
-        """The team action split into the agents' actions (what ``step`` sends to the parallel env)."""
-        return self.layout.agent_actions(action)
+        """The team action split into the agents' actions (what ``step`` sends to the parallel
+        env), in the state of the latest ``reset`` or ``step``."""
+        return self.layout.agent_actions(action, self._infos)
 
     def action_masks(self) -> np.ndarray:
         """Flat boolean mask over the discrete team action (switching mode): the agents'
@@ -292,15 +326,17 @@ class CentralisedTeamEnv(gym.Env):
         (or the ``one_start`` starts, :meth:`TeamLayout.masks`), the one-dimensional form
         sb3-contrib's ``MaskablePPO`` asks an env for. Each agent's part assumes the
         other agents keep their state."""
-        return self.layout.masks(self.parallel_env.action_masks() if self.layout.discrete else {})
+        return self.layout.masks(self.parallel_env.action_masks() if self.layout.discrete else {}, self._infos)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
         obs, infos = self.parallel_env.reset(seed=seed, options=options)
+        self._infos = infos
         return self.team_observation(obs), dict(infos)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         obs, rewards, terms, truncs, infos = self.parallel_env.step(self.agent_actions(action))
+        self._infos = infos
         reward = float(self.layout.reward(rewards))
         return self.team_observation(obs), reward, any(terms.values()), any(truncs.values()), dict(infos)
 

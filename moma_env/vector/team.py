@@ -61,7 +61,9 @@ class TeamVectorEnv(VectorEnv):
     Attributes:
         vector: the batched env stepped (per-agent arrays, ``state()``, ``reset_at``): a
             :class:`~moma_env.vector.env.MomaVectorEnv`, or with ``workers`` a
-            :class:`~moma_env.vector.sharded.ShardedVectorEnv`.
+            :class:`~moma_env.vector.sharded.ShardedVectorEnv`. With
+            ``team_action="one_start"`` step and reset the copies through this env: the
+            team's actions are read in the state of the infos it last returned.
         layout: the team layout shared with :class:`CentralisedTeamEnv`.
 
     Raises:
@@ -83,6 +85,8 @@ class TeamVectorEnv(VectorEnv):
             "autoreset_mode": AutoresetMode.SAME_STEP,
         }
         self.render_mode = self.vector.render_mode
+        # each copy's latest PettingZoo infos (the one-start action reads which robots move)
+        self._copy_infos: tuple[dict, ...] | None = None
 
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every copy: ``(observations (K, D) float32, infos)``; copy ``i`` gets seed ``s + i``.
@@ -97,6 +101,7 @@ class TeamVectorEnv(VectorEnv):
                 "(AutoresetMode.SAME_STEP): reset() resets every copy, vector.reset_at(i) one"
             )
         observations, copy_infos = self.vector.reset(seed=seed, options=options)
+        self._copy_infos = copy_infos
         infos: dict[str, Any] = {}
         for i, info in enumerate(copy_infos):
             infos = self._add_info(infos, dict(info), i)
@@ -110,7 +115,8 @@ class TeamVectorEnv(VectorEnv):
                 range (naming the agent and the copy).
             RuntimeError: before the first :meth:`reset`.
         """
-        observations, rewards, terminations, truncations, copy_infos = self.vector.step(self.layout.batch_actions(actions))
+        observations, rewards, terminations, truncations, copy_infos = self.vector.step(self.layout.batch_actions(actions, self._copy_infos))
+        self._copy_infos = copy_infos
         agents = self.layout.agents
         terminated = np.any([terminations[a] for a in agents], axis=0)
         truncated = np.any([truncations[a] for a in agents], axis=0)
@@ -127,9 +133,10 @@ class TeamVectorEnv(VectorEnv):
         """``(K, sum n)`` bool: each copy's :meth:`CentralisedTeamEnv.action_masks` (switching mode).
 
         Raises:
-            ValueError: the team action is not the switching mode's ``MultiDiscrete``.
+            ValueError: the team action is not the switching mode's (``MultiDiscrete``, or
+                ``team_action="one_start"``).
         """
-        return self.layout.masks(self.vector.action_masks() if self.layout.discrete else {})
+        return self.layout.masks(self.vector.action_masks() if self.layout.discrete else {}, self._copy_infos)
 
     def render(self) -> tuple[np.ndarray | None, ...]:
         """Every copy's ``render()`` (with ``render_mode="rgb_array"``: ``(H, W, 3)`` uint8 frames)."""

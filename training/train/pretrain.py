@@ -197,7 +197,7 @@ def _drive_copies(
         total = steps * stride
         obs_out = np.empty((total, *layout.observation_space.shape), dtype=np.float32)
         act_out = np.empty((total, *layout.action_space.shape), dtype=np.int64)  # (T,) a robot's or a one-start team's, (T, N) the team's
-        mask_out = np.empty((total, layout.mask_rows(vector.action_masks()).shape[1]), dtype=bool)
+        mask_out = np.empty((total, layout.mask_rows(vector.action_masks(), infos).shape[1]), dtype=bool)
         reward_out = np.empty(total, dtype=np.float64)
         end_out = np.zeros(total, dtype=bool)
         episodes = successes = 0
@@ -217,11 +217,11 @@ def _drive_copies(
                     actions[a][k] = int(chosen[a])
             block = slice(t * stride, (t + 1) * stride)
             obs_out[block] = layout.rows(observations)
-            act_out[block] = layout.slot_actions(actions, masks)
-            mask_out[block] = layout.mask_rows(masks)
+            act_out[block] = layout.slot_actions(actions, masks, infos)
+            mask_out[block] = layout.mask_rows(masks, infos)
             if learner is not None:
                 acted = np.asarray(learner(obs_out[block], mask_out[block]), dtype=np.int64)
-                actions = {a: np.array(column, dtype=np.int64) for a, column in layout.agent_actions(acted).items()}
+                actions = {a: np.array(column, dtype=np.int64) for a, column in layout.agent_actions(acted, infos).items()}
             observations, rewards, terminations, truncations, infos = vector.step(actions)
             ended = np.zeros(size, dtype=bool)
             for a in agents:

@@ -104,8 +104,9 @@ class UGVSlots:
         stacked = np.stack([np.asarray(per_agent[a], dtype=dtype) for a in self.agents], axis=1)
         return stacked.reshape(-1, *stacked.shape[2:])
 
-    def agent_actions(self, actions: np.ndarray) -> dict[str, np.ndarray]:
-        """One action row per slot (``(K * N,)`` or ``(K * N, *shape)``) as agent -> its ``K`` actions."""
+    def agent_actions(self, actions: np.ndarray, infos: Sequence[Mapping[str, Any]] | None = None) -> dict[str, np.ndarray]:
+        """One action row per slot (``(K * N,)`` or ``(K * N, *shape)``) as agent -> its ``K``
+        actions (``infos``, the copies' latest, unread)."""
         n = self.per_copy
         k = actions.shape[0] // n
         if self.discrete:
@@ -114,13 +115,15 @@ class UGVSlots:
             rows = np.asarray(actions, dtype=np.float32).reshape(k, n, *self.action_space.shape)
         return {agent: rows[:, j] for j, agent in enumerate(self.agents)}
 
-    def slot_actions(self, actions: Mapping[str, np.ndarray], masks: Mapping[str, np.ndarray]) -> np.ndarray:
+    def slot_actions(
+        self, actions: Mapping[str, np.ndarray], masks: Mapping[str, np.ndarray], infos: Sequence[Mapping[str, Any]] | None = None
+    ) -> np.ndarray:
         """agent -> ``(K,)`` switching actions as ``(K * N,)`` int64, slot ``k * N + j``
-        (the inverse of :meth:`agent_actions`; ``masks`` unread)."""
+        (the inverse of :meth:`agent_actions`; ``masks`` and ``infos`` unread)."""
         return self.rows(actions, dtype=np.int64)
 
-    def mask_rows(self, masks: Mapping[str, np.ndarray]) -> np.ndarray:
-        """agent -> ``(K, n)`` masks as ``(K * N, n)`` bool rows."""
+    def mask_rows(self, masks: Mapping[str, np.ndarray], infos: Sequence[Mapping[str, Any]] | None = None) -> np.ndarray:
+        """agent -> ``(K, n)`` masks as ``(K * N, n)`` bool rows (``infos`` unread)."""
         return self.rows(masks, dtype=bool)
 
     def payloads(self, infos: Mapping[str, Mapping[str, Any]]) -> list[Mapping[str, Any]]:
@@ -150,18 +153,22 @@ class TeamSlot:
         """agent -> ``(K, D_agent)`` arrays as ``(K, D)`` float32 team observations."""
         return self.layout.observation(per_agent)
 
-    def agent_actions(self, actions: np.ndarray) -> dict[str, np.ndarray]:
-        """``(K, A)`` team actions as agent -> its ``K`` actions (:meth:`TeamLayout.batch_actions`)."""
-        return self.layout.batch_actions(actions)
+    def agent_actions(self, actions: np.ndarray, infos: Sequence[Mapping[str, Any]] | None = None) -> dict[str, np.ndarray]:
+        """``(K, A)`` (or ``(K,)`` one-start) team actions as agent -> its ``K`` actions, in the
+        state of the copies' latest ``infos`` (:meth:`TeamLayout.batch_actions`)."""
+        return self.layout.batch_actions(actions, infos)
 
-    def slot_actions(self, actions: Mapping[str, np.ndarray], masks: Mapping[str, np.ndarray]) -> np.ndarray:
-        """agent -> ``(K,)`` switching actions, chosen under ``masks`` (agent -> ``(K, n)``),
-        as the copies' team actions (:meth:`TeamLayout.team_actions`)."""
-        return self.layout.team_actions(actions, masks)
+    def slot_actions(
+        self, actions: Mapping[str, np.ndarray], masks: Mapping[str, np.ndarray], infos: Sequence[Mapping[str, Any]] | None = None
+    ) -> np.ndarray:
+        """agent -> ``(K,)`` switching actions, chosen under ``masks`` (agent -> ``(K, n)``) on
+        the copies' ``infos``, as the copies' team actions (:meth:`TeamLayout.team_actions`)."""
+        return self.layout.team_actions(actions, masks, infos)
 
-    def mask_rows(self, masks: Mapping[str, np.ndarray]) -> np.ndarray:
-        """agent -> ``(K, n)`` masks as the ``(K, M)`` bool team masks (:meth:`TeamLayout.masks`)."""
-        return self.layout.masks(masks)
+    def mask_rows(self, masks: Mapping[str, np.ndarray], infos: Sequence[Mapping[str, Any]] | None = None) -> np.ndarray:
+        """agent -> ``(K, n)`` masks as the ``(K, M)`` bool team masks, in the state of the
+        copies' latest ``infos`` (:meth:`TeamLayout.masks`)."""
+        return self.layout.masks(masks, infos)
 
     def payloads(self, infos: Mapping[str, Mapping[str, Any]]) -> list[Mapping[str, Any]]:
         """One copy's infos as its one slot's info: agent -> info, as the team env's."""
@@ -246,6 +253,7 @@ class VectorSlots:
         self._returns = [0.0] * k
         self._lengths = [0] * k
         self._dt = [0.0] * k  # each copy's control step (s) in its current episode
+        self._infos: Sequence[Mapping[str, Any]] | None = None  # each copy's latest PettingZoo infos
 
     @property
     def n_copies(self) -> int:
@@ -264,6 +272,7 @@ class VectorSlots:
         """Reset copy k with ``seeds[k]`` (None: its generator continues) and ``options[k]``:
         ``(observations (K * per_copy, D) float32, infos: one plain dict per slot)``."""
         observations, infos = self.vector.reset(seed=list(seeds), options=None if options is None else list(options))
+        self._infos = infos
         for k in range(self.n_copies):
             self._episode_started(k)
         payloads = self.layout.payloads
@@ -277,7 +286,8 @@ class VectorSlots:
             raise ValueError(f"expected {self.n_slots} action rows (one per slot), got {actions.shape[0]}")
         layout = self.layout
         agents = self.agents
-        observations, rewards, terminations, truncations, infos = self.vector.step(layout.agent_actions(actions))
+        observations, rewards, terminations, truncations, infos = self.vector.step(layout.agent_actions(actions, self._infos))
+        self._infos = infos
         team_rewards = np.asarray(rewards[agents[0]], dtype=np.float64)
         out_infos: list[dict] = []
         dones = np.zeros(self.n_copies, dtype=bool)
@@ -301,7 +311,7 @@ class VectorSlots:
 
     def action_masks(self) -> np.ndarray:
         """``(K * per_copy, n)`` bool, one row per slot (``MomaParallelEnv.action_mask``; switching mode)."""
-        return self.layout.mask_rows(self.vector.action_masks())
+        return self.layout.mask_rows(self.vector.action_masks(), self._infos)
 
     def command(self, k: int, command: str, payload: Any) -> Any:
         """:func:`env_command` on copy ``k``'s parallel env."""
