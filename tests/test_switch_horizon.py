@@ -96,15 +96,18 @@ def test_a_run_trained_with_a_horizon_records_it_and_its_policy_fits_only_envs_w
 
 
 @pytest.mark.parametrize("backend", ["rllib", "torchrl"])
-def test_the_other_backends_refuse_a_horizon(backend):
+@pytest.mark.parametrize(
+    "flag, value, field",
+    [("--switch-horizon", "30", "switch_horizon_s"), ("--team-action", "one_start", "team_action")],
+)
+def test_the_other_backends_refuse_the_sb3_backends_env_flags(backend, flag, value, field):
+    """The timer (this file) and the team action (tests/test_team_action.py) are the sb3 backend's."""
     from training.train.rllib_command import rllib_config_from_args
     from training.train.torchrl_command import torchrl_config_from_args
 
     scenario = "top_observer" if backend == "rllib" else "top_observer_team4"
     algo = ["--algo", "maskable_ppo"] if backend == "torchrl" else []
-    args = build_parser().parse_args(
-        ["train", "--backend", backend, "--scenario", scenario, *algo, "--switch-horizon", "30", "--out", "unused"]
-    )
+    args = build_parser().parse_args(["train", "--backend", backend, "--scenario", scenario, *algo, flag, value, "--out", "unused"])
     from_args = rllib_config_from_args if backend == "rllib" else torchrl_config_from_args
-    with pytest.raises(ConfigError, match="switch_horizon_s.*drop --switch-horizon"):
+    with pytest.raises(ConfigError, match=f"{field}.*drop {flag}"):
         from_args(args)

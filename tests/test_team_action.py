@@ -14,7 +14,6 @@ from moma_env.env.centralised import CentralisedTeamEnv, TeamLayout
 from moma_env.env.factory import parallel_env
 from moma_env.tasks import task_options
 from moma_env.vector.team import TeamVectorEnv
-from training.cli import build_parser
 from training.evaluation import evaluate
 from training.evaluation.policies import load_policy
 from training.train.config import TrainConfig
@@ -230,18 +229,3 @@ def test_a_cloned_run_records_the_team_action_and_its_policy_fits_only_envs_with
     options = {k: v for k, v in policy.env_options.items() if k != "action_mode"}
     result = evaluate(TASK, policy, 1, 10000, max_cycles=30, **options)
     assert len(result.episodes) == 1
-
-
-@pytest.mark.parametrize("backend", ["rllib", "torchrl"])
-def test_the_other_backends_refuse_the_team_action(backend):
-    from training.train.rllib_command import rllib_config_from_args
-    from training.train.torchrl_command import torchrl_config_from_args
-
-    scenario = "top_observer" if backend == "rllib" else "top_observer_team4"
-    algo = ["--algo", "maskable_ppo"] if backend == "torchrl" else []
-    args = build_parser().parse_args(
-        ["train", "--backend", backend, "--scenario", scenario, *algo, "--team-action", "one_start", "--out", "unused"]
-    )
-    from_args = rllib_config_from_args if backend == "rllib" else torchrl_config_from_args
-    with pytest.raises(ConfigError, match="team_action.*drop --team-action"):
-        from_args(args)
