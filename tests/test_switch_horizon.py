@@ -13,6 +13,7 @@ from moma_env.env.factory import parallel_env
 from training.cli import build_parser
 from training.evaluation import evaluate
 from training.train.config import TrainConfig
+from training.train.evaluation import live_policy
 from training.train.run import train
 
 
@@ -86,6 +87,8 @@ def test_a_run_trained_with_a_horizon_records_it_and_its_policy_fits_only_envs_w
     assert manifest["config"]["switch_horizon_s"] == 60.0
     policy = LearnedPolicy.from_dir(tmp_path / "run")
     assert policy.env_options["switch_horizon_s"] == 60.0
+    # The evaluations during training build the run's envs too.
+    assert live_policy(policy.model, config).env_options["switch_horizon_s"] == 60.0
     env = parallel_env("top_observer", observer_agent=False)
     env.reset(seed=0)
     with pytest.raises(ValueError, match="switch_horizon_s=60.0; the env has 5.0"):

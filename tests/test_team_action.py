@@ -4,6 +4,7 @@ and how a training run, its policy and its evaluations carry it."""
 
 from __future__ import annotations
 
+import json
 import numpy as np
 import pytest
 from gymnasium import spaces
@@ -212,12 +213,14 @@ def test_a_cloned_run_records_the_team_action_and_its_policy_fits_only_envs_with
     config = TrainConfig(
         scenario=TASK, algo="maskable_ppo", route="centralised", team_action="one_start", steps=0, envs=2, net_arch=(16,),
         pretrain="greedy@1.5", pretrain_rows=600, pretrain_epochs=2, dagger_rounds=1, dagger_rows=100, dagger_epochs=1,
-        checkpoint_every=10**6, max_cycles=60,
+        checkpoint_every=10**6, max_cycles=60, eval_every=1, eval_episodes=1, eval_max_cycles=20,
     )
     assert config.env_options["team_action"] == "one_start"
     assert "team_action" not in TrainConfig(scenario=TASK, algo="maskable_ppo", route="centralised").env_options
     manifest = train(config, tmp_path / "run")
     assert manifest["config"]["team_action"] == "one_start"
+    # The evaluation during training (of the clone, eval_every=1) ran on one-start envs.
+    assert len(json.loads((tmp_path / "run" / "evaluations.json").read_text())["records"]) == 1
     policy = LearnedPolicy.from_dir(tmp_path / "run")
     assert policy.env_options["team_action"] == "one_start"
     assert isinstance(policy.model.action_space, spaces.Discrete)

@@ -53,12 +53,14 @@ def headline(summary: Mapping[str, Any]) -> dict[str, float]:
 
 
 def live_policy(model: BaseAlgorithm, config: TrainConfig) -> LearnedPolicy:
-    """The model as a policy, normalising observations with the training env's current statistics."""
+    """The model as a policy, normalising observations with the training env's current
+    statistics, on envs like the run's (its observations' timer and team action)."""
     venv = model.get_env()
     normalise = venv.normalize_obs if isinstance(venv, VecNormalize) and venv.norm_obs else None
     return LearnedPolicy(
         model, config.route, config.action_mode, normalise, config.scenario,
         torch_threads=config.torch_threads, deterministic=not config.eval_sample_actions,
+        switch_horizon_s=config.switch_horizon_s, team_action=config.team_action,
     )
 
 
