@@ -94,9 +94,8 @@ def test_a_teachers_episode_through_the_encoding_is_the_same_episode_bit_for_bit
     teacher.reset(per_agent, seed=seed)
     starts = 0
     while per_agent.agents:
-        masks = per_agent.action_masks()
         actions = teacher.act(observations, infos)
-        team = one_start.layout.team_actions({a: np.array([v]) for a, v in actions.items()}, {a: m[None] for a, m in masks.items()}, [infos])
+        team = one_start.layout.team_actions({a: np.array([v]) for a, v in actions.items()}, [infos])
         assert team.shape == (1,) and one_start.action_masks()[team[0]]
         starts += int(team[0] != 0)
         observations, rewards, terminations, truncations, infos = per_agent.step(actions)
@@ -111,18 +110,17 @@ def test_a_teachers_episode_through_the_encoding_is_the_same_episode_bit_for_bit
 def test_two_starts_in_one_step_cannot_be_encoded_and_the_error_names_them():
     layout = one_start_env().layout
     agents = layout.agents
-    masks = {a: np.ones((2, 5), dtype=bool) for a in agents}
     infos = infos_of(layout, [[True, True, False, True]] * 2)  # ugv_2 drives a leg in both copies
     # copy 0: ugv_1 starts a 1 m leg, ugv_2 advances on its leg; copy 1: two robots start
     actions = {agents[0]: np.array([0, 3]), agents[1]: np.array([2, 0]), agents[2]: np.array([1, 1]), agents[3]: np.array([0, 4])}
     with pytest.raises(ValueError, match=rf"copy 1: agents \['{agents[0]}', '{agents[3]}'\] start in the same step"):
-        layout.team_actions(actions, masks, infos)
+        layout.team_actions(actions, infos)
     actions[agents[3]] = np.array([0, 0])
-    encoded = layout.team_actions(actions, masks, infos)
+    encoded = layout.team_actions(actions, infos)
     assert [layout.starts[i - 1] for i in encoded] == [(agents[1], 2), (agents[0], 3)]
     # A mobile robot's stop is not a start: it is left out.
     actions[agents[2]] = np.array([0, 0])
-    assert np.array_equal(layout.team_actions(actions, masks, infos), encoded)
+    assert np.array_equal(layout.team_actions(actions, infos), encoded)
 
 
 @pytest.mark.parametrize(

@@ -212,15 +212,15 @@ class TeamLayout:
             for j, agent in enumerate(self.agents)
         }
 
-    def team_actions(self, actions: Mapping[str, np.ndarray], agent_masks: Mapping[str, np.ndarray], infos: Any = None) -> np.ndarray:
+    def team_actions(self, actions: Mapping[str, np.ndarray], infos: Any = None) -> np.ndarray:
         """``K`` copies' agent actions (agent -> ``(K,)`` integers, switching mode) as the team
         actions that stand for them: ``(K, N)`` int64 side by side (``"per_agent"``), or
         ``(K,)`` int64 (``"one_start"``, given the copies' ``infos`` the actions were chosen
         on): the start of the one static robot that takes an action other than 0 (hold),
         0 if none does. A mobile robot's action is left to the decoding, which keeps it
         moving: a scripted policy's stop of a mobile robot (a stalled one that is not
-        driving a committed leg) has no one-start action and is left out.
-        ``agent_masks`` (agent -> ``(K, n)``) are unread: a refused start is a start.
+        driving a committed leg) has no one-start action and is left out. A start the
+        masks would refuse is a start all the same.
 
         Raises:
             ValueError: the team action is a ``Box``; with ``"one_start"``, two static

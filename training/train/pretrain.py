@@ -217,7 +217,7 @@ def _drive_copies(
                     actions[a][k] = int(chosen[a])
             block = slice(t * stride, (t + 1) * stride)
             obs_out[block] = layout.rows(observations)
-            act_out[block] = layout.slot_actions(actions, masks, infos)
+            act_out[block] = layout.slot_actions(actions, infos)
             mask_out[block] = layout.mask_rows(masks, infos)
             if learner is not None:
                 acted = np.asarray(learner(obs_out[block], mask_out[block]), dtype=np.int64)

@@ -115,11 +115,9 @@ class UGVSlots:
             rows = np.asarray(actions, dtype=np.float32).reshape(k, n, *self.action_space.shape)
         return {agent: rows[:, j] for j, agent in enumerate(self.agents)}
 
-    def slot_actions(
-        self, actions: Mapping[str, np.ndarray], masks: Mapping[str, np.ndarray], infos: Sequence[Mapping[str, Any]] | None = None
-    ) -> np.ndarray:
+    def slot_actions(self, actions: Mapping[str, np.ndarray], infos: Sequence[Mapping[str, Any]] | None = None) -> np.ndarray:
         """agent -> ``(K,)`` switching actions as ``(K * N,)`` int64, slot ``k * N + j``
-        (the inverse of :meth:`agent_actions`; ``masks`` and ``infos`` unread)."""
+        (the inverse of :meth:`agent_actions`; ``infos`` unread)."""
         return self.rows(actions, dtype=np.int64)
 
     def mask_rows(self, masks: Mapping[str, np.ndarray], infos: Sequence[Mapping[str, Any]] | None = None) -> np.ndarray:
@@ -158,12 +156,10 @@ class TeamSlot:
         state of the copies' latest ``infos`` (:meth:`TeamLayout.batch_actions`)."""
         return self.layout.batch_actions(actions, infos)
 
-    def slot_actions(
-        self, actions: Mapping[str, np.ndarray], masks: Mapping[str, np.ndarray], infos: Sequence[Mapping[str, Any]] | None = None
-    ) -> np.ndarray:
-        """agent -> ``(K,)`` switching actions, chosen under ``masks`` (agent -> ``(K, n)``) on
-        the copies' ``infos``, as the copies' team actions (:meth:`TeamLayout.team_actions`)."""
-        return self.layout.team_actions(actions, masks, infos)
+    def slot_actions(self, actions: Mapping[str, np.ndarray], infos: Sequence[Mapping[str, Any]] | None = None) -> np.ndarray:
+        """agent -> ``(K,)`` switching actions, chosen on the copies' ``infos``, as the
+        copies' team actions (:meth:`TeamLayout.team_actions`)."""
+        return self.layout.team_actions(actions, infos)
 
     def mask_rows(self, masks: Mapping[str, np.ndarray], infos: Sequence[Mapping[str, Any]] | None = None) -> np.ndarray:
         """agent -> ``(K, n)`` masks as the ``(K, M)`` bool team masks, in the state of the
