@@ -154,3 +154,24 @@ def test_sampling_applies_to_trained_policies_and_is_seeded():
     assert json.dumps(deterministic) != json.dumps(sampled[0])
     greedy = run_cell(Cell("top_observer_team4", "greedy", 4), spec.options | {"max_cycles": 60})
     assert json.dumps(greedy) == json.dumps(run_cell(Cell("top_observer_team4", "greedy", 4), spec.options | {"max_cycles": 60, "sample_actions": False}))
+
+
+def test_the_local_pool_does_not_fork_the_driver(monkeypatch):
+    """Forked from a driver that ran torch with two threads (loading a trained policy does),
+    a worker hangs at its first parallel torch operation (OpenMP's threads are not copied
+    by a fork); the pool's workers start from a clean server process instead."""
+    import training.sweep.backends as backends
+
+    contexts = []
+
+    class Recording(backends.ProcessPoolExecutor):
+        def __init__(self, *args, **kwargs):
+            contexts.append(kwargs.get("mp_context"))
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(backends, "ProcessPoolExecutor", Recording)
+    spec = SweepSpec(scenarios=("top_observer",), policies=("random",), seeds=(0, 1), max_cycles=5)
+    rows = []
+    LocalBackend(2).run([[cell] for cell in spec.cells()], spec.options, lambda cells, out: rows.extend(out))
+    assert len(rows) == 2
+    assert len(contexts) == 1 and contexts[0] is not None and contexts[0].get_start_method() != "fork"

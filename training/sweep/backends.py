@@ -5,7 +5,8 @@ hand every finished task's rows to ``on_done`` in the driver as they arrive, whi
 stores them (:class:`training.sweep.folder.SweepFolder`) and advances the progress bar.
 
 * :class:`LocalBackend`: ``concurrent.futures.ProcessPoolExecutor`` with ``jobs``
-  workers on this machine; no Ray needed.
+  workers on this machine, started from a clean server process (forkserver, else
+  spawn), not forked from the driver; no Ray needed.
 * :class:`RayBackend`: every task is a Ray task (``num_cpus=1``), on a Ray started for
   the command (all cores of this machine; ``ray.init()``) or on an existing cluster
   (``address``, e.g. ``"auto"`` or ``"ray://head:10001"``); a Ray already initialised in
@@ -21,6 +22,7 @@ importable on every node (the project installed there, or a shared checkout).
 
 from __future__ import annotations
 
+import multiprocessing as mp
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -28,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from moma_env.config import check_count
+from moma_env.vector.sharded import default_start_method
 from training.sweep.cells import run_cells
 from training.sweep.spec import Cell
 
@@ -47,7 +50,13 @@ class Backend(Protocol):
 
 @dataclass(frozen=True)
 class LocalBackend:
-    """A process pool of ``jobs`` workers (1: in this process, no pool)."""
+    """A process pool of ``jobs`` workers (1: in this process, no pool).
+
+    The workers start from a clean server process (:func:`~moma_env.vector.sharded.default_start_method`):
+    forked from a driver that has run torch with more than one thread (loading a trained
+    policy does), a worker would hang at its first parallel torch operation, waiting on
+    OpenMP threads the fork did not copy.
+    """
 
     jobs: int = 1
 
@@ -59,7 +68,8 @@ class LocalBackend:
             for cells in tasks:
                 on_done(cells, run_cells(cells, options))
             return
-        with ProcessPoolExecutor(max_workers=min(self.jobs, max(1, len(tasks)))) as pool:
+        context = mp.get_context(default_start_method())
+        with ProcessPoolExecutor(max_workers=min(self.jobs, max(1, len(tasks))), mp_context=context) as pool:
             pending = {pool.submit(run_cells, list(cells), dict(options)): cells for cells in tasks}
             try:
                 while pending:
