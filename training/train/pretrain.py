@@ -71,7 +71,8 @@ class Demonstrations:
         actions: the teacher's switching actions as the slots' actions, int64: ``(T,)`` a
             robot's (shared route), ``(T, N)`` the team's side by side, or ``(T,)`` the
             one start that stands for them (``team_action="one_start"``).
-        masks: ``(T, M)`` bool, the actions the motion rules would grant then (the team's side by side).
+        masks: ``(T, M)`` bool, the actions the motion rules would grant then (a robot's, the
+            team's side by side, or the one-start team action's).
         rewards: ``(T,)`` float64, the team's reward of that step (rounded to float32, as the training envs give it).
         episode_ends: ``(T,)`` bool, the step ended the copy's episode (terminated or truncated).
         complete: ``(T,)`` bool, the row's episode ended within the collection (its
