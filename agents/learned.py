@@ -73,6 +73,7 @@ from moma_env.io import read_json_in
 __all__ = [
     "LearnedPolicy",
     "ObservationScaling",
+    "trained_env_fields",
     "TrainingDirError",
     "read_manifest",
     "sb3_class",
@@ -87,6 +88,14 @@ __all__ = [
     "load_published",
     "file_sha256",
 ]
+
+def trained_env_fields(config: Mapping[str, Any]) -> dict[str, Any]:
+    """The env settings a run's policy must act in, from its ``TrainConfig`` as plain data
+    (a manifest's ``config``, or ``TrainConfig.to_dict()``): :class:`LearnedPolicy`'s
+    ``switch_horizon_s`` and ``team_action`` keywords (the defaults where a run, older
+    than the field, does not name it)."""
+    return {"switch_horizon_s": config.get("switch_horizon_s"), "team_action": config.get("team_action", "per_agent")}
+
 
 #: Name of the manifest in a training output folder.
 MANIFEST = "manifest.json"
@@ -452,7 +461,7 @@ class LearnedPolicy(TrainedUgvPolicy):
                 raise TrainingDirError(f"cannot use the normalisation statistics {str(directory / manifest['vecnormalize'])!r}: "
                                        f"{_first_line(err)}") from None
         return cls(model, manifest["route"], config["action_mode"], normalise, trained_on, deterministic=deterministic,
-                   switch_horizon_s=config.get("switch_horizon_s"), team_action=config.get("team_action", "per_agent"))
+                   **trained_env_fields(config))
 
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
         """Check that ``env`` fits the model; read its agents (call after ``env.reset``);

@@ -138,7 +138,8 @@ class EnvConfig:
             actions). ``"per_agent"`` (the default): every agent's action side by
             side (a ``MultiDiscrete`` in switching mode). ``"one_start"``: one
             ``Discrete`` choice a step, no robot starts (0) or one static robot
-            takes one of its advance actions, every other robot holding; needs
+            takes one of its advance actions, every other robot keeping its state
+            (a mobile one advances, a static one holds); needs
             switching mode with ``commit_legs`` (so that a robot driving a leg
             goes on whatever the team chooses) and the observer flown by its
             controller (see :class:`moma_env.env.centralised.TeamLayout`).

@@ -19,7 +19,7 @@ from typing import Any
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
-from agents.learned import LearnedPolicy
+from agents.learned import LearnedPolicy, trained_env_fields
 from training.evaluation.harness import EvaluationResult, evaluate
 from training.train.config import TrainConfig
 
@@ -60,7 +60,7 @@ def live_policy(model: BaseAlgorithm, config: TrainConfig) -> LearnedPolicy:
     return LearnedPolicy(
         model, config.route, config.action_mode, normalise, config.scenario,
         torch_threads=config.torch_threads, deterministic=not config.eval_sample_actions,
-        switch_horizon_s=config.switch_horizon_s, team_action=config.team_action,
+        **trained_env_fields(config.to_dict()),
     )
 
 
