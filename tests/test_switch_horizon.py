@@ -101,10 +101,11 @@ def test_a_run_trained_with_a_horizon_records_it_and_its_policy_fits_only_envs_w
 @pytest.mark.parametrize("backend", ["rllib", "torchrl"])
 @pytest.mark.parametrize(
     "flag, value, field",
-    [("--switch-horizon", "30", "switch_horizon_s"), ("--team-action", "one_start", "team_action")],
+    [("--switch-horizon", "30", "switch_horizon_s"), ("--team-action", "one_start", "team_action"), ("--init-from", "runs/x", "init_from")],
 )
 def test_the_other_backends_refuse_the_sb3_backends_env_flags(backend, flag, value, field):
-    """The timer (this file) and the team action (tests/test_team_action.py) are the sb3 backend's."""
+    """The timer (this file), the team action (tests/test_team_action.py) and the start from
+    another run's weights (tests/test_init_from.py) are the sb3 backend's."""
     from training.train.rllib_command import rllib_config_from_args
     from training.train.torchrl_command import torchrl_config_from_args
 

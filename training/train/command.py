@@ -142,6 +142,10 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--dagger-teacher", type=_teacher("dagger_teacher"), default=None, metavar="TEACHER",
                     help="the teacher labelling the DAgger rounds, e.g. rollout@1.5 after --pretrain greedy@1.5; its rows "
                          "alone are then cloned (default: the --pretrain teacher)")
+    tr.add_argument("--init-from", dest="init_from", default=None, metavar="RUN",
+                    help="start from the networks and normalisation statistics of this finished run's last checkpoint (a "
+                         "moma-env train --out folder or policies/NAME; the same task, algorithm, action mode, route, network, "
+                         "team action and timer), with a fresh optimiser, instead of random weights (not with --pretrain)")
     tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
     tr.add_argument("--json", action="store_true", help="print the final manifest as JSON (default: a summary)")
     from training.train.rllib_command import add_rllib_arguments
@@ -192,6 +196,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         dagger_rows=args.dagger_rows,
         dagger_epochs=args.dagger_epochs,
         dagger_teacher=args.dagger_teacher,
+        init_from=args.init_from,
     )
 
 
@@ -203,7 +208,7 @@ _VALUE_OPTIONS = MappingProxyType({
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
     "eval_seed": "--eval-seed", "network": "--network", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",
     "dagger_rounds": "--dagger-rounds", "dagger_rows": "--dagger-rows", "dagger_epochs": "--dagger-epochs",
-    "dagger_teacher": "--dagger-teacher",
+    "dagger_teacher": "--dagger-teacher", "init_from": "--init-from",
 })
 #: TrainConfig fields -> (the flag, the field's value when the flag is given; without it, the other).
 _FLAGS = MappingProxyType({"subproc": ("--subproc", True), "normalize": ("--no-normalize", False),

@@ -214,6 +214,11 @@ class TrainConfig:
             demonstrate ``pretrain_rows`` rows, which then corrects the clone where it acts.
             Its labels disagree with the first teacher's on the choices it is there to
             change, so each round then clones its rows alone (every round's so far).
+        init_from: the folder of a finished run (``moma-env train --out``, or a published
+            policy's) whose last checkpoint's networks and normalisation statistics this
+            run starts from, instead of random weights or a teacher's clone
+            (:mod:`training.train.init_from`; the two runs share its ``SHARED_FIELDS``).
+            None: start from scratch or from ``pretrain``.
     """
 
     scenario: str
@@ -253,6 +258,7 @@ class TrainConfig:
     dagger_rows: int = 32_000
     dagger_epochs: int = 8
     dagger_teacher: str | None = None
+    init_from: str | None = None
 
     def __post_init__(self) -> None:
         from moma_env.env.config import ACTION_MODES, TEAM_ACTIONS
@@ -301,6 +307,11 @@ class TrainConfig:
             check_teacher("dagger_teacher", self.dagger_teacher)
             if self.pretrain is None or self.dagger_rounds == 0:
                 raise ConfigError("dagger_teacher", "labels the DAgger rounds after a cloning: give --pretrain and --dagger-rounds of 1 or more")
+        if self.init_from is not None:
+            if not isinstance(self.init_from, str) or not self.init_from:
+                raise ConfigError("init_from", f"must be the folder of a finished training run, got {self.init_from!r}")
+            if self.pretrain is not None:
+                raise ConfigError("init_from", "starts from a run's weights, pretrain from a teacher's clone: give one")
         if self.algo in DISCRETE_ONLY and (self.action_mode != "switching" or self.route != "shared"):
             raise ConfigError(
                 "algo", f"{self.algo} needs one discrete action per slot: use --action-mode switching --route shared"

@@ -61,6 +61,8 @@ def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
         raise ConfigError("switch_horizon_s", "--backend rllib trains on the env's default timer: drop --switch-horizon (the sb3 backend takes it)")
     if args.team_action != "per_agent":
         raise ConfigError("team_action", "--backend rllib does not train the centralised team: drop --team-action (the sb3 backend takes it)")
+    if args.init_from is not None:
+        raise ConfigError("init_from", "--backend rllib starts from its own checkpoints only: drop --init-from (the sb3 backend takes it)")
     train_batch = args.n_steps * args.num_envs * max(1, args.num_env_runners)
     return RllibTrainConfig(
         scenario=args.scenario, steps=args.timesteps, num_env_runners=args.num_env_runners, envs=args.num_envs, env_route=args.rllib_env,

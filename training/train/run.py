@@ -3,6 +3,8 @@
 ``train(config, out)`` builds the vectorised envs of the route, the model, the
 checkpoint and evaluation callbacks, learns ``config.steps`` timesteps and
 writes the final checkpoint (:mod:`training.train.checkpoint`). With
+``config.init_from`` it starts from another run's networks and statistics
+(:mod:`training.train.init_from`). With
 ``resume=True`` it loads the checkpoint that ``out``'s manifest names: model
 weights, optimiser state and step counter (the SB3 zip), ``VecNormalize``
 statistics, the replay buffer of off-policy algorithms, the training wall time
@@ -30,6 +32,7 @@ from training.train.checkpoint import checkpoint_files, read_manifest, remove_st
 from agents.learned import torch_threads
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
+from training.train.init_from import INITIALISATION, read_initial_weights
 from training.train.models import algorithm_class, build_model, training_logger
 
 __all__ = ["train", "RESUMABLE_CHANGES", "PRETRAINING"]
@@ -104,10 +107,14 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
     else:
         if out.exists() and ((out / "manifest.json").exists() or checkpoint_files(out)):
             raise ConfigError("out", f"{str(out)!r} already holds a training run; pass --resume to continue it or choose another folder")
+        source = read_initial_weights(config) if config.init_from is not None else None  # ConfigError before the folder is claimed
         claim_run_folder(out, "train")  # RunFolderError: another kind of run, or files that are not a run
         remove_stale_temporaries(out)  # a run killed before its first checkpoint
-        venv = wrap_normalisation(make_vec_env(config, config.seed), config)
+        venv = make_vec_env(config, config.seed)
+        venv = source.normalisation(venv, config) if source is not None else wrap_normalisation(venv, config)
         model = build_model(config, venv)
+        if source is not None:
+            write_json(out / INITIALISATION, source.load_into(model))
         wall_before = 0.0
         records = []
     provenance = {"git": source_revision()}  # the code of this session (a resume records its own)
@@ -129,9 +136,9 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
 
             report = _print_progress if config.progress_bar else None
             write_json(out / PRETRAINING, pretrain_model(model, venv, config, report))
-            if config.eval_every > 0:  # where the cloned policy starts the curves
-                evaluation.init_callback(model)
-                evaluation.evaluate_now()
+        if (config.pretrain is not None or config.init_from is not None) and not resume and config.eval_every > 0:
+            evaluation.init_callback(model)  # where the cloned or given policy starts the curves
+            evaluation.evaluate_now()
         remaining = config.steps - model.num_timesteps
         if remaining > 0:
             model.learn(remaining, callback=chain, reset_num_timesteps=not resume, progress_bar=config.progress_bar)
