@@ -17,6 +17,7 @@ from PIL import Image
 
 import moma_env.io
 from moma_env.config import ConfigError
+from moma_env.env.factory import parallel_env
 from moma_env.metrics import read_tum
 from training.cli import main
 from training.evaluation import PolicyLoadError, evaluate, load_policy, policy_label
@@ -104,6 +105,36 @@ def test_switches_are_recorded_for_a_policy_that_moves():
     moved = [r for r in ep.robots.values() if r.distance_m > 0.01]
     assert moved, "advancing robots must travel"
     assert all(r.n_switches >= 1 and r.switch_times for r in moved)
+
+
+class AlwaysHold:
+    """Every UGV holds at every step."""
+
+    def reset(self, env, seed: int | None = None) -> None:
+        pass
+
+    def act(self, observations: dict, infos: dict) -> dict:
+        return {agent: 0 for agent in observations}
+
+
+def test_a_robot_left_static_off_its_goal_with_a_start_allowed_is_timed_and_its_goal_distance_kept():
+    held = evaluate("top_observer_team4_legs", AlwaysHold(), 1, seed=3, max_cycles=50).episodes[0]
+    assert not held.success
+    for name, robot in held.robots.items():
+        goal = np.asarray(held.goals[name])
+        start = robot.truth.poses[0][:2, 3]
+        assert robot.goal_distance_m == pytest.approx(float(np.hypot(*(goal[:2] - start))), abs=1e-9)
+        assert 0.0 <= robot.goal_heading_error_deg <= 180.0
+        assert robot.startable_s == pytest.approx(held.duration_s)  # never started, its start always allowed
+        row = held.row()
+        assert row[f"{name}_startable_s"] == robot.startable_s and row[f"{name}_goal_distance_m"] == robot.goal_distance_m
+    done = evaluate("top_observer_team4_legs", "greedy@1.5", 1, seed=1000000).episodes[0]
+    assert done.success
+    scenario = parallel_env("top_observer_team4_legs").scenario
+    for robot in done.robots.values():  # every goal reached and then held: within the tolerances at the end
+        assert robot.goal_distance_m <= scenario.goal_tolerance_m
+        assert robot.goal_heading_error_deg <= math.degrees(scenario.goal_tolerance_rad)
+        assert robot.startable_s < done.duration_s
 
 
 def test_evaluate_is_deterministic():

@@ -166,3 +166,53 @@ def test_paired_reads_a_sweeps_results_csv(tmp_path, capsys):
     assert main([str(tmp_path), "--paired", "pipeline"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[2].startswith("| lookahead | 3 | 2 | 1 | 0 |")
+
+
+def _failure_rows() -> list[dict]:
+    def row(policy: str, seed: int, success: bool, duration: float, left: dict[str, tuple[float, float, float]]) -> dict:
+        out = {"scenario": "top_observer_team4_legs", "policy": policy, "seed": str(seed), "success": str(int(success)),
+               "time_to_goal_s": str(duration if success else math.nan), "duration_s": str(duration)}
+        for robot in ("ugv_0", "ugv_1"):
+            distance, heading, startable = left.get(robot, (0.01, 2.0, 0.0))
+            out |= {f"{robot}_goal_time_s": str(math.nan if robot in left else 5.0), f"{robot}_goal_distance_m": str(distance),
+                    f"{robot}_goal_heading_error_deg": str(heading), f"{robot}_startable_s": str(startable)}
+        return out
+
+    return [
+        row("greedy", 1, True, 10.0, {}),
+        row("greedy", 2, True, 12.0, {}),
+        row("clone", 1, False, 100.0, {"ugv_1": (0.02, 30.0, 80.0)}),
+        row("clone", 2, False, 120.0, {"ugv_0": (0.50, 10.0, 100.0), "ugv_1": (0.04, 50.0, 90.0)}),
+        row("clone", 3, True, 11.0, {}),
+    ]
+
+
+def test_failures_count_the_robots_left_and_how_they_were_left():
+    from training.sweep.compare import failure_table
+
+    lines = failure_table(_failure_rows(), labels={"clone": "the clone"}).splitlines()
+    assert lines[0].startswith("| policy | failed | robots left per failure |")
+    assert lines[2] == "| greedy | 0 of 2 | - | - | - | - | - |"
+    cells = [c.strip() for c in lines[3].strip("|").split("|")]
+    # three robots left over two failures: distances 0.02, 0.50, 0.04; headings 30, 10, 50; startable 80, 100, 90
+    assert cells == ["the clone", "2 of 3", "1.5", "0.04", "30", "90.0", "110.0"]
+
+
+def test_failures_refuse_a_sweep_without_the_goal_columns(tmp_path, capsys):
+    import csv
+
+    from training.sweep.compare import failure_table
+
+    old = [{k: v for k, v in r.items() if "goal_distance" not in k} for r in _failure_rows()]
+    with pytest.raises(CompareError, match="predates the robots' goal distances"):
+        failure_table(old)
+    rows = _failure_rows()
+    (tmp_path / "summary.json").write_text(json.dumps({"groups": []}), encoding="utf-8")
+    with open(tmp_path / "results.csv", "w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    assert main([str(tmp_path), "--failures"]) == 0
+    assert capsys.readouterr().out.splitlines()[3].startswith("| clone | 2 of 3 | 1.5 |")
+    assert main([str(tmp_path), "--failures", "--paired", "greedy"]) == 2
+    assert "--failures makes its own table" in capsys.readouterr().err

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from moma_env.env.agent_names import is_observer_agent
+from moma_env.geometry import wrap_angle
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, run_metrics
 from training.evaluation.policies import Policy, PolicyEnvError
 
@@ -39,6 +40,14 @@ class RobotEpisode:
         lost: whether its estimator status was ``lost`` at any sample.
         goal_time_s: time (s) it reached its goal; NaN if it did not.
         metrics: ME, E_f, % of path, heading errors of ``moma`` against ``truth``.
+        goal_distance_m: planar distance from its true pose at the episode's end to its
+            goal's position (m); NaN without a goal.
+        goal_heading_error_deg: absolute difference of its true heading at the end and its
+            goal's heading (deg, in [0, 180]); NaN without a goal. A goal is reached within
+            the scenario's ``goal_tolerance_m`` and ``goal_tolerance_rad`` of both.
+        startable_s: how long it stood static, its goal not yet reached, while its action
+            mask allowed it to start (s; switching mode; 0 without masks): the time a policy
+            left it where it could have sent it on.
     """
 
     truth: Trajectory
@@ -50,6 +59,9 @@ class RobotEpisode:
     lost: bool
     goal_time_s: float
     metrics: RunMetrics
+    goal_distance_m: float = math.nan
+    goal_heading_error_deg: float = math.nan
+    startable_s: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,6 +140,9 @@ class EpisodeResult:
                 f"{name}_E_f_pct_path": m.final_error_pct_path,
                 f"{name}_mean_heading_error_deg": m.mean_heading_error_deg,
                 f"{name}_final_heading_error_deg": m.final_heading_error_deg,
+                f"{name}_goal_distance_m": r.goal_distance_m,
+                f"{name}_goal_heading_error_deg": r.goal_heading_error_deg,
+                f"{name}_startable_s": r.startable_s,
             }
         return row
 
@@ -140,7 +155,7 @@ def robot_agents(env: Any) -> list[str]:
 class _RobotLog:
     """Per-step accumulation for one robot (recorders and counters)."""
 
-    __slots__ = ("truth", "moma", "switch_times", "n_switches", "n_refused", "lost", "goal_time", "mobile")
+    __slots__ = ("truth", "moma", "switch_times", "n_switches", "n_refused", "lost", "goal_time", "mobile", "startable_s", "_startable_from", "final_truth")
 
     def __init__(self, capacity: int):
         self.truth = TrajectoryRecorder(capacity=capacity)
@@ -151,8 +166,17 @@ class _RobotLog:
         self.lost = False
         self.goal_time = math.nan
         self.mobile: list[bool] = []
+        self.startable_s = 0.0
+        self._startable_from: float | None = None  # the last sample's time if the robot could have started then
+        self.final_truth: tuple[float, float, float] | None = None
 
     def record(self, name: str, t: float, info: Mapping[str, Any]) -> None:
+        if self._startable_from is not None:
+            self.startable_s += t - self._startable_from
+        mask = info.get("action_mask")
+        startable = info.get("static") is True and not info.get("reached_goal", False) and mask is not None and bool(np.any(mask[1:]))
+        self._startable_from = t if startable else None
+        self.final_truth = tuple(float(v) for v in info["truth"][:3])
         self.truth.append(t, info["truth"][:3])
         self.moma.append(t, info["estimate"])
         self.mobile.append(info.get("static") is False)
@@ -172,10 +196,16 @@ class _RobotLog:
         if switched:
             self.switch_times.append(t)
 
-    def result(self) -> RobotEpisode:
+    def result(self, goal: Sequence[float] | None) -> RobotEpisode:
+        """The robot's episode; ``goal``: its ``(x, y, yaw)`` goal, None without one."""
         truth = self.truth.to_trajectory()
         moma = self.moma.to_trajectory()
         switches = tuple(self.switch_times)
+        distance = heading = math.nan
+        if goal is not None and self.final_truth is not None:
+            x, y, yaw = self.final_truth
+            distance = math.hypot(goal[0] - x, goal[1] - y)
+            heading = abs(math.degrees(float(wrap_angle(goal[2] - yaw))))
         return RobotEpisode(
             truth=truth,
             moma=moma,
@@ -186,6 +216,9 @@ class _RobotLog:
             lost=self.lost,
             goal_time_s=self.goal_time,
             metrics=run_metrics(moma, truth, switches),
+            goal_distance_m=distance,
+            goal_heading_error_deg=heading,
+            startable_s=self.startable_s,
         )
 
 
@@ -318,14 +351,14 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
         if frame_sink is not None:
             frame_sink(env.render())
     duration = float(env.frame.time)
-    results = {name: log.result() for name, log in logs.items()}
+    goals = {name: tuple(float(v) for v in goal) for name, goal in env.scenario.goals.items()}
+    results = {name: log.result(goals.get(name)) for name, log in logs.items()}
     mobile = {name: log.mobile for name, log in logs.items()}
     if terminated and robots:
         waiting, still = schedule_split(times, mobile, {name: r.goal_time_s for name, r in results.items()})
         bound = schedule_bound(mobile_times(times, mobile))
     else:
         waiting = still = bound = math.nan
-    goals = {name: tuple(float(v) for v in goal) for name, goal in env.scenario.goals.items()}
     return EpisodeResult(
         index=index,
         seed=seed,

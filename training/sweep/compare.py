@@ -30,6 +30,11 @@ and the time it saved, in s and as a share of the base's time per seed (their me
 and the largest), so a lookahead or a learned policy is judged on the same layouts as
 the policy it is meant to beat.
 
+``--failures`` tabulates, per policy, the episodes that did not reach every goal
+(:func:`failure_table`): how many robots each left, how far from their goals' positions
+and headings they ended, and how long each stood static with a start allowed (the time
+a policy could have sent it on and did not).
+
 Units: time in s, errors in cm, rates in %, counts per episode. (The table of
 ``moma-env evaluate`` folders is :mod:`training.train.compare`.)
 """
@@ -39,6 +44,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import statistics
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -52,7 +58,7 @@ from training.sweep.table import TABLE_FILES
 
 __all__ = [
     "COLUMNS", "SCHEDULE_COLUMNS", "CompareError", "seed_interval", "policy_cells", "group_cells", "comparison_table",
-    "paired_table", "main",
+    "paired_table", "failure_table", "main",
 ]
 
 #: Column title -> (summary key, how a policy's value is read, scale to the shown unit).
@@ -269,6 +275,56 @@ def paired_table(
     return "\n".join(lines)
 
 
+def _median_of(left: Sequence[tuple[Mapping[str, str], str]], column: str) -> float:
+    """The median of column ``<robot>_<column>`` over ``(row, robot)`` pairs (NaN if none)."""
+    values = [float(row[f"{robot}_{column}"]) for row, robot in left]
+    return statistics.median(values) if values else math.nan
+
+
+def failure_table(
+    rows: Sequence[Mapping[str, str]], scenario: str | None = None, labels: Mapping[str, str] | None = None
+) -> str:
+    """The Markdown table of ``--failures``: for every policy of ``scenario`` (None: the
+    sweep's only one), its episodes that did not reach every goal and the robots they left
+    (``rows``: ``results.csv``'s rows): how many failed, robots left per failure, the
+    median distance (m) and heading error (deg) from a robot left to its goal at the end
+    (:class:`training.evaluation.episode.RobotEpisode`), the mean time a robot left stood
+    static with a start allowed (s), and the failures' mean duration (s).
+
+    Raises:
+        CompareError: no such scenario, several and none chosen, or a sweep written before
+            the robots' final goal distances were recorded.
+    """
+    scenario = _one_scenario([r["scenario"] for r in rows], scenario)
+    rows = [r for r in rows if r["scenario"] == scenario]
+    robots = [key[: -len("_goal_distance_m")] for key in (rows[0] if rows else {}) if key.endswith("_goal_distance_m")]
+    if rows and not robots:
+        raise CompareError("this sweep predates the robots' goal distances in results.csv: sweep again for --failures")
+    by_policy: dict[str, list[Mapping[str, str]]] = {}
+    for row in rows:
+        by_policy.setdefault(row["policy"], []).append(row)
+    lines = [
+        "| policy | failed | robots left per failure | distance left m (median) | heading error left deg (median) "
+        "| startable s per robot left | failure duration s |",
+        "|---" * 7 + "|",
+    ]
+    labels = dict(labels or {})
+    for policy, episodes in by_policy.items():
+        failed = [r for r in episodes if not int(r["success"])]
+        left = [(r, robot) for r in failed for robot in robots if not math.isfinite(float(r[f"{robot}_goal_time_s"]))]
+        name = labels.get(policy, policy)
+        if not failed:
+            lines.append(f"| {name} | 0 of {len(episodes)} | - | - | - | - | - |")
+            continue
+        startable = [float(r[f"{robot}_startable_s"]) for r, robot in left]
+        lines.append(
+            f"| {name} | {len(failed)} of {len(episodes)} | {len(left) / len(failed):.1f} | {_median_of(left, 'goal_distance_m'):.2f} "
+            f"| {_median_of(left, 'goal_heading_error_deg'):.0f} | {sum(startable) / max(len(startable), 1):.1f} "
+            f"| {sum(float(r['duration_s']) for r in failed) / len(failed):.1f} |"
+        )
+    return "\n".join(lines)
+
+
 def _pairs(texts: Sequence[str], option: str) -> list[tuple[str, str]]:
     out = []
     for text in texts:
@@ -293,8 +349,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--paired", default=None, metavar="BASE",
                         help="every other policy against policy BASE, seed by seed over the seeds both reached every goal "
                              "(from results.csv) instead of the default columns")
+    parser.add_argument("--failures", action="store_true",
+                        help="the episodes that did not reach every goal and the robots they left (from results.csv) "
+                             "instead of the default columns")
     args = parser.parse_args(argv)
     try:
+        if args.failures:
+            if args.schedule or args.seeds or args.paired is not None:
+                raise CompareError("--failures makes its own table: give it without --schedule, --seeds and --paired")
+            print(failure_table(_read_results(args.sweep), args.scenario, dict(_pairs(args.label, "--label"))))
+            return 0
         if args.paired is not None:
             if args.schedule or args.seeds:
                 raise CompareError("--paired makes its own table: give it without --schedule and --seeds")
