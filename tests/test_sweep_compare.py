@@ -154,15 +154,19 @@ def test_paired_refuses_an_unknown_base_and_a_repeated_seed(tmp_path, capsys):
     assert "--paired makes its own table" in capsys.readouterr().err
 
 
-def test_paired_reads_a_sweeps_results_csv(tmp_path, capsys):
+def _write_finished_sweep(folder, rows: list[dict]) -> None:
+    """A sweep folder holding ``rows`` as its results.csv and an empty summary.json."""
     import csv
 
-    rows = _result_rows()
-    (tmp_path / "summary.json").write_text(json.dumps({"groups": []}), encoding="utf-8")
-    with open(tmp_path / "results.csv", "w", newline="", encoding="utf-8") as handle:
+    (folder / "summary.json").write_text(json.dumps({"groups": []}), encoding="utf-8")
+    with open(folder / "results.csv", "w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
+
+
+def test_paired_reads_a_sweeps_results_csv(tmp_path, capsys):
+    _write_finished_sweep(tmp_path, _result_rows())
     assert main([str(tmp_path), "--paired", "pipeline"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[2].startswith("| lookahead | 3 | 2 | 1 | 0 |")
@@ -199,19 +203,12 @@ def test_failures_count_the_robots_left_and_how_they_were_left():
 
 
 def test_failures_refuse_a_sweep_without_the_goal_columns(tmp_path, capsys):
-    import csv
-
     from training.sweep.compare import failure_table
 
     old = [{k: v for k, v in r.items() if "goal_distance" not in k} for r in _failure_rows()]
     with pytest.raises(CompareError, match="predates the robots' goal distances"):
         failure_table(old)
-    rows = _failure_rows()
-    (tmp_path / "summary.json").write_text(json.dumps({"groups": []}), encoding="utf-8")
-    with open(tmp_path / "results.csv", "w", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    _write_finished_sweep(tmp_path, _failure_rows())
     assert main([str(tmp_path), "--failures"]) == 0
     assert capsys.readouterr().out.splitlines()[3].startswith("| clone | 2 of 3 | 1.5 |")
     assert main([str(tmp_path), "--failures", "--paired", "greedy"]) == 2
