@@ -145,7 +145,8 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--init-from", dest="init_from", default=None, metavar="RUN",
                     help="start from the networks and normalisation statistics of this finished run's last checkpoint (a "
                          "moma-env train --out folder or policies/NAME; the same task, algorithm, action mode, route, network, "
-                         "team action and timer), with a fresh optimiser, instead of random weights (not with --pretrain)")
+                         "team action and timer), with a fresh optimiser; not with --pretrain (default: none, learning starts from "
+                         "random weights or --pretrain's clone)")
     tr.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
     tr.add_argument("--json", action="store_true", help="print the final manifest as JSON (default: a summary)")
     from training.train.rllib_command import add_rllib_arguments
