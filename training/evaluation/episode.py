@@ -155,7 +155,7 @@ def robot_agents(env: Any) -> list[str]:
 class _RobotLog:
     """Per-step accumulation for one robot (recorders and counters)."""
 
-    __slots__ = ("truth", "moma", "switch_times", "n_switches", "n_refused", "lost", "goal_time", "mobile", "startable_s", "_startable_from", "final_truth")
+    __slots__ = ("truth", "moma", "switch_times", "n_switches", "n_refused", "lost", "goal_time", "mobile", "startable_s", "_startable_from")
 
     def __init__(self, capacity: int):
         self.truth = TrajectoryRecorder(capacity=capacity)
@@ -168,7 +168,6 @@ class _RobotLog:
         self.mobile: list[bool] = []
         self.startable_s = 0.0
         self._startable_from: float | None = None  # the last sample's time if the robot could have started then
-        self.final_truth: tuple[float, float, float] | None = None
 
     def record(self, name: str, t: float, info: Mapping[str, Any]) -> None:
         if self._startable_from is not None:
@@ -176,7 +175,6 @@ class _RobotLog:
         mask = info.get("action_mask")
         startable = info.get("static") is True and not info.get("reached_goal", False) and mask is not None and bool(np.any(mask[1:]))
         self._startable_from = t if startable else None
-        self.final_truth = tuple(float(v) for v in info["truth"][:3])
         self.truth.append(t, info["truth"][:3])
         self.moma.append(t, info["estimate"])
         self.mobile.append(info.get("static") is False)
@@ -202,8 +200,8 @@ class _RobotLog:
         moma = self.moma.to_trajectory()
         switches = tuple(self.switch_times)
         distance = heading = math.nan
-        if goal is not None and self.final_truth is not None:
-            x, y, yaw = self.final_truth
+        if goal is not None and len(truth):
+            (x, y), yaw = truth.xy[-1], truth.yaw[-1]
             distance = math.hypot(goal[0] - x, goal[1] - y)
             heading = abs(math.degrees(float(wrap_angle(goal[2] - yaw))))
         return RobotEpisode(

@@ -42,9 +42,14 @@ def make_vec_env(config: TrainConfig, seed: int) -> VecEnv:
 
 
 def wrap_normalisation(venv: VecEnv, config: TrainConfig, stats: Path | None = None) -> VecEnv:
-    """``venv`` in ``VecNormalize`` if the run normalises (statistics from ``stats`` when resuming)."""
+    """``venv`` in ``VecNormalize`` if the run normalises: fresh, or with the statistics
+    saved in ``stats`` (resuming, or starting from another run's, ``--init-from``), still
+    updating, at the run's discount."""
     if not config.normalize:
         return venv
-    if stats is not None:
-        return VecNormalize.load(str(stats), venv)
-    return VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=config.gamma)
+    if stats is None:
+        return VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=config.gamma)
+    loaded = VecNormalize.load(str(stats), venv)
+    loaded.training = True
+    loaded.gamma = config.gamma
+    return loaded

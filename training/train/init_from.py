@@ -23,11 +23,10 @@ from pathlib import Path
 from typing import Any
 
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents.learned import TrainingDirError, file_sha256, read_manifest, sb3_class
 from moma_env.config import ConfigError
-from training.train.config import ALGORITHMS, TrainConfig
+from training.train.config import TrainConfig
 
 __all__ = ["INITIALISATION", "SHARED_FIELDS", "InitialWeights", "read_initial_weights"]
 
@@ -74,13 +73,10 @@ class InitialWeights:
             theirs, ours = getattr(source, name), getattr(model, name)
             if theirs != ours:
                 raise ConfigError("init_from", f"{str(path)!r} has {name} {theirs}, this run's is {ours}")
-        weights = source.policy.state_dict()
-        shapes = {key: tuple(value.shape) for key, value in model.policy.state_dict().items()}
-        theirs = {key: tuple(value.shape) for key, value in weights.items()}
-        if theirs != shapes:
-            differ = sorted(set(theirs.items()) ^ set(shapes.items()))[0][0]
-            raise ConfigError("init_from", f"{str(path)!r} has networks of other shapes than this run's (first: {differ!r})")
-        model.policy.load_state_dict(weights)
+        try:
+            model.policy.load_state_dict(source.policy.state_dict())
+        except RuntimeError as err:  # torch names the missing, unexpected or mis-shaped weights
+            raise ConfigError("init_from", f"{str(path)!r} has networks of other shapes than this run's: {str(err).splitlines()[0]}") from None
         return {
             "run": str(self.folder),
             "model": self.manifest["model"],
@@ -90,24 +86,13 @@ class InitialWeights:
             "git": self.manifest.get("git"),
         }
 
-    def normalisation(self, venv: VecEnv, config: TrainConfig) -> VecEnv:
-        """``venv`` in the source's ``VecNormalize`` statistics (still updating, at
-        ``config.gamma``), or as it is if the runs do not normalise."""
-        if self.statistics is None:
-            return venv
-        wrapped = VecNormalize.load(str(self.statistics), venv)
-        wrapped.training = True
-        wrapped.gamma = config.gamma
-        return wrapped
-
 
 def read_initial_weights(config: TrainConfig) -> InitialWeights:
     """The run ``config.init_from`` names, checked against ``config``.
 
     Raises:
         ConfigError (``init_from``): no loadable run there (no folder, no manifest,
-            another env version, a missing file), a run of another SB3 class, or one
-            whose :data:`SHARED_FIELDS` differ from ``config``'s (naming the first).
+            another env version, a missing file), or one whose :data:`SHARED_FIELDS` differ from ``config``'s (naming the first).
     """
     if config.init_from is None:
         raise ValueError("the run starts from scratch: config.init_from is None")
@@ -125,6 +110,4 @@ def read_initial_weights(config: TrainConfig) -> InitialWeights:
         if stored[name] != ours[name]:
             raise ConfigError("init_from", f"{str(folder)!r} was trained with {name}={stored[name]!r}, this run has {ours[name]!r}: "
                                            "a run starts from weights of its own task, algorithm, actions and network")
-    if manifest["sb3_class"] != ALGORITHMS[config.algo]:
-        raise ConfigError("init_from", f"{str(folder)!r} holds a {manifest['sb3_class']} model, this run trains {ALGORITHMS[config.algo]}")
     return InitialWeights(folder, manifest)

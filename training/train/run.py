@@ -110,8 +110,7 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
         source = read_initial_weights(config) if config.init_from is not None else None  # ConfigError before the folder is claimed
         claim_run_folder(out, "train")  # RunFolderError: another kind of run, or files that are not a run
         remove_stale_temporaries(out)  # a run killed before its first checkpoint
-        venv = make_vec_env(config, config.seed)
-        venv = source.normalisation(venv, config) if source is not None else wrap_normalisation(venv, config)
+        venv = wrap_normalisation(make_vec_env(config, config.seed), config, source.statistics if source is not None else None)
         model = build_model(config, venv)
         if source is not None:
             write_json(out / INITIALISATION, source.load_into(model))
