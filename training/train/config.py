@@ -219,6 +219,10 @@ class TrainConfig:
             run starts from, instead of random weights or a teacher's clone
             (:mod:`training.train.init_from`; the two runs share its ``SHARED_FIELDS``).
             None: start from scratch or from ``pretrain``.
+        kl_to_start: BETA of a penalty ``BETA * KL(policy || start policy)`` (nats, mean
+            over each minibatch's observations) in PPO's loss, the start policy being the
+            one this run starts from (``init_from``'s or ``pretrain``'s, frozen;
+            :mod:`training.train.kl_to_start`); 0: no penalty.
     """
 
     scenario: str
@@ -259,6 +263,7 @@ class TrainConfig:
     dagger_epochs: int = 8
     dagger_teacher: str | None = None
     init_from: str | None = None
+    kl_to_start: float = 0.0
 
     def __post_init__(self) -> None:
         from moma_env.env.config import ACTION_MODES, TEAM_ACTIONS
@@ -312,6 +317,13 @@ class TrainConfig:
                 raise ConfigError("init_from", f"must be the folder of a finished training run, got {self.init_from!r}")
             if self.pretrain is not None:
                 raise ConfigError("init_from", "starts from a run's weights, pretrain from a teacher's clone: give one")
+        check_non_negative("kl_to_start", self.kl_to_start)
+        object.__setattr__(self, "kl_to_start", float(self.kl_to_start))
+        if self.kl_to_start > 0:
+            if self.algo not in PRETRAINABLE:
+                raise ConfigError("kl_to_start", f"is a penalty in PPO's loss: use --algo {' or '.join(sorted(PRETRAINABLE))}")
+            if self.init_from is None and self.pretrain is None:
+                raise ConfigError("kl_to_start", "measures the divergence from the policy the run starts from: give --init-from or --pretrain")
         if self.algo in DISCRETE_ONLY and (self.action_mode != "switching" or self.route != "shared"):
             raise ConfigError(
                 "algo", f"{self.algo} needs one discrete action per slot: use --action-mode switching --route shared"

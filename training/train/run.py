@@ -4,7 +4,8 @@
 checkpoint and evaluation callbacks, learns ``config.steps`` timesteps and
 writes the final checkpoint (:mod:`training.train.checkpoint`). With
 ``config.init_from`` it starts from another run's networks and statistics
-(:mod:`training.train.init_from`). With
+(:mod:`training.train.init_from`); with ``config.kl_to_start`` its PPO loss keeps it
+near the policy it started from (:mod:`training.train.kl_to_start`). With
 ``resume=True`` it loads the checkpoint that ``out``'s manifest names: model
 weights, optimiser state and step counter (the SB3 zip), ``VecNormalize``
 statistics, the replay buffer of off-policy algorithms, the training wall time
@@ -33,6 +34,7 @@ from agents.learned import torch_threads
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.init_from import INITIALISATION, read_initial_weights
+from training.train import kl_to_start
 from training.train.models import algorithm_class, build_model, training_logger
 
 __all__ = ["train", "RESUMABLE_CHANGES", "PRETRAINING"]
@@ -135,6 +137,9 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
 
             report = _print_progress if config.progress_bar else None
             write_json(out / PRETRAINING, pretrain_model(model, venv, config, report))
+        if config.kl_to_start > 0:
+            start = kl_to_start.start_policy_from(out, model) if resume else kl_to_start.write_start_policy(out, model)
+            kl_to_start.install(model, start, config.kl_to_start, config.ent_coef)
         if (config.pretrain is not None or config.init_from is not None) and not resume and config.eval_every > 0:
             evaluation.init_callback(model)  # where the cloned or given policy starts the curves
             evaluation.evaluate_now()
