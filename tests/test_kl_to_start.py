@@ -56,6 +56,18 @@ def test_the_divergence_is_kl_of_the_action_distributions():
     assert torch.allclose(kl_divergence(both, other), expected.sum().reshape(1))
 
 
+def test_a_box_actions_divergence_sums_its_dimensions():
+    from stable_baselines3.common.distributions import DiagGaussianDistribution
+
+    mean_p, mean_q = torch.tensor([[0.0, 1.0]]), torch.tensor([[0.5, -1.0]])
+    log_std_p, log_std_q = torch.tensor([0.0, -1.0]), torch.tensor([0.5, 0.0])
+    p = DiagGaussianDistribution(2).proba_distribution(mean_p, log_std_p)
+    q = DiagGaussianDistribution(2).proba_distribution(mean_q, log_std_q)
+    sp, sq = log_std_p.exp(), log_std_q.exp()
+    expected = (log_std_q - log_std_p + (sp**2 + (mean_p - mean_q) ** 2) / (2 * sq**2) - 0.5).sum(-1)
+    assert torch.allclose(kl_divergence(p, q), expected)
+
+
 def test_masked_actions_add_nothing_to_the_divergence():
     """An action the masks refuse has probability 0 in both distributions: the divergence is
     that of the allowed actions, renormalised, and finite."""

@@ -39,13 +39,13 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from agents.learned import TrainingDirError
 from moma_env.io import atomic_path
 
-__all__ = ["START_POLICY", "KLToStart", "install", "kl_divergence", "start_policy_from", "write_start_policy"]
+__all__ = ["START_POLICY", "KLToStart", "action_distributions", "install", "kl_divergence", "start_policy_from", "write_start_policy"]
 
 #: The start policy's weights (a torch state dict), in the run folder of a run with ``kl_to_start > 0``.
 START_POLICY = "start_policy.pt"
 
 
-def _parts(distribution: Any) -> list[th.distributions.Distribution]:
+def action_distributions(distribution: Any) -> list[th.distributions.Distribution]:
     """The torch distributions of an SB3 (or sb3-contrib) action distribution: one per
     sub-action of a ``MultiDiscrete`` action, else one."""
     inner = getattr(distribution, "distributions", None)  # sb3-contrib's masked MultiDiscrete
@@ -59,7 +59,7 @@ def kl_divergence(current: Any, start: Any) -> th.Tensor:
     action distributions of the same action space, summed over sub-actions and action
     dimensions."""
     total: th.Tensor | None = None
-    for p, q in zip(_parts(current), _parts(start), strict=True):
+    for p, q in zip(action_distributions(current), action_distributions(start), strict=True):
         kl = th.distributions.kl_divergence(p, q)
         if kl.dim() > 1:  # a Gaussian's per-dimension divergences
             kl = kl.sum(dim=tuple(range(1, kl.dim())))
