@@ -5,10 +5,11 @@
 with the options it trained with, centralised route), copy ``k`` first reset with seed
 ``--seed + k``, with RUN's policy for ``--steps`` steps (its most likely actions, or
 sampled ones, seeded), and at every step compares RUN's action distribution with
-START's (each policy with its own observation statistics, both with the step's action
-masks, where a policy masks): ``KL(RUN || START)`` in nats, over all rows and over the rows where the masks
-leave a choice (the only rows where two masked policies can differ). START is typically
-the run RUN started from (``--init-from``), to see how far training moved it.
+START's (each policy with its own observation statistics and, where it masks, the
+step's action masks): ``KL(RUN || START)`` in nats, over all rows and over the rows
+where the masks leave a choice (the only rows where two masked policies can differ).
+START is typically the run RUN started from (``--init-from``), to see how far training
+moved it.
 """
 
 from __future__ import annotations

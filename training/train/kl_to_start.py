@@ -85,6 +85,7 @@ class KLToStart:
         self.start = start
         self.weight = float(weight)
         self.ent_coef = float(ent_coef)
+        # The class's own method: on the instance, evaluate_actions is this penalty once installed.
         self._evaluate: Callable[..., tuple[th.Tensor, th.Tensor, th.Tensor | None]] = type(self.policy).evaluate_actions.__get__(self.policy)
         start.set_training_mode(False)
         for parameter in start.parameters():

@@ -60,7 +60,7 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
     if args.init_from is not None:
         raise ConfigError("init_from", "--backend torchrl starts from its own checkpoints only: drop --init-from (the sb3 backend takes it)")
     if args.kl_to_start != 0:
-        raise ConfigError("kl_to_start", "--backend torchrl starts from its own checkpoints only: drop --kl-to-start (the sb3 backend takes it)")
+        raise ConfigError("kl_to_start", "--backend torchrl has no penalty towards a start policy: drop --kl-to-start (the sb3 backend takes it)")
     return TorchRLTrainConfig(
         scenario=args.scenario, steps=args.timesteps, envs=args.num_envs, seed=args.seed, critic=args.critic,
         max_cycles=args.max_cycles, rewards=scenario_rewards(args.scenario, args.reward), net_arch=tuple(args.net),
