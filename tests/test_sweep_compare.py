@@ -202,8 +202,18 @@ def test_failures_count_the_robots_left_and_how_they_were_left():
     assert cells == ["the clone", "2 of 3", "1.5", "0.04", "30", "90.0", "110.0"]
 
 
+def test_startable_time_is_summed_over_each_episodes_robots():
+    from training.sweep.compare import startable_table
+
+    lines = startable_table(_failure_rows(), labels={"clone": "the clone"}).splitlines()
+    assert lines[0] == "| policy | episodes | startable s per episode (mean) | median | episodes over 10 s |"
+    assert lines[2] == "| greedy | 2 | 0.0 | 0.0 | 0 % |"
+    # the clone's episodes: 80 (ugv_1), 100 + 90, and 0 s
+    assert lines[3] == "| the clone | 3 | 90.0 | 80.0 | 67 % |"
+
+
 def test_failures_refuse_a_sweep_without_the_goal_columns(tmp_path, capsys):
-    from training.sweep.compare import failure_table
+    from training.sweep.compare import failure_table, startable_table
 
     old = [{k: v for k, v in r.items() if "goal_distance" not in k} for r in _failure_rows()]
     with pytest.raises(CompareError, match="predates the robots' goal distances"):
@@ -213,3 +223,9 @@ def test_failures_refuse_a_sweep_without_the_goal_columns(tmp_path, capsys):
     assert capsys.readouterr().out.splitlines()[3].startswith("| clone | 2 of 3 | 1.5 |")
     assert main([str(tmp_path), "--failures", "--paired", "greedy"]) == 2
     assert "--failures makes its own table" in capsys.readouterr().err
+    assert main([str(tmp_path), "--startable"]) == 0
+    assert capsys.readouterr().out.splitlines()[3].startswith("| clone | 3 | 90.0 |")
+    assert main([str(tmp_path), "--startable", "--failures"]) == 2
+    assert "--startable makes its own table" in capsys.readouterr().err
+    with pytest.raises(CompareError, match="sweep again for --startable"):
+        startable_table(old)

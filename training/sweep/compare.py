@@ -33,7 +33,8 @@ the policy it is meant to beat.
 ``--failures`` tabulates, per policy, the episodes that did not reach every goal
 (:func:`failure_table`): how many robots each left, how far from their goals' positions
 and headings they ended, and how long each stood static with a start allowed (the time
-a policy could have sent it on and did not).
+a policy could have sent it on and did not). ``--startable`` gives that time over every
+episode, failed or not (:func:`startable_table`).
 
 Units: time in s, errors in cm, rates in %, counts per episode. (The table of
 ``moma-env evaluate`` folders is :mod:`training.train.compare`.)
@@ -281,6 +282,50 @@ def _median_of(left: Sequence[tuple[Mapping[str, str], str]], column: str) -> fl
     return statistics.median(values) if values else math.nan
 
 
+def _robot_rows(rows: Sequence[Mapping[str, str]], scenario: str | None, option: str) -> tuple[list[str], dict[str, list[Mapping[str, str]]]]:
+    """The robots of ``scenario``'s rows (from their goal columns) and its rows by policy.
+
+    Raises:
+        CompareError: no such scenario, several and none chosen, or rows written before the
+            robots' goal columns (``option`` names the view that needs them).
+    """
+    scenario = _one_scenario([r["scenario"] for r in rows], scenario)
+    rows = [r for r in rows if r["scenario"] == scenario]
+    robots = [key[: -len("_goal_distance_m")] for key in (rows[0] if rows else {}) if key.endswith("_goal_distance_m")]
+    if rows and not robots:
+        raise CompareError(f"this sweep predates the robots' goal distances in results.csv: sweep again for {option}")
+    by_policy: dict[str, list[Mapping[str, str]]] = {}
+    for row in rows:
+        by_policy.setdefault(row["policy"], []).append(row)
+    return robots, by_policy
+
+
+def startable_table(
+    rows: Sequence[Mapping[str, str]], scenario: str | None = None, labels: Mapping[str, str] | None = None, longer_than_s: float = 10.0
+) -> str:
+    """The Markdown table of ``--startable``: for every policy of ``scenario`` (None: the
+    sweep's only one), over all its episodes, the time its robots stood static, off their
+    goals, with a start allowed, summed over the robots of an episode (s): its mean and
+    median, and the share of episodes with more than ``longer_than_s`` of it (a policy
+    holding a robot it could send on).
+
+    Raises:
+        CompareError: as :func:`failure_table`.
+    """
+    robots, by_policy = _robot_rows(rows, scenario, "--startable")
+    lines = [
+        f"| policy | episodes | startable s per episode (mean) | median | episodes over {longer_than_s:g} s |",
+        "|---" * 5 + "|",
+    ]
+    labels = dict(labels or {})
+    for policy, episodes in by_policy.items():
+        totals = [sum(float(r[f"{robot}_startable_s"]) for robot in robots) for r in episodes]
+        over = sum(t > longer_than_s for t in totals)
+        lines.append(f"| {labels.get(policy, policy)} | {len(totals)} | {statistics.fmean(totals):.1f} | {statistics.median(totals):.1f} "
+                     f"| {100 * over / len(totals):.0f} % |")
+    return "\n".join(lines)
+
+
 def failure_table(
     rows: Sequence[Mapping[str, str]], scenario: str | None = None, labels: Mapping[str, str] | None = None
 ) -> str:
@@ -295,14 +340,7 @@ def failure_table(
         CompareError: no such scenario, several and none chosen, or a sweep written before
             the robots' final goal distances were recorded.
     """
-    scenario = _one_scenario([r["scenario"] for r in rows], scenario)
-    rows = [r for r in rows if r["scenario"] == scenario]
-    robots = [key[: -len("_goal_distance_m")] for key in (rows[0] if rows else {}) if key.endswith("_goal_distance_m")]
-    if rows and not robots:
-        raise CompareError("this sweep predates the robots' goal distances in results.csv: sweep again for --failures")
-    by_policy: dict[str, list[Mapping[str, str]]] = {}
-    for row in rows:
-        by_policy.setdefault(row["policy"], []).append(row)
+    robots, by_policy = _robot_rows(rows, scenario, "--failures")
     lines = [
         "| policy | failed | robots left per failure | distance left m (median) | heading error left deg (median) "
         "| startable s per robot left | failure duration s |",
@@ -352,8 +390,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--failures", action="store_true",
                         help="the episodes that did not reach every goal and the robots they left (from results.csv) "
                              "instead of the default columns")
+    parser.add_argument("--startable", action="store_true",
+                        help="over all episodes, how long robots stood static off their goals with a start allowed "
+                             "(from results.csv) instead of the default columns")
     args = parser.parse_args(argv)
     try:
+        if args.startable:
+            if args.schedule or args.seeds or args.paired is not None or args.failures:
+                raise CompareError("--startable makes its own table: give it without --schedule, --seeds, --paired and --failures")
+            print(startable_table(_read_results(args.sweep), args.scenario, dict(_pairs(args.label, "--label"))))
+            return 0
         if args.failures:
             if args.schedule or args.seeds or args.paired is not None:
                 raise CompareError("--failures makes its own table: give it without --schedule, --seeds and --paired")
