@@ -15,6 +15,7 @@ import pytest
 import torch
 from sb3_contrib.common.maskable.distributions import MaskableCategoricalDistribution, MaskableMultiCategoricalDistribution
 from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.distributions import CategoricalDistribution, MultiCategoricalDistribution
 
 from agents.learned import TrainingDirError
@@ -23,7 +24,7 @@ from training.cli import build_parser, main
 from training.train.command import train_command
 from training.train.config import TrainConfig
 from training.train.models import training_logger
-from training.train.kl_to_start import START_POLICY, install, kl_divergence, start_policy_from
+from training.train.kl_to_start import START_POLICY, KLToStart, install, kl_divergence, start_policy_from
 from training.train.run import train
 
 
@@ -232,3 +233,26 @@ def test_the_other_backends_refuse_the_penalty(backend):
     from_args = rllib_config_from_args if backend == "rllib" else torchrl_config_from_args
     with pytest.raises(ConfigError, match="kl_to_start.*drop --kl-to-start"):
         from_args(args)
+
+
+class WeightsAtStart(BaseCallback):
+    """The policy's weights as learning starts (after a cloning) and the penalty on it."""
+
+    def _on_training_start(self) -> None:
+        self.weights = {k: v.clone() for k, v in self.model.policy.state_dict().items()}
+        self.penalised = isinstance(self.model.policy.evaluate_actions, KLToStart) and self.model.ent_coef == 1.0
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def test_after_a_cloning_the_start_policy_is_the_clone(tmp_path):
+    config = TrainConfig(scenario="top_observer_team4", algo="maskable_ppo", steps=64, envs=2, n_steps=16, batch_size=32, net_arch=(8,),
+                         max_cycles=60, checkpoint_every=10**6, pretrain="greedy", pretrain_rows=240, pretrain_epochs=2, dagger_rounds=0,
+                         kl_to_start=2.0)
+    at_start = WeightsAtStart()
+    train(config, tmp_path / "run", callbacks=[at_start])
+    written = torch.load(tmp_path / "run" / START_POLICY, weights_only=True)
+    assert at_start.penalised and written.keys() == at_start.weights.keys()
+    assert all(torch.equal(written[k], at_start.weights[k]) for k in written)
+    assert (tmp_path / "run" / "pretrain.json").is_file()
