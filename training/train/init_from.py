@@ -92,7 +92,8 @@ def read_initial_weights(config: TrainConfig) -> InitialWeights:
 
     Raises:
         ConfigError (``init_from``): no loadable run there (no folder, no manifest,
-            another env version, a missing file), or one whose :data:`SHARED_FIELDS` differ from ``config``'s (naming the first).
+            another env version, a missing file), or one whose :data:`SHARED_FIELDS`
+            differ from ``config``'s (naming the first).
     """
     if config.init_from is None:
         raise ValueError("the run starts from scratch: config.init_from is None")
