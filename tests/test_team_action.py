@@ -193,6 +193,35 @@ def test_the_batched_team_env_is_each_copys_centralised_env():
     envs.close()
 
 
+def test_a_copy_reset_alone_is_read_in_its_new_episode():
+    envs = TeamVectorEnv(TASK, 2, **task_options(TASK, team_action="one_start")[1])
+    with pytest.raises(RuntimeError, match="reset\\(\\) before reset_at"):
+        envs.reset_at(0)
+    envs.reset(seed=3)
+    singles = [one_start_env() for _ in range(2)]
+    singles[0].reset(seed=3)
+    rng = np.random.default_rng(2)
+    for _ in range(15):  # copy 1's robots start moving, so its new episode's infos differ
+        actions = np.array([rng.choice(np.flatnonzero(m)) for m in envs.action_masks()])
+        envs.step(actions)
+        singles[0].step(actions[0])
+    obs, info = envs.reset_at(1, seed=41)
+    single_obs, single_info = singles[1].reset(seed=41)
+    assert np.array_equal(obs, single_obs) and obs.dtype == np.float32
+    assert info.keys() == single_info.keys()
+    for _ in range(25):
+        masks = envs.action_masks()
+        assert np.array_equal(masks, np.stack([s.action_masks() for s in singles]))
+        actions = np.array([rng.choice(np.flatnonzero(m)) for m in masks])
+        observations, rewards, *_ = envs.step(actions)
+        for i, single in enumerate(singles):
+            single_obs, reward, *_ = single.step(actions[i])
+            assert np.array_equal(observations[i], single_obs) and rewards[i] == reward
+    with pytest.raises(IndexError, match=r"copy index must be an integer in \[0, 2\), got 2"):
+        envs.reset_at(2)
+    envs.close()
+
+
 @pytest.mark.parametrize(
     "fields, message",
     [

@@ -18,7 +18,8 @@ Shapes (``K = num_envs``, ``D`` the team observation size, ``A`` the team action
 * ``infos``: Gymnasium's vector form, a dict of arrays over the copies: each
   copy's centralised info (agent -> that agent's info dict) batched key by key,
   every key ``k`` with its boolean mask ``"_k"`` (which copies have it);
-* :meth:`TeamVectorEnv.action_masks`: ``(K, sum n)`` bool (switching mode).
+* :meth:`TeamVectorEnv.action_masks`: ``(K, sum n)`` bool (switching mode);
+* :meth:`TeamVectorEnv.reset_at`: one copy reset alone, ``(observation (D,), info)``.
 
 Seeding: ``reset(seed=s)`` seeds copy ``i`` with ``s + i`` (or ``seed`` is a list of
 ``K`` seeds); ``reset()`` continues every copy's generator.
@@ -62,8 +63,9 @@ class TeamVectorEnv(VectorEnv):
         vector: the batched env stepped (per-agent arrays, ``state()``, ``reset_at``): a
             :class:`~moma_env.vector.env.MomaVectorEnv`, or with ``workers`` a
             :class:`~moma_env.vector.sharded.ShardedVectorEnv`. With
-            ``team_action="one_start"`` step and reset the copies through this env: the
-            team's actions are read in the state of the infos it last returned.
+            ``team_action="one_start"`` step and reset the copies through this env
+            (:meth:`reset_at` for one copy): the team's actions are read in the state of
+            the infos it last returned.
         layout: the team layout shared with :class:`CentralisedTeamEnv`.
 
     Raises:
@@ -98,7 +100,7 @@ class TeamVectorEnv(VectorEnv):
         if options is not None and "reset_mask" in options:
             raise ValueError(
                 "options['reset_mask'] is for AutoresetMode.DISABLED; this env resets a finished copy in the same step "
-                "(AutoresetMode.SAME_STEP): reset() resets every copy, vector.reset_at(i) one"
+                "(AutoresetMode.SAME_STEP): reset() resets every copy, reset_at(i) one"
             )
         observations, copy_infos = self.vector.reset(seed=seed, options=options)
         self._copy_infos = copy_infos
@@ -106,6 +108,24 @@ class TeamVectorEnv(VectorEnv):
         for i, info in enumerate(copy_infos):
             infos = self._add_info(infos, dict(info), i)
         return self.layout.observation(observations), infos
+
+    def reset_at(self, index: int, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset copy ``index`` alone: its team observation ``(D,)`` float32 and its centralised
+        info (agent -> info), as ``gymnasium.make(id).reset(seed=seed)`` gives them; ``seed``
+        None continues the copy's generator. The next :meth:`step` and :meth:`action_masks`
+        read the copy in its new episode.
+
+        Raises:
+            IndexError: ``index`` outside ``[0, num_envs)``.
+            RuntimeError: before the first :meth:`reset`.
+        """
+        if self._copy_infos is None:
+            raise RuntimeError("call reset() before reset_at()")
+        observations, info = self.vector.reset_at(index, seed=seed, options=options)
+        copy_infos = list(self._copy_infos)
+        copy_infos[index] = info
+        self._copy_infos = tuple(copy_infos)
+        return self.layout.observation(observations), dict(info)
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """One step of every copy with its row of ``actions`` (``(K, A)``); see the module docstring.
