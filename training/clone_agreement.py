@@ -43,7 +43,7 @@ def start_rows(demonstrations: Demonstrations, actions: np.ndarray | None = None
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="A cloned policy's agreement with its teacher on the teacher's states of new layouts.")
     parser.add_argument("run", metavar="RUN", help="a centralised moma-env train folder (its policy's most likely actions are compared)")
-    parser.add_argument("--teacher", default=None, help="the teacher (default: the run's --pretrain)")
+    parser.add_argument("--teacher", default=None, help="the teacher (default: the run's --pretrain, else its --dagger-teacher)")
     parser.add_argument("--copies", type=int_at_least(1, "copy count"), default=8, help="env copies (default 8)")
     parser.add_argument("--rows", type=int_at_least(1, "row count"), default=8000, help="rows to record (default 8000)")
     parser.add_argument("--seed", type=int_at_least(0, "seed"), default=2_000_000, help="seed of copy 0's first layout (default 2000000)")
@@ -53,7 +53,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         config = read_manifest(args.run)["config"]
         scenario = config["scenario"]
         spec = env_spec(TrainConfig.from_dict(config))  # the run's own envs: its observations' timer, rewards, episode length
-        teacher = check_teacher("teacher", args.teacher if args.teacher is not None else config.get("pretrain"))
+        teacher = check_teacher("teacher", args.teacher if args.teacher is not None else config.get("pretrain") or config.get("dagger_teacher"))
         policy = run_learner(args.run, scenario)
     except ValueError as error:  # TrainingDirError names the run, ConfigError the teacher
         parser.error(str(error))

@@ -141,7 +141,7 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
         tr.add_argument(flag, type=int_at_least(low, unit), default=defaults[field], help=text + " (default %(default)s)")
     tr.add_argument("--dagger-teacher", type=_teacher("dagger_teacher"), default=None, metavar="TEACHER",
                     help="the teacher labelling the DAgger rounds, e.g. rollout@1.5 after --pretrain greedy@1.5; its rows "
-                         "alone are then cloned (default: the --pretrain teacher)")
+                         "alone are then cloned; with --init-from, DAgger from that run's policy (default: the --pretrain teacher)")
     tr.add_argument("--init-from", dest="init_from", default=None, metavar="RUN",
                     help="start from the networks and normalisation statistics of this finished run's last checkpoint (a "
                          "moma-env train --out folder or policies/NAME; the same task, algorithm, action mode, route, network, "

@@ -214,6 +214,9 @@ class TrainConfig:
             demonstrate ``pretrain_rows`` rows, which then corrects the clone where it acts.
             Its labels disagree with the first teacher's on the choices it is there to
             change, so each round then clones its rows alone (every round's so far).
+            With ``init_from`` instead of ``pretrain``: DAgger from that run's policy,
+            ``dagger_rounds`` rounds of its states labelled by this teacher, each fitting
+            every round's rows so far (:func:`training.train.pretrain.dagger_model`).
         init_from: the folder of a finished run (``moma-env train --out``, or a published
             policy's) whose last checkpoint's networks and normalisation statistics this
             run starts from, instead of random weights or a teacher's clone
@@ -270,7 +273,7 @@ class TrainConfig:
 
         check_choice("scenario", self.scenario, sorted(CONFIGURATION_NAMES) + sorted(TASKS))
         check_choice("algo", self.algo, sorted(ALGORITHMS))
-        check_count("steps", self.steps, 0 if self.pretrain is not None else 1)  # a cloned policy may be trained no further
+        check_count("steps", self.steps, 0 if self.pretrain is not None or self.dagger_teacher is not None else 1)  # a cloned or DAgger-fitted policy may be trained no further
         check_count("envs", self.envs, 1)
         check_bool("subproc", self.subproc)
         check_count("seed", self.seed, 0)
@@ -310,8 +313,16 @@ class TrainConfig:
         check_count("dagger_rounds", self.dagger_rounds, 0)
         if self.dagger_teacher is not None:
             check_teacher("dagger_teacher", self.dagger_teacher)
-            if self.pretrain is None or self.dagger_rounds == 0:
-                raise ConfigError("dagger_teacher", "labels the DAgger rounds after a cloning: give --pretrain and --dagger-rounds of 1 or more")
+            if (self.pretrain is None and self.init_from is None) or self.dagger_rounds == 0:
+                raise ConfigError(
+                    "dagger_teacher", "labels the DAgger rounds after a cloning or from a run's weights: give --pretrain or "
+                    "--init-from, and --dagger-rounds of 1 or more"
+                )
+            if self.pretrain is None:  # DAgger from init_from's policy: the checks of a cloning
+                if self.algo not in PRETRAINABLE:
+                    raise ConfigError("dagger_teacher", f"DAgger fits PPO's actor and critic: use --algo {' or '.join(sorted(PRETRAINABLE))}")
+                if self.action_mode != "switching":
+                    raise ConfigError("dagger_teacher", f"the {self.dagger_teacher} teacher acts in the switching action mode: use --action-mode switching")
         if self.init_from is not None:
             if not isinstance(self.init_from, str) or not self.init_from:
                 raise ConfigError("init_from", f"must be the folder of a finished training run, got {self.init_from!r}")

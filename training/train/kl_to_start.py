@@ -7,7 +7,8 @@ every minibatch of observations ``s``::
 
     BETA * mean_s KL( pi_theta(.|s) || pi_start(.|s) )
 
-where ``pi_start`` is the policy the run started from, frozen (for a masked policy
+where ``pi_start`` is the policy the run started from, frozen: after the cloning or the
+DAgger rounds when the run has them (for a masked policy
 both distributions are masked by the same actions: a refused action has probability 0
 in both and adds nothing). The divergence is in nats, summed over the sub-actions of a
 ``MultiDiscrete`` or ``Box`` action.

@@ -55,7 +55,7 @@ from training.train.config import TrainConfig, check_teacher
 from training.train.envs import env_spec
 from training.train.team_slots import SLOT_LAYOUTS, EnvSpec
 
-__all__ = ["Demonstrations", "ModelRowPolicy", "choice_agents", "choice_agreement", "choice_rows", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "pretrain_model"]
+__all__ = ["Demonstrations", "ModelRowPolicy", "choice_agents", "choice_agreement", "choice_rows", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "dagger_model", "pretrain_model"]
 
 
 
@@ -455,18 +455,72 @@ def pretrain_model(
         spec, config.pretrain, config.envs, config.pretrain_rows, config.seed, config.route, workers=workers, report=report
     )
     say(_collected(demonstrations, start))
-    normalise_obs = normalise_reward = None
     if isinstance(venv, VecNormalize):
         seed_normalisation(venv, demonstrations)
-        normalise_obs = venv.normalize_obs if venv.norm_obs else None
-        normalise_reward = venv.normalize_reward if venv.norm_reward else None
+    normalise_obs, normalise_reward = _normalisers(venv)
     teacher = {"episodes": demonstrations.episodes, "successes": demonstrations.successes}
     epochs = behaviour_clone(model, demonstrations, normalise_obs, normalise_reward, config.pretrain_epochs, config.batch_size, config.seed)
     say(_cloned(epochs, start))
     rounds: list[dict[str, Any]] = [{"rows": len(demonstrations), "epochs": epochs}]
     labeller = config.pretrain if config.dagger_teacher is None else config.dagger_teacher
     # Another teacher's labels are cloned alone: the first's disagree where it corrects them.
-    cloned: Demonstrations | None = demonstrations if labeller == config.pretrain else None
+    _dagger_rounds(model, venv, config, labeller, demonstrations if labeller == config.pretrain else None, rounds, start, say, report)
+    return {
+        "teacher": config.pretrain,
+        "dagger_teacher": labeller,
+        "teacher_episodes": teacher["episodes"],
+        "teacher_successes": teacher["successes"],
+        "wall_time_s": time.perf_counter() - start,
+        "rounds": rounds,
+    }
+
+
+
+def dagger_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig, report: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """DAgger from the policy a run starts with (``config.init_from``'s weights and
+    statistics, already in ``model`` and ``venv``): ``config.dagger_rounds`` rounds in which
+    the policy acts (its most likely action) for ``config.dagger_rows`` rows,
+    ``config.dagger_teacher`` labels every state it reaches, and the policy is fitted to
+    every round's rows so far for ``config.dagger_epochs`` passes (no demonstrations of
+    the teacher's own: the rows are those of the policy's states alone). The rows are
+    normalised with the run's statistics, left as they are.
+
+    Returns:
+        the record of ``pretrain.json``: ``teacher`` None, ``dagger_teacher``, wall time
+        (s) and the rounds as :func:`pretrain_model` records them, the first standing for
+        the starting policy (no rows of its own).
+    """
+    say = report if report is not None else _silent
+    start = time.perf_counter()
+    rounds: list[dict[str, Any]] = [{"rows": 0, "epochs": []}]
+    _dagger_rounds(model, venv, config, config.dagger_teacher, None, rounds, start, say, report)
+    return {"teacher": None, "dagger_teacher": config.dagger_teacher, "wall_time_s": time.perf_counter() - start, "rounds": rounds}
+
+
+def _normalisers(venv: VecEnv) -> tuple[Callable[[np.ndarray], np.ndarray] | None, Callable[[np.ndarray], np.ndarray] | None]:
+    """The run's observation and reward normalisation (``VecNormalize``'s, None where it has none)."""
+    if not isinstance(venv, VecNormalize):
+        return None, None
+    return (venv.normalize_obs if venv.norm_obs else None), (venv.normalize_reward if venv.norm_reward else None)
+
+
+def _dagger_rounds(
+    model: BaseAlgorithm,
+    venv: VecEnv,
+    config: TrainConfig,
+    labeller: str,
+    cloned: Demonstrations | None,
+    rounds: list[dict[str, Any]],
+    start: float,
+    say: Callable[[str], None],
+    report: Callable[[str], None] | None,
+) -> None:
+    """``config.dagger_rounds`` DAgger rounds on ``model``, labelled by ``labeller``, each fitting
+    ``cloned`` (the rows fitted so far; None: none) and every round's rows so far; each round
+    adds its learner's record to ``rounds[-1]`` and appends the record of its fit."""
+    normalise_obs, normalise_reward = _normalisers(venv)
+    spec = env_spec(config)
+    workers = 1 if config.workers is None else config.workers
     for k in range(1, config.dagger_rounds + 1):
         # DAgger: the states the cloned policy reaches (other layouts than the teacher's), labelled by the teacher
         seed = config.seed + config.pretrain_rows + (k - 1) * config.dagger_rows
@@ -482,14 +536,6 @@ def pretrain_model(
         epochs = behaviour_clone(model, cloned, normalise_obs, normalise_reward, config.dagger_epochs, config.batch_size, config.seed + k)
         say(_cloned(epochs, start))
         rounds.append({"rows": len(cloned), "epochs": epochs})
-    return {
-        "teacher": config.pretrain,
-        "dagger_teacher": labeller,
-        "teacher_episodes": teacher["episodes"],
-        "teacher_successes": teacher["successes"],
-        "wall_time_s": time.perf_counter() - start,
-        "rounds": rounds,
-    }
 
 
 class ModelRowPolicy:

@@ -4,7 +4,8 @@
 checkpoint and evaluation callbacks, learns ``config.steps`` timesteps and
 writes the final checkpoint (:mod:`training.train.checkpoint`). With
 ``config.init_from`` it starts from another run's networks and statistics
-(:mod:`training.train.init_from`); with ``config.kl_to_start`` its PPO loss keeps it
+(:mod:`training.train.init_from`), and with ``config.dagger_teacher`` too it first runs
+DAgger rounds from that policy; with ``config.kl_to_start`` its PPO loss keeps it
 near the policy it started from (:mod:`training.train.kl_to_start`). With
 ``resume=True`` it loads the checkpoint that ``out``'s manifest names: model
 weights, optimiser state and step counter (the SB3 zip), ``VecNormalize``
@@ -39,7 +40,7 @@ from training.train.models import algorithm_class, build_model, training_logger
 
 __all__ = ["train", "RESUMABLE_CHANGES", "PRETRAINING"]
 
-#: The record of a run's behaviour cloning (:func:`training.train.pretrain.pretrain_model`), in its folder.
+#: The record of a run's behaviour cloning or DAgger (:func:`training.train.pretrain.pretrain_model`, ``dagger_model``), in its folder.
 PRETRAINING = "pretrain.json"
 
 #: Fields of the configuration that a resumed run may change; every other must match the run's.
@@ -132,11 +133,12 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
     logger = training_logger(out, model.num_timesteps)
     model.set_logger(logger)
     try:
-        if config.pretrain is not None and not resume:
-            from training.train.pretrain import pretrain_model
+        if not resume and (config.pretrain is not None or config.dagger_teacher is not None):
+            from training.train.pretrain import dagger_model, pretrain_model
 
+            fit = pretrain_model if config.pretrain is not None else dagger_model  # DAgger from init_from's policy
             report = _print_progress if config.progress_bar else None
-            write_json(out / PRETRAINING, pretrain_model(model, venv, config, report))
+            write_json(out / PRETRAINING, fit(model, venv, config, report))
         if config.kl_to_start > 0:
             start = kl_to_start.start_policy_from(out, model) if resume else kl_to_start.write_start_policy(out, model)
             kl_to_start.install(model, start, config.kl_to_start, config.ent_coef)
