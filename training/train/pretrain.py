@@ -20,6 +20,10 @@ start from the teacher (``moma-env train --pretrain greedy``):
    that the first PPO updates start from a critic that knows the teacher's
    returns rather than undo the cloned policy.
 
+A run that starts from another run's weights (``--init-from``) may correct that policy
+by DAgger alone (``--dagger-teacher``, :func:`dagger_model`): no demonstrations of the
+teacher's own, only the rows of the states the policy reaches, labelled by the teacher.
+
 Everything is seeded: the envs from the run's seed (copy ``k`` resets first with
 ``seed + k * N``, as :class:`~training.train.shared_vec_env.SharedPolicyVecEnv`
 seeds it), the minibatch order from a generator of the run's seed, the network
@@ -473,7 +477,6 @@ def pretrain_model(
         "wall_time_s": time.perf_counter() - start,
         "rounds": rounds,
     }
-
 
 
 def dagger_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig, report: Callable[[str], None] | None = None) -> dict[str, Any]:
