@@ -154,7 +154,8 @@ class TrainConfig:
         algo: a key of :data:`ALGORITHMS` (``maskable_ppo``: sb3-contrib's
             MaskablePPO, the switching mode's actions masked by the motion rules).
         steps: total SB3 timesteps (env steps on the centralised route, agent
-            steps on the shared route); 0 with ``pretrain``: the cloned policy as it is.
+            steps on the shared route); 0 with ``pretrain`` or ``dagger_teacher``: the
+            cloned or DAgger-fitted policy as it is.
         envs: number of env copies K.
         subproc: run the K copies in worker processes, one each.
         workers: None, or split the K copies of the run's batched env over this
@@ -273,7 +274,8 @@ class TrainConfig:
 
         check_choice("scenario", self.scenario, sorted(CONFIGURATION_NAMES) + sorted(TASKS))
         check_choice("algo", self.algo, sorted(ALGORITHMS))
-        check_count("steps", self.steps, 0 if self.pretrain is not None or self.dagger_teacher is not None else 1)  # a cloned or DAgger-fitted policy may be trained no further
+        # a cloned or DAgger-fitted policy may be trained no further
+        check_count("steps", self.steps, 0 if self.pretrain is not None or self.dagger_teacher is not None else 1)
         check_count("envs", self.envs, 1)
         check_bool("subproc", self.subproc)
         check_count("seed", self.seed, 0)
