@@ -193,8 +193,9 @@ def test_the_batched_team_env_is_each_copys_centralised_env():
     envs.close()
 
 
-def test_a_copy_reset_alone_is_read_in_its_new_episode():
-    envs = TeamVectorEnv(TASK, 2, **task_options(TASK, team_action="one_start")[1])
+@pytest.mark.parametrize("workers", [None, 2])  # copy 1 in this process, or in the second worker
+def test_a_copy_reset_alone_is_read_in_its_new_episode(workers):
+    envs = TeamVectorEnv(TASK, 2, workers=workers, **task_options(TASK, team_action="one_start")[1])
     with pytest.raises(RuntimeError, match="reset\\(\\) before reset_at"):
         envs.reset_at(0)
     envs.reset(seed=3)
