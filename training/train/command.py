@@ -147,6 +147,10 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
                          "moma-env train --out folder or policies/NAME; the same task, algorithm, action mode, route, network, "
                          "team action and timer), with a fresh optimiser; not with --pretrain (default: none, learning starts from "
                          "random weights or --pretrain's clone)")
+    tr.add_argument("--demonstrations", default=None, metavar="RUN",
+                    help="fit the teacher's demonstrations kept in this cloned run's folder instead of collecting them; they "
+                         "must be the rows this run would collect (same --pretrain, --pretrain-rows, --seed, --num-envs, "
+                         "route, task and env options) (default: collect them)")
     tr.add_argument("--kl-to-start", dest="kl_to_start", type=float, default=defaults["kl_to_start"], metavar="BETA",
                     help="add BETA times the KL divergence of the policy from the one the run started from (--init-from's or "
                          "--pretrain's) to PPO's loss, keeping it near that policy (default %(default)s: no penalty)")
@@ -201,6 +205,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         dagger_epochs=args.dagger_epochs,
         dagger_teacher=args.dagger_teacher,
         init_from=args.init_from,
+        demonstrations=args.demonstrations,
         kl_to_start=args.kl_to_start,
     )
 
@@ -214,6 +219,7 @@ _VALUE_OPTIONS = MappingProxyType({
     "eval_seed": "--eval-seed", "network": "--network", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",
     "dagger_rounds": "--dagger-rounds", "dagger_rows": "--dagger-rows", "dagger_epochs": "--dagger-epochs",
     "dagger_teacher": "--dagger-teacher", "init_from": "--init-from", "kl_to_start": "--kl-to-start",
+    "demonstrations": "--demonstrations",
 })
 #: TrainConfig fields -> (the flag, the field's value when the flag is given; without it, the other).
 _FLAGS = MappingProxyType({"subproc": ("--subproc", True), "normalize": ("--no-normalize", False),

@@ -227,6 +227,11 @@ class TrainConfig:
             over each minibatch's observations) in PPO's loss, the start policy being the
             one this run starts from (``init_from``'s or ``pretrain``'s, frozen;
             :mod:`training.train.kl_to_start`); 0: no penalty.
+        demonstrations: the folder of a run cloned from the same teacher whose kept
+            demonstrations (:mod:`training.train.demonstrations_file`) the cloning fits
+            instead of collecting them; they must be the rows this run would collect (same
+            teacher, rows, seed, copies, route, task, env options and env version). None:
+            collect them.
     """
 
     scenario: str
@@ -268,6 +273,7 @@ class TrainConfig:
     dagger_teacher: str | None = None
     init_from: str | None = None
     kl_to_start: float = 0.0
+    demonstrations: str | None = None
 
     def __post_init__(self) -> None:
         from moma_env.env.config import ACTION_MODES, TEAM_ACTIONS
@@ -325,6 +331,11 @@ class TrainConfig:
                     raise ConfigError("dagger_teacher", f"DAgger fits PPO's actor and critic: use --algo {' or '.join(sorted(PRETRAINABLE))}")
                 if self.action_mode != "switching":
                     raise ConfigError("dagger_teacher", f"the {self.dagger_teacher} teacher acts in the switching action mode: use --action-mode switching")
+        if self.demonstrations is not None:
+            if not isinstance(self.demonstrations, str) or not self.demonstrations:
+                raise ConfigError("demonstrations", f"must be the folder of a cloned training run, got {self.demonstrations!r}")
+            if self.pretrain is None:
+                raise ConfigError("demonstrations", "are a teacher's rows for a cloning: give --pretrain")
         if self.init_from is not None:
             if not isinstance(self.init_from, str) or not self.init_from:
                 raise ConfigError("init_from", f"must be the folder of a finished training run, got {self.init_from!r}")

@@ -42,6 +42,7 @@ import multiprocessing as mp
 import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 from typing import Any
 from dataclasses import dataclass
 
@@ -56,6 +57,7 @@ from moma_env.vector import MomaVectorEnv
 from moma_env.vector.sharded import default_start_method, shard_sizes
 from training.evaluation.policies import load_policy
 from training.train.config import TrainConfig, check_teacher
+from training.train.demonstrations_file import save_demonstrations
 from training.train.envs import env_spec
 from training.train.team_slots import SLOT_LAYOUTS, EnvSpec
 
@@ -426,7 +428,12 @@ def _cloned(epochs: Sequence[Mapping[str, float]], start: float) -> str:
 
 
 def pretrain_model(
-    model: BaseAlgorithm, venv: VecEnv, config: TrainConfig, report: Callable[[str], None] | None = None
+    model: BaseAlgorithm,
+    venv: VecEnv,
+    config: TrainConfig,
+    report: Callable[[str], None] | None = None,
+    demonstrations: Demonstrations | None = None,
+    keep: Path | None = None,
 ) -> dict[str, Any]:
     """Clone ``config.pretrain`` into a new run's ``model`` (and its ``venv``'s normalisation).
 
@@ -439,11 +446,15 @@ def pretrain_model(
     every row so far for ``config.dagger_epochs`` passes. With ``config.dagger_teacher``
     another teacher labels those states, and the rounds clone its rows alone. The
     copies are driven by ``config.workers`` processes (:func:`collect_demonstrations`).
-    ``report`` (None: silent) is called with a line of progress at each stage and each
-    tenth of a collection.
+    ``demonstrations``, when given, are the teacher's rows already collected for this run
+    (``config.demonstrations``'s, :func:`~training.train.demonstrations_file.read_demonstrations`)
+    and are fitted instead; rows it collects are written to the run folder ``keep`` (None:
+    not kept) for another run to reuse. ``report`` (None: silent) is called with a line of
+    progress at each stage and each tenth of a collection.
 
     Returns:
-        the record of ``pretrain.json``: the teacher, its episodes and successes,
+        the record of ``pretrain.json``: the teacher, where its rows came from
+        (``demonstrations``: None, collected, or the run folder they were kept in), its episodes and successes,
         wall time (s), and per round the rows, the per-epoch losses and accuracies
         and, for the states of the next DAgger round, the cloned policy's episodes and
         successes and ``learner_choice_agreement``: the share of the rows where the masks
@@ -454,11 +465,16 @@ def pretrain_model(
     start = time.perf_counter()
     spec = env_spec(config)
     workers = 1 if config.workers is None else config.workers  # the processes that step the run's copies drive the teachers'
-    say(f"pretraining: {config.pretrain_rows} rows of {config.pretrain} on {config.envs} copies in {workers} process(es)")
-    demonstrations = collect_demonstrations(
-        spec, config.pretrain, config.envs, config.pretrain_rows, config.seed, config.route, workers=workers, report=report
-    )
-    say(_collected(demonstrations, start))
+    if demonstrations is None:
+        say(f"pretraining: {config.pretrain_rows} rows of {config.pretrain} on {config.envs} copies in {workers} process(es)")
+        demonstrations = collect_demonstrations(
+            spec, config.pretrain, config.envs, config.pretrain_rows, config.seed, config.route, workers=workers, report=report
+        )
+        say(_collected(demonstrations, start))
+        if keep is not None:
+            save_demonstrations(keep, demonstrations, config)
+    else:
+        say(f"pretraining: the {len(demonstrations)} rows of {config.pretrain} kept in {config.demonstrations}")
     if isinstance(venv, VecNormalize):
         seed_normalisation(venv, demonstrations)
     normalise_obs, normalise_reward = _normalisers(venv)
@@ -471,6 +487,7 @@ def pretrain_model(
     _dagger_rounds(model, venv, config, labeller, demonstrations if labeller == config.pretrain else None, rounds, start, say, report)
     return {
         "teacher": config.pretrain,
+        "demonstrations": config.demonstrations,
         "dagger_teacher": labeller,
         "teacher_episodes": teacher["episodes"],
         "teacher_successes": teacher["successes"],

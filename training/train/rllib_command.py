@@ -65,6 +65,11 @@ def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
         raise ConfigError("init_from", "--backend rllib starts from its own checkpoints only: drop --init-from (the sb3 backend takes it)")
     if args.kl_to_start != 0:
         raise ConfigError("kl_to_start", "--backend rllib has no penalty towards a start policy: drop --kl-to-start (the sb3 backend takes it)")
+    if args.pretrain is not None:
+        raise ConfigError("pretrain", "--backend rllib does not clone a teacher: drop --pretrain (the sb3 backend does)")
+    if args.dagger_teacher is not None or args.demonstrations is not None:
+        raise ConfigError("dagger_teacher" if args.dagger_teacher is not None else "demonstrations",
+                          "--backend rllib does not clone a teacher: drop --dagger-teacher and --demonstrations (the sb3 backend takes them)")
     train_batch = args.n_steps * args.num_envs * max(1, args.num_env_runners)
     return RllibTrainConfig(
         scenario=args.scenario, steps=args.timesteps, num_env_runners=args.num_env_runners, envs=args.num_envs, env_route=args.rllib_env,

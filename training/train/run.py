@@ -34,6 +34,7 @@ from training.train.checkpoint import checkpoint_files, read_manifest, remove_st
 from agents.learned import torch_threads
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
+from training.train.demonstrations_file import read_demonstrations
 from training.train.init_from import INITIALISATION, read_initial_weights
 from training.train import kl_to_start
 from training.train.models import algorithm_class, build_model, training_logger
@@ -107,10 +108,12 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
             model.load_replay_buffer(out / manifest["replay_buffer"])
         wall_before = float(manifest["wall_time_s"])
         records = _earlier_records(out, done)
+        kept = None  # a resumed run's cloning is done
     else:
         if out.exists() and ((out / "manifest.json").exists() or checkpoint_files(out)):
             raise ConfigError("out", f"{str(out)!r} already holds a training run; pass --resume to continue it or choose another folder")
         source = read_initial_weights(config) if config.init_from is not None else None  # ConfigError before the folder is claimed
+        kept = read_demonstrations(config) if config.demonstrations is not None else None
         claim_run_folder(out, "train")  # RunFolderError: another kind of run, or files that are not a run
         remove_stale_temporaries(out)  # a run killed before its first checkpoint
         venv = wrap_normalisation(make_vec_env(config, config.seed), config, source.statistics if source is not None else None)
@@ -136,9 +139,12 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
         if not resume and (config.pretrain is not None or config.dagger_teacher is not None):
             from training.train.pretrain import dagger_model, pretrain_model
 
-            fit = pretrain_model if config.pretrain is not None else dagger_model  # DAgger from init_from's policy
             report = _print_progress if config.progress_bar else None
-            write_json(out / PRETRAINING, fit(model, venv, config, report))
+            if config.pretrain is not None:
+                record = pretrain_model(model, venv, config, report, kept, keep=out)
+            else:  # DAgger from init_from's policy
+                record = dagger_model(model, venv, config, report)
+            write_json(out / PRETRAINING, record)
         if config.kl_to_start > 0:
             start = kl_to_start.start_policy_from(out, model) if resume else kl_to_start.write_start_policy(out, model)
             kl_to_start.install(model, start, config.kl_to_start, config.ent_coef)

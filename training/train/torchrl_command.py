@@ -61,6 +61,9 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
         raise ConfigError("init_from", "--backend torchrl starts from its own checkpoints only: drop --init-from (the sb3 backend takes it)")
     if args.kl_to_start != 0:
         raise ConfigError("kl_to_start", "--backend torchrl has no penalty towards a start policy: drop --kl-to-start (the sb3 backend takes it)")
+    if args.dagger_teacher is not None or args.demonstrations is not None:
+        raise ConfigError("dagger_teacher" if args.dagger_teacher is not None else "demonstrations",
+                          "--backend torchrl does not clone a teacher: drop --dagger-teacher and --demonstrations (the sb3 backend takes them)")
     return TorchRLTrainConfig(
         scenario=args.scenario, steps=args.timesteps, envs=args.num_envs, seed=args.seed, critic=args.critic,
         max_cycles=args.max_cycles, rewards=scenario_rewards(args.scenario, args.reward), net_arch=tuple(args.net),

@@ -1,0 +1,87 @@
+"""A cloned run's teacher demonstrations, kept in its folder for another run to reuse.
+
+Collecting a slow teacher's demonstrations (the lookahead's 100,000 rows: half an hour of
+both cores) is most of a cloning's cost, and runs that differ only after it (their DAgger
+rounds, epochs, or what follows) would collect the same rows again. A run cloned with
+``--pretrain`` writes the rows its teacher demonstrated to :data:`DEMONSTRATIONS` in its
+folder; ``moma-env train --demonstrations RUN`` fits those rows instead of collecting
+them, when they are the rows the run would have collected: the same teacher, rows, seed,
+copies, route, task and env options, and env version (:func:`collection_key`). The
+result is the run that collects them, bit for bit.
+
+The file is a numpy ``.npz`` of the :class:`~training.train.pretrain.Demonstrations`
+arrays, its counts, and the key as JSON, written whole or not at all.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from moma_env import ENV_VERSION
+from moma_env.config import ConfigError
+from moma_env.io import atomic_path
+from training.train.config import TrainConfig
+
+__all__ = ["DEMONSTRATIONS", "collection_key", "save_demonstrations", "read_demonstrations"]
+
+#: The teacher's demonstrations of a cloned run, in its folder.
+DEMONSTRATIONS = "demonstrations.npz"
+
+_ARRAYS = ("observations", "actions", "masks", "rewards", "episode_ends", "complete")
+_COUNTS = ("stride", "episodes", "successes")
+
+
+def collection_key(config: TrainConfig) -> dict[str, Any]:
+    """What a run's teacher demonstrations depend on (JSON values)."""
+    return {
+        "teacher": config.pretrain,
+        "rows": config.pretrain_rows,
+        "seed": config.seed,
+        "envs": config.envs,
+        "route": config.route,
+        "scenario": config.scenario,
+        "env_options": json.loads(json.dumps(config.env_options)),
+        "env_version": ENV_VERSION,
+    }
+
+
+def save_demonstrations(folder: Path, demonstrations: Any, config: TrainConfig) -> Path:
+    """Write ``demonstrations`` (collected for ``config``) to ``folder``/:data:`DEMONSTRATIONS`, atomically."""
+    path = Path(folder) / DEMONSTRATIONS
+    arrays = {name: getattr(demonstrations, name) for name in _ARRAYS}
+    counts = {name: np.int64(getattr(demonstrations, name)) for name in _COUNTS}
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:  # a file object: np.savez would add ".npz" to the temporary name
+            np.savez(f, key=np.array(json.dumps(collection_key(config), sort_keys=True)), **arrays, **counts)
+    return path
+
+
+def read_demonstrations(config: TrainConfig) -> Any:
+    """The demonstrations kept in ``config.demonstrations`` (a run folder) for a run of ``config``.
+
+    Raises:
+        ConfigError (field ``demonstrations``): the folder has no readable
+            :data:`DEMONSTRATIONS`, or its rows were collected with other settings
+            (naming the first that differs, the file's value and the run's).
+    """
+    from training.train.pretrain import Demonstrations
+
+    path = Path(config.demonstrations) / DEMONSTRATIONS
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            key = json.loads(str(data["key"]))
+            fields = {name: data[name] for name in _ARRAYS}
+            counts = {name: int(data[name]) for name in _COUNTS}
+    except (OSError, KeyError, ValueError) as error:
+        raise ConfigError("demonstrations", f"cannot read a run's demonstrations from {str(path)!r}: {type(error).__name__}: {error}") from None
+    wanted = collection_key(config)
+    for name, value in wanted.items():
+        if key.get(name) != value:
+            raise ConfigError(
+                "demonstrations", f"{str(path)!r} holds rows collected with {name}={key.get(name)!r}; this run collects with {name}={value!r}"
+            )
+    return Demonstrations(**fields, **counts)
