@@ -12,7 +12,6 @@ import json
 
 import pytest
 import torch
-from sb3_contrib import MaskablePPO
 
 from moma_env.config import ConfigError
 from training import clone_agreement
@@ -20,6 +19,7 @@ from training.cli import main
 from training.train.command import train_command
 from training.train.config import TrainConfig
 from training.train.run import PRETRAINING, train
+from run_weights import final_weights
 
 TASK = "top_observer_team4_legs"  # leg lengths: a teacher of 1.5 m legs corrects a clone of 0.5 m ones
 
@@ -32,17 +32,12 @@ def tiny(**changes) -> TrainConfig:
     return TrainConfig(**(base | changes))
 
 
-def _weights(folder, manifest) -> dict[str, torch.Tensor]:
-    """The policy's weights in the run's final checkpoint."""
-    return MaskablePPO.load(folder / manifest["model"], device="cpu").policy.state_dict()
-
-
 @pytest.fixture(scope="module")
 def source(tmp_path_factory):
     """A clone of the 0.5 m greedy policy: it never starts a 1.5 m leg."""
     folder = tmp_path_factory.mktemp("source") / "clone"
     manifest = train(tiny(pretrain="greedy@0.5", pretrain_rows=240, pretrain_epochs=3, dagger_rounds=0), folder)
-    return folder, _weights(folder, manifest)
+    return folder, final_weights(folder, manifest)
 
 
 def test_the_runs_policy_is_corrected_by_the_teacher_on_its_own_states(source, tmp_path):
@@ -50,7 +45,7 @@ def test_the_runs_policy_is_corrected_by_the_teacher_on_its_own_states(source, t
     finals = []
     for name in ("a", "b"):
         config = tiny(init_from=str(folder), dagger_teacher="greedy@1.5", dagger_rounds=2, dagger_rows=200, dagger_epochs=3)
-        finals.append(_weights(tmp_path / name, train(config, tmp_path / name)))
+        finals.append(final_weights(tmp_path / name, train(config, tmp_path / name)))
     assert all(torch.equal(finals[0][k], finals[1][k]) for k in start)  # the same source and seed: the same weights
     assert not all(torch.equal(finals[0][k], start[k]) for k in start)
     record = json.loads((tmp_path / "a" / PRETRAINING).read_text())

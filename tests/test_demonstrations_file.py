@@ -8,7 +8,6 @@ import json
 
 import pytest
 import torch
-from sb3_contrib import MaskablePPO
 
 from moma_env.config import ConfigError
 from training.cli import main
@@ -16,6 +15,7 @@ from training.train.command import train_command
 from training.train.config import TrainConfig
 from training.train.demonstrations_file import DEMONSTRATIONS
 from training.train.run import PRETRAINING, train
+from run_weights import final_weights
 
 TASK = "top_observer_team4"
 
@@ -29,10 +29,6 @@ def tiny(**changes) -> TrainConfig:
     return TrainConfig(**(base | changes))
 
 
-def _weights(folder, manifest) -> dict[str, torch.Tensor]:
-    return MaskablePPO.load(folder / manifest["model"], device="cpu").policy.state_dict()
-
-
 @pytest.fixture(scope="module")
 def source(tmp_path_factory):
     folder = tmp_path_factory.mktemp("source") / "clone"
@@ -43,7 +39,7 @@ def test_a_run_fitting_the_kept_rows_is_the_run_that_collects_them(source, tmp_p
     folder, manifest = source
     assert (folder / DEMONSTRATIONS).is_file()
     reused = train(tiny(demonstrations=str(folder)), tmp_path / "reused")
-    given, got = _weights(folder, manifest), _weights(tmp_path / "reused", reused)
+    given, got = final_weights(folder, manifest), final_weights(tmp_path / "reused", reused)
     assert all(torch.equal(given[k], got[k]) for k in given)
     record = json.loads((tmp_path / "reused" / PRETRAINING).read_text())
     original = json.loads((folder / PRETRAINING).read_text())
