@@ -13,7 +13,7 @@ from moma_env.config import ConfigError
 from training.cli import main
 from training.train.command import train_command
 from training.train.config import TrainConfig
-from training.train.demonstrations_file import DEMONSTRATIONS
+from training.train.demonstrations import DEMONSTRATIONS
 from training.train.run import PRETRAINING, train
 from run_weights import final_weights
 

@@ -20,7 +20,8 @@ from moma_env.config import ConfigError
 from training.train.config import TrainConfig
 from training.train.envs import env_spec, make_vec_env, wrap_normalisation
 from training.train.models import build_model
-from training.train.pretrain import Demonstrations, behaviour_clone, choice_agreement, collect_demonstrations, discounted_returns, seed_normalisation
+from training.train.demonstrations import Demonstrations
+from training.train.pretrain import behaviour_clone, choice_agreement, collect_demonstrations, discounted_returns, seed_normalisation
 from training.train.run import PRETRAINING, train
 
 TASK = "top_observer_team4"  # greedy parallel turns: several movers, commit_legs, action masks

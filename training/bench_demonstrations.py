@@ -27,7 +27,8 @@ from agents.learned import LearnedPolicy
 from training.cli_args import int_at_least
 from training.train.config import TrainConfig, check_teacher
 from training.train.envs import env_spec
-from training.train.pretrain import Demonstrations, ModelRowPolicy, collect_demonstrations
+from training.train.demonstrations import Demonstrations
+from training.train.pretrain import ModelRowPolicy, collect_demonstrations
 from training.train.team_slots import EnvSpec
 
 __all__ = ["main", "run_learner", "time_collection"]

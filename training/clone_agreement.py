@@ -26,7 +26,8 @@ from training.bench_demonstrations import run_learner, time_collection
 from training.cli_args import int_at_least
 from training.train.config import TrainConfig, check_teacher
 from training.train.envs import env_spec
-from training.train.pretrain import Demonstrations, choice_agents, choice_agreement, choice_rows
+from training.train.demonstrations import Demonstrations
+from training.train.pretrain import choice_agents, choice_agreement, choice_rows
 
 __all__ = ["main", "start_rows"]
 

@@ -228,7 +228,7 @@ class TrainConfig:
             one this run starts from (``init_from``'s or ``pretrain``'s, frozen;
             :mod:`training.train.kl_to_start`); 0: no penalty.
         demonstrations: the folder of a run cloned from the same teacher whose kept
-            demonstrations (:mod:`training.train.demonstrations_file`) the cloning fits
+            demonstrations (:mod:`training.train.demonstrations`) the cloning fits
             instead of collecting them; they must be the rows this run would collect (same
             teacher, rows, seed, copies, route, task, env options and env version). None:
             collect them.

@@ -44,7 +44,6 @@ from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
-from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -57,58 +56,12 @@ from moma_env.vector import MomaVectorEnv
 from moma_env.vector.sharded import default_start_method, shard_sizes
 from training.evaluation.policies import load_policy
 from training.train.config import TrainConfig, check_teacher
-from training.train.demonstrations_file import save_demonstrations
+from training.train.demonstrations import Demonstrations, save_demonstrations
 from training.train.envs import env_spec
 from training.train.team_slots import SLOT_LAYOUTS, EnvSpec
 
-__all__ = ["Demonstrations", "ModelRowPolicy", "choice_agents", "choice_agreement", "choice_rows", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "dagger_model", "pretrain_model"]
+__all__ = ["ModelRowPolicy", "choice_agents", "choice_agreement", "choice_rows", "collect_demonstrations", "seed_normalisation", "behaviour_clone", "discounted_returns", "dagger_model", "pretrain_model"]
 
-
-
-@dataclass(frozen=True)
-class Demonstrations:
-    """What a teacher did: ``stride`` rows per env step of every copy (on the shared
-    route a row per UGV slot, a copy's robots in ``agents`` order, then the next
-    copy's; on the centralised route a row per copy), then the next step's.
-
-    Attributes:
-        observations: ``(T, D)`` float32, the observation before the action (a robot's
-            own, or the team's concatenated).
-        actions: the teacher's switching actions as the slots' actions, int64: ``(T,)`` a
-            robot's (shared route), ``(T, N)`` the team's side by side, or ``(T,)`` the
-            one start that stands for them (``team_action="one_start"``).
-        masks: ``(T, M)`` bool, the actions the motion rules would grant then (a robot's, the
-            team's side by side, or the one-start team action's).
-        rewards: ``(T,)`` float64, the team's reward of that step (rounded to float32, as the training envs give it).
-        episode_ends: ``(T,)`` bool, the step ended the copy's episode (terminated or truncated).
-        complete: ``(T,)`` bool, the row's episode ended within the collection (its
-            discounted return is complete; the episodes still running at the end are cut).
-        stride: rows per env step of every copy.
-        episodes: episodes finished during the collection.
-        successes: of those, the ones where every robot reached its goal.
-    """
-
-    observations: np.ndarray
-    actions: np.ndarray
-    masks: np.ndarray
-    rewards: np.ndarray
-    episode_ends: np.ndarray
-    complete: np.ndarray
-    stride: int
-    episodes: int
-    successes: int
-
-    def __len__(self) -> int:
-        return int(self.actions.shape[0])
-
-    def __add__(self, other: "Demonstrations") -> "Demonstrations":
-        """Both collections' rows, this one's first (same stride; each keeps its episodes)."""
-        if other.stride != self.stride or other.observations.shape[1:] != self.observations.shape[1:]:
-            raise ValueError(f"cannot join demonstrations of stride {self.stride} and {other.stride}")
-        return Demonstrations(
-            *(np.concatenate([getattr(self, f), getattr(other, f)]) for f in ("observations", "actions", "masks", "rewards", "episode_ends", "complete")),
-            self.stride, self.episodes + other.episodes, self.successes + other.successes,
-        )
 
 
 #: A policy acting on demonstration rows: ``(observations (R, D), masks (R, M)) -> actions`` of the rows' shape.
@@ -447,7 +400,7 @@ def pretrain_model(
     another teacher labels those states, and the rounds clone its rows alone. The
     copies are driven by ``config.workers`` processes (:func:`collect_demonstrations`).
     ``demonstrations``, when given, are the teacher's rows already collected for this run
-    (``config.demonstrations``'s, :func:`~training.train.demonstrations_file.read_demonstrations`)
+    (``config.demonstrations``'s, :func:`~training.train.demonstrations.read_demonstrations`)
     and are fitted instead; rows it collects are written to the run folder ``keep`` (None:
     not kept) for another run to reuse. ``report`` (None: silent) is called with a line of
     progress at each stage and each tenth of a collection.

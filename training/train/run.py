@@ -34,7 +34,7 @@ from training.train.checkpoint import checkpoint_files, read_manifest, remove_st
 from agents.learned import torch_threads
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
-from training.train.demonstrations_file import read_demonstrations
+from training.train.demonstrations import read_demonstrations
 from training.train.init_from import INITIALISATION, read_initial_weights
 from training.train import kl_to_start
 from training.train.models import algorithm_class, build_model, training_logger

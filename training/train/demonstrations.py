@@ -1,4 +1,5 @@
-"""A cloned run's teacher demonstrations, kept in its folder for another run to reuse.
+"""A teacher's demonstrations (:class:`Demonstrations`), and their file in a cloned run's
+folder for another run to reuse.
 
 Collecting a slow teacher's demonstrations (the lookahead's 100,000 rows: half an hour of
 both cores) is most of a cloning's cost, and runs that differ only after it (their DAgger
@@ -9,13 +10,14 @@ them, when they are the rows the run would have collected: the same teacher, row
 copies, route, task and env options, and env version (:func:`collection_key`). The
 result is the run that collects them, bit for bit.
 
-The file is a numpy ``.npz`` of the :class:`~training.train.pretrain.Demonstrations`
-arrays, its counts, and the key as JSON, written whole or not at all.
+The file is a numpy ``.npz`` of the :class:`Demonstrations` arrays, its counts, and the
+key as JSON, written whole or not at all.
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -26,10 +28,57 @@ from moma_env.config import ConfigError
 from moma_env.io import atomic_path
 from training.train.config import TrainConfig
 
-__all__ = ["DEMONSTRATIONS", "collection_key", "save_demonstrations", "read_demonstrations"]
+__all__ = ["DEMONSTRATIONS", "Demonstrations", "collection_key", "save_demonstrations", "read_demonstrations"]
 
 #: The teacher's demonstrations of a cloned run, in its folder.
 DEMONSTRATIONS = "demonstrations.npz"
+
+
+@dataclass(frozen=True)
+class Demonstrations:
+    """What a teacher did: ``stride`` rows per env step of every copy (on the shared
+    route a row per UGV slot, a copy's robots in ``agents`` order, then the next
+    copy's; on the centralised route a row per copy), then the next step's.
+
+    Attributes:
+        observations: ``(T, D)`` float32, the observation before the action (a robot's
+            own, or the team's concatenated).
+        actions: the teacher's switching actions as the slots' actions, int64: ``(T,)`` a
+            robot's (shared route), ``(T, N)`` the team's side by side, or ``(T,)`` the
+            one start that stands for them (``team_action="one_start"``).
+        masks: ``(T, M)`` bool, the actions the motion rules would grant then (a robot's, the
+            team's side by side, or the one-start team action's).
+        rewards: ``(T,)`` float64, the team's reward of that step (rounded to float32, as the training envs give it).
+        episode_ends: ``(T,)`` bool, the step ended the copy's episode (terminated or truncated).
+        complete: ``(T,)`` bool, the row's episode ended within the collection (its
+            discounted return is complete; the episodes still running at the end are cut).
+        stride: rows per env step of every copy.
+        episodes: episodes finished during the collection.
+        successes: of those, the ones where every robot reached its goal.
+    """
+
+    observations: np.ndarray
+    actions: np.ndarray
+    masks: np.ndarray
+    rewards: np.ndarray
+    episode_ends: np.ndarray
+    complete: np.ndarray
+    stride: int
+    episodes: int
+    successes: int
+
+    def __len__(self) -> int:
+        return int(self.actions.shape[0])
+
+    def __add__(self, other: "Demonstrations") -> "Demonstrations":
+        """Both collections' rows, this one's first (same stride; each keeps its episodes)."""
+        if other.stride != self.stride or other.observations.shape[1:] != self.observations.shape[1:]:
+            raise ValueError(f"cannot join demonstrations of stride {self.stride} and {other.stride}")
+        return Demonstrations(
+            *(np.concatenate([getattr(self, f), getattr(other, f)]) for f in ("observations", "actions", "masks", "rewards", "episode_ends", "complete")),
+            self.stride, self.episodes + other.episodes, self.successes + other.successes,
+        )
+
 
 _ARRAYS = ("observations", "actions", "masks", "rewards", "episode_ends", "complete")
 _COUNTS = ("stride", "episodes", "successes")
@@ -49,7 +98,7 @@ def collection_key(config: TrainConfig) -> dict[str, Any]:
     }
 
 
-def save_demonstrations(folder: Path, demonstrations: Any, config: TrainConfig) -> Path:
+def save_demonstrations(folder: Path, demonstrations: Demonstrations, config: TrainConfig) -> Path:
     """Write ``demonstrations`` (collected for ``config``) to ``folder``/:data:`DEMONSTRATIONS`, atomically."""
     path = Path(folder) / DEMONSTRATIONS
     arrays = {name: getattr(demonstrations, name) for name in _ARRAYS}
@@ -60,7 +109,7 @@ def save_demonstrations(folder: Path, demonstrations: Any, config: TrainConfig) 
     return path
 
 
-def read_demonstrations(config: TrainConfig) -> Any:
+def read_demonstrations(config: TrainConfig) -> Demonstrations:
     """The demonstrations kept in ``config.demonstrations`` (a run folder) for a run of ``config``.
 
     Raises:
@@ -68,8 +117,6 @@ def read_demonstrations(config: TrainConfig) -> Any:
             :data:`DEMONSTRATIONS`, or its rows were collected with other settings
             (naming the first that differs, the file's value and the run's).
     """
-    from training.train.pretrain import Demonstrations
-
     path = Path(config.demonstrations) / DEMONSTRATIONS
     try:
         with np.load(path, allow_pickle=False) as data:
