@@ -33,6 +33,10 @@ __all__ = ["DEMONSTRATIONS", "Demonstrations", "collection_key", "save_demonstra
 #: The teacher's demonstrations of a cloned run, in its folder.
 DEMONSTRATIONS = "demonstrations.npz"
 
+#: The array fields of :class:`Demonstrations`, and its counts.
+_ARRAYS = ("observations", "actions", "masks", "rewards", "episode_ends", "complete")
+_COUNTS = ("stride", "episodes", "successes")
+
 
 @dataclass(frozen=True)
 class Demonstrations:
@@ -75,13 +79,9 @@ class Demonstrations:
         if other.stride != self.stride or other.observations.shape[1:] != self.observations.shape[1:]:
             raise ValueError(f"cannot join demonstrations of stride {self.stride} and {other.stride}")
         return Demonstrations(
-            *(np.concatenate([getattr(self, f), getattr(other, f)]) for f in ("observations", "actions", "masks", "rewards", "episode_ends", "complete")),
+            *(np.concatenate([getattr(self, f), getattr(other, f)]) for f in _ARRAYS),
             self.stride, self.episodes + other.episodes, self.successes + other.successes,
         )
-
-
-_ARRAYS = ("observations", "actions", "masks", "rewards", "episode_ends", "complete")
-_COUNTS = ("stride", "episodes", "successes")
 
 
 def collection_key(config: TrainConfig) -> dict[str, Any]:
