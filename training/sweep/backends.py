@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from moma_env.config import check_count
+from moma_env.vector.parent_watch import exit_with_parent
 from moma_env.vector.sharded import default_start_method
 from training.sweep.cells import run_cells
 from training.sweep.spec import Cell
@@ -69,7 +70,7 @@ class LocalBackend:
                 on_done(cells, run_cells(cells, options))
             return
         context = mp.get_context(default_start_method())
-        with ProcessPoolExecutor(max_workers=min(self.jobs, max(1, len(tasks))), mp_context=context) as pool:
+        with ProcessPoolExecutor(max_workers=min(self.jobs, max(1, len(tasks))), mp_context=context, initializer=exit_with_parent) as pool:
             pending = {pool.submit(run_cells, list(cells), dict(options)): cells for cells in tasks}
             try:
                 while pending:

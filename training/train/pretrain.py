@@ -53,6 +53,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents.learned import ObservationScaling
 from moma_env.vector import MomaVectorEnv
+from moma_env.vector.parent_watch import exit_with_parent
 from moma_env.vector.sharded import default_start_method, shard_sizes
 from training.evaluation.policies import load_policy
 from training.train.config import TrainConfig, check_teacher
@@ -127,7 +128,7 @@ def collect_demonstrations(
     if workers == 1:
         return drive(*groups[0], report)
     context = mp.get_context(default_start_method())
-    with ProcessPoolExecutor(max_workers=workers - 1, mp_context=context) as pool:
+    with ProcessPoolExecutor(max_workers=workers - 1, mp_context=context, initializer=exit_with_parent) as pool:
         others = [pool.submit(drive, *group, None) for group in groups[1:]]  # the first group is driven here meanwhile
         parts = [drive(*groups[0], report)] + [future.result() for future in others]
     return _interleave(parts)
