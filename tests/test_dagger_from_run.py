@@ -1,6 +1,6 @@
 """DAgger from a finished run's policy (``moma-env train --init-from RUN --dagger-teacher T``):
 the run's policy acts, T labels the states it reaches, and the policy is fitted to those
-rows alone, before any PPO update.
+rows (and T's kept demonstrations, given ``--demonstrations``), before any PPO update.
 
 Runs are tiny (networks of 16 units, a few hundred rows): the plumbing and the direction
 of the fit, not its final quality.
@@ -9,6 +9,7 @@ of the fit, not its final quality.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import pytest
 import torch
@@ -18,6 +19,7 @@ from training import clone_agreement
 from training.cli import main
 from training.train.command import train_command
 from training.train.config import TrainConfig
+from training.train.demonstrations import DEMONSTRATIONS, read_demonstrations
 from training.train.run import PRETRAINING, train
 from run_weights import final_weights
 
@@ -65,6 +67,33 @@ def test_without_the_teacher_a_run_from_another_runs_weights_runs_no_dagger(sour
     assert not (tmp_path / "run" / PRETRAINING).exists()
     with pytest.raises(ConfigError, match="steps: must be >= 1"):  # nothing to train without PPO or DAgger
         tiny(init_from=str(folder))
+
+
+def test_dagger_from_a_run_fits_kept_demonstrations_of_its_teacher_beside_its_rounds(source, tmp_path):
+    folder, start = source
+    teacher = tmp_path / "teacher"  # a cloning of the labeller keeps its rows: other rows and seed than the DAgger run's
+    train(tiny(pretrain="greedy@1.5", pretrain_rows=120, pretrain_epochs=1, dagger_rounds=0, seed=5), teacher)
+    kept = read_demonstrations(tiny(pretrain="greedy@1.5", pretrain_rows=120, dagger_rounds=0, seed=5, demonstrations=str(teacher)))
+    config = tiny(init_from=str(folder), dagger_teacher="greedy@1.5", dagger_rounds=1, dagger_rows=200, dagger_epochs=3)
+    alone = final_weights(tmp_path / "alone", train(config, tmp_path / "alone"))
+    both = final_weights(tmp_path / "both", train(replace(config, demonstrations=str(teacher)), tmp_path / "both"))
+    assert not all(torch.equal(alone[k], both[k]) for k in start)
+    record = json.loads((tmp_path / "both" / PRETRAINING).read_text())
+    alone_record = json.loads((tmp_path / "alone" / PRETRAINING).read_text())
+    assert record["demonstrations"] == str(teacher) and alone_record["demonstrations"] is None
+    assert record["rounds"][0]["rows"] == len(kept) == 120
+    assert record["rounds"][1]["rows"] == len(kept) + alone_record["rounds"][1]["rows"]  # the kept rows and the round's
+    assert not (tmp_path / "both" / DEMONSTRATIONS).exists()  # DAgger keeps no teacher rows of its own
+
+
+def test_dagger_from_a_run_refuses_another_teachers_rows_or_none_to_label(source, tmp_path):
+    folder, _ = source  # a clone of greedy@0.5: its folder keeps greedy@0.5's rows
+    config = tiny(init_from=str(folder), dagger_teacher="greedy@1.5", dagger_rounds=1, dagger_rows=100, demonstrations=str(folder))
+    with pytest.raises(ConfigError, match="demonstrations.*teacher='greedy@0.5'.*teacher='greedy@1.5'"):
+        train(config, tmp_path / "run")
+    assert not (tmp_path / "run").exists()  # refused before the folder is claimed
+    with pytest.raises(ConfigError, match="demonstrations.*or --init-from with --dagger-teacher"):
+        tiny(init_from=str(folder), steps=32, demonstrations=str(folder))
 
 
 @pytest.mark.parametrize(

@@ -150,7 +150,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--demonstrations", default=None, metavar="RUN",
                     help="fit the teacher's demonstrations kept in this cloned run's folder instead of collecting them; they "
                          "must be the rows this run would collect (same --pretrain, --pretrain-rows, --seed, --num-envs, "
-                         "route, task and env options) (default: collect them)")
+                         "route, task and env options); with --init-from and --dagger-teacher, rows of that teacher (same "
+                         "route, task and env options) that every DAgger round fits beside its own (default: collect them; "
+                         "DAgger from a run fits its rounds' rows alone)")
     tr.add_argument("--kl-to-start", dest="kl_to_start", type=float, default=defaults["kl_to_start"], metavar="BETA",
                     help="add BETA times the KL divergence of the policy from the one the run started from (--init-from's or "
                          "--pretrain's) to PPO's loss, keeping it near that policy (default %(default)s: no penalty)")

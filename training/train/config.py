@@ -231,7 +231,10 @@ class TrainConfig:
             demonstrations (:mod:`training.train.demonstrations`) the cloning fits
             instead of collecting them; they must be the rows this run would collect (same
             teacher, rows, seed, copies, route, task, env options and env version). None:
-            collect them.
+            collect them. With ``init_from`` and ``dagger_teacher`` instead of ``pretrain``:
+            rows of ``dagger_teacher``'s (on the same route, task, env options and env
+            version) that every DAgger round fits beside its own rows; None: the rounds'
+            rows alone.
     """
 
     scenario: str
@@ -334,8 +337,11 @@ class TrainConfig:
         if self.demonstrations is not None:
             if not isinstance(self.demonstrations, str) or not self.demonstrations:
                 raise ConfigError("demonstrations", f"must be the folder of a cloned training run, got {self.demonstrations!r}")
-            if self.pretrain is None:
-                raise ConfigError("demonstrations", "are a teacher's rows for a cloning: give --pretrain")
+            if self.pretrain is None and (self.init_from is None or self.dagger_teacher is None):
+                raise ConfigError(
+                    "demonstrations", "are a teacher's rows for a cloning, or for DAgger from a run's weights: give --pretrain, "
+                    "or --init-from with --dagger-teacher"
+                )
         if self.init_from is not None:
             if not isinstance(self.init_from, str) or not self.init_from:
                 raise ConfigError("init_from", f"must be the folder of a finished training run, got {self.init_from!r}")

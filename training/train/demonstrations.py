@@ -10,6 +10,10 @@ them, when they are the rows the run would have collected: the same teacher, row
 copies, route, task and env options, and env version (:func:`collection_key`). The
 result is the run that collects them, bit for bit.
 
+DAgger from a finished run's weights (``--init-from`` with ``--dagger-teacher``) may fit
+kept demonstrations of its labeller beside each round's rows (``--demonstrations`` too):
+any such rows in the run's observation and action layout.
+
 The file is a numpy ``.npz`` of the :class:`Demonstrations` arrays, its counts, and the
 key as JSON, written whole or not at all.
 """
@@ -84,6 +88,11 @@ class Demonstrations:
         )
 
 
+#: The fields of :func:`collection_key` that DAgger from a run's weights requires of
+#: kept demonstrations: rows of its labeller, of the same observations and actions.
+_LAYOUT_FIELDS = ("teacher", "route", "scenario", "env_options", "env_version")
+
+
 def collection_key(config: TrainConfig) -> dict[str, Any]:
     """What a run's teacher demonstrations depend on (JSON values)."""
     return {
@@ -110,7 +119,10 @@ def save_demonstrations(folder: Path, demonstrations: Demonstrations, config: Tr
 
 
 def read_demonstrations(config: TrainConfig) -> Demonstrations:
-    """The demonstrations kept in ``config.demonstrations`` (a run folder) for a run of ``config``.
+    """The demonstrations kept in ``config.demonstrations`` (a run folder) for a run of ``config``:
+    for a cloning (``config.pretrain``) the rows it would collect; for DAgger from a run's
+    weights rows of its ``dagger_teacher`` on the same route, task, env options and env
+    version, however many and from whichever seed.
 
     Raises:
         ConfigError (field ``demonstrations``): the folder has no readable
@@ -126,6 +138,8 @@ def read_demonstrations(config: TrainConfig) -> Demonstrations:
     except (OSError, KeyError, ValueError) as error:
         raise ConfigError("demonstrations", f"cannot read a run's demonstrations from {str(path)!r}: {type(error).__name__}: {error}") from None
     wanted = collection_key(config)
+    if config.pretrain is None:  # DAgger from a run's weights: any rows of its labeller, in the run's layout
+        wanted = {name: wanted[name] for name in _LAYOUT_FIELDS} | {"teacher": config.dagger_teacher}
     for name, value in wanted.items():
         if key.get(name) != value:
             raise ConfigError(

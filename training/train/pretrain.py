@@ -21,8 +21,9 @@ start from the teacher (``moma-env train --pretrain greedy``):
    returns rather than undo the cloned policy.
 
 A run that starts from another run's weights (``--init-from``) may correct that policy
-by DAgger alone (``--dagger-teacher``, :func:`dagger_model`): no demonstrations of the
-teacher's own, only the rows of the states the policy reaches, labelled by the teacher.
+by DAgger alone (``--dagger-teacher``, :func:`dagger_model`): the rows of the states the
+policy reaches, labelled by the teacher, and, given a cloned run's kept demonstrations of
+that teacher (``--demonstrations``), those rows too.
 
 Everything is seeded: the envs from the run's seed (copy ``k`` resets first with
 ``seed + k * N``, as :class:`~training.train.shared_vec_env.SharedPolicyVecEnv`
@@ -450,25 +451,40 @@ def pretrain_model(
     }
 
 
-def dagger_model(model: BaseAlgorithm, venv: VecEnv, config: TrainConfig, report: Callable[[str], None] | None = None) -> dict[str, Any]:
+def dagger_model(
+    model: BaseAlgorithm,
+    venv: VecEnv,
+    config: TrainConfig,
+    report: Callable[[str], None] | None = None,
+    demonstrations: Demonstrations | None = None,
+) -> dict[str, Any]:
     """DAgger from the policy a run starts with (``config.init_from``'s weights and
     statistics, already in ``model`` and ``venv``): ``config.dagger_rounds`` rounds in which
     the policy acts (its most likely action) for ``config.dagger_rows`` rows,
     ``config.dagger_teacher`` labels every state it reaches, and the policy is fitted to
-    every round's rows so far for ``config.dagger_epochs`` passes (no demonstrations of
-    the teacher's own: the rows are those of the policy's states alone). The rows are
+    ``demonstrations`` (the teacher's own rows, ``config.demonstrations``'s; None: none)
+    and every round's rows so far for ``config.dagger_epochs`` passes. The rows are
     normalised with the run's statistics, left as they are.
 
     Returns:
-        the record of ``pretrain.json``: ``teacher`` None, ``dagger_teacher``, wall time
-        (s) and the rounds as :func:`pretrain_model` records them, the first standing for
-        the starting policy (no rows of its own).
+        the record of ``pretrain.json``: ``teacher`` None, ``dagger_teacher``, the folder of
+        the ``demonstrations`` (None), wall time (s) and the rounds as
+        :func:`pretrain_model` records them, the first standing for the starting policy
+        (the demonstrations' rows, not fitted before the first round).
     """
     say = report if report is not None else _silent
     start = time.perf_counter()
-    rounds: list[dict[str, Any]] = [{"rows": 0, "epochs": []}]
-    _dagger_rounds(model, venv, config, config.dagger_teacher, None, rounds, start, say, report)
-    return {"teacher": None, "dagger_teacher": config.dagger_teacher, "wall_time_s": time.perf_counter() - start, "rounds": rounds}
+    rounds: list[dict[str, Any]] = [{"rows": 0 if demonstrations is None else len(demonstrations), "epochs": []}]
+    if demonstrations is not None:
+        say(f"DAgger: the {len(demonstrations)} rows of {config.dagger_teacher} kept in {config.demonstrations} fitted in every round")
+    _dagger_rounds(model, venv, config, config.dagger_teacher, demonstrations, rounds, start, say, report)
+    return {
+        "teacher": None,
+        "demonstrations": config.demonstrations,
+        "dagger_teacher": config.dagger_teacher,
+        "wall_time_s": time.perf_counter() - start,
+        "rounds": rounds,
+    }
 
 
 def _normalisers(venv: VecEnv) -> tuple[Callable[[np.ndarray], np.ndarray] | None, Callable[[np.ndarray], np.ndarray] | None]:

@@ -143,7 +143,7 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
             if config.pretrain is not None:
                 record = pretrain_model(model, venv, config, report, kept, keep=out)
             else:  # DAgger from init_from's policy
-                record = dagger_model(model, venv, config, report)
+                record = dagger_model(model, venv, config, report, kept)
             write_json(out / PRETRAINING, record)
         if config.kl_to_start > 0:
             start = kl_to_start.start_policy_from(out, model) if resume else kl_to_start.write_start_policy(out, model)
