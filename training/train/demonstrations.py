@@ -143,6 +143,6 @@ def read_demonstrations(config: TrainConfig) -> Demonstrations:
     for name, value in wanted.items():
         if key.get(name) != value:
             raise ConfigError(
-                "demonstrations", f"{str(path)!r} holds rows collected with {name}={key.get(name)!r}; this run collects with {name}={value!r}"
+                "demonstrations", f"{str(path)!r} holds rows collected with {name}={key.get(name)!r}; this run needs {name}={value!r}"
             )
     return Demonstrations(**fields, **counts)
