@@ -27,7 +27,7 @@ from moma_env.io import atomic_path, write_csv, write_json
 from training.evaluation.harness import mean_std
 from training.sweep.cells import CELL_KEYS
 
-__all__ = ["columns", "write_table", "write_outputs", "summarise_rows", "plot_summary", "TABLE_FILES"]
+__all__ = ["columns", "write_table", "write_outputs", "summarise_rows", "plot_summary", "policy_labels", "TABLE_FILES"]
 
 #: File names of the outputs.
 TABLE_FILES = {"parquet": "results.parquet", "csv": "results.csv", "summary": "summary.json", "figure": "sweep.png"}
@@ -108,26 +108,34 @@ def summarise_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
+def policy_labels(policies: Sequence[str]) -> list[str]:
+    """Short legend labels: a training folder's path by its last component (``runs/train/x``
+    -> ``x``) unless two of ``policies`` share it; other names as they are."""
+    short = [Path(p).name if "/" in p else p for p in policies]
+    return [label if short.count(label) == 1 else policy for label, policy in zip(short, policies)]
+
+
 def plot_summary(summary: Sequence[Mapping[str, Any]], path: Path) -> None:
-    """Bars per scenario, one per policy: success rate (left) and E_f in cm with its std (right)."""
+    """Bars per scenario, one per policy: success rate (left) and E_f in cm with its std
+    (right), one legend of the policies below both."""
     scenarios = list(dict.fromkeys(s["scenario"] for s in summary))
     policies = list(dict.fromkeys(s["policy"] for s in summary))
     by_cell = {(s["scenario"], s["policy"]): s for s in summary}
-    fig = Figure(figsize=(max(6.0, 2.5 * len(scenarios) + 3), 4.5), layout="constrained")
+    fig = Figure(figsize=(max(6.0, 2.5 * len(scenarios) + 3), 4.5 + 0.2 * len(policies)), layout="constrained")
     ax_success, ax_error = fig.subplots(1, 2)
     width = 0.8 / len(policies)
-    for k, policy in enumerate(policies):
+    for k, (policy, label) in enumerate(zip(policies, policy_labels(policies))):
         xs = [i + (k - (len(policies) - 1) / 2) * width for i in range(len(scenarios))]
         cells = [by_cell.get((s, policy)) for s in scenarios]
-        ax_success.bar(xs, [100.0 * c["success_rate"] if c else 0.0 for c in cells], width, label=policy)
+        ax_success.bar(xs, [100.0 * c["success_rate"] if c else 0.0 for c in cells], width, label=label)
         means = [100.0 * c["e_f_m"]["mean"] if c and math.isfinite(c["e_f_m"]["mean"]) else 0.0 for c in cells]
         stds = [100.0 * c["e_f_m"]["std"] if c and math.isfinite(c["e_f_m"]["std"]) else 0.0 for c in cells]
-        ax_error.bar(xs, means, width, yerr=stds, capsize=3, label=policy)
+        ax_error.bar(xs, means, width, yerr=stds, capsize=3)
     for ax, label in ((ax_success, "success rate [%]"), (ax_error, "final error E_f [cm] (mean ± std)")):
         ax.set_xticks(range(len(scenarios)), scenarios, rotation=15)
         ax.set_ylabel(label)
         ax.grid(axis="y", alpha=0.3)
-        ax.legend(fontsize=8)
+    fig.legend(loc="outside lower center", fontsize=8)
     n = sum(s["n_episodes"] for s in summary)
     fig.suptitle(f"sweep: {len(scenarios)} scenarios x {len(policies)} policies, {n} episodes")
     with atomic_path(path) as tmp:
