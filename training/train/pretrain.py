@@ -468,7 +468,7 @@ def dagger_model(
 
     Returns:
         the record of ``pretrain.json``: ``teacher`` None, ``dagger_teacher``, the folder of
-        the ``demonstrations`` (None), wall time (s) and the rounds as
+        the ``demonstrations`` (None without them), wall time (s) and the rounds as
         :func:`pretrain_model` records them, the first standing for the starting policy
         (the demonstrations' rows, not fitted before the first round).
     """
