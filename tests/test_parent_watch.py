@@ -21,13 +21,14 @@ _MAIN = textwrap.dedent(
     import time
     from concurrent.futures import ProcessPoolExecutor
 
-    from moma_env.vector.parent_watch import exit_with_parent
+    from moma_env.vector.parent_watch import worker_pool
     from moma_env.vector.sharded import default_start_method
 
     if __name__ == "__main__":
-        watched = sys.argv[1] == "watched"
-        context = mp.get_context(default_start_method())
-        pool = ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=exit_with_parent if watched else None)
+        if sys.argv[1] == "watched":
+            pool = worker_pool(1)  # the pool of the demonstrations and of the local sweeps
+        else:
+            pool = ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context(default_start_method()))
         print(pool.submit(os.getpid).result(), flush=True)
         pool.submit(time.sleep, 120)  # a long task, as a teacher's demonstrations are
         time.sleep(120)

@@ -160,16 +160,16 @@ def test_the_local_pool_does_not_fork_the_driver(monkeypatch):
     """Forked from a driver that ran torch with two threads (loading a trained policy does),
     a worker hangs at its first parallel torch operation (OpenMP's threads are not copied
     by a fork); the pool's workers start from a clean server process instead."""
-    import training.sweep.backends as backends
+    import moma_env.vector.parent_watch as parent_watch
 
     contexts = []
 
-    class Recording(backends.ProcessPoolExecutor):
+    class Recording(parent_watch.ProcessPoolExecutor):
         def __init__(self, *args, **kwargs):
             contexts.append(kwargs.get("mp_context"))
             super().__init__(*args, **kwargs)
 
-    monkeypatch.setattr(backends, "ProcessPoolExecutor", Recording)
+    monkeypatch.setattr(parent_watch, "ProcessPoolExecutor", Recording)
     spec = SweepSpec(scenarios=("top_observer",), policies=("random",), seeds=(0, 1), max_cycles=5)
     rows = []
     LocalBackend(2).run([[cell] for cell in spec.cells()], spec.options, lambda cells, out: rows.extend(out))

@@ -1,4 +1,5 @@
-"""Worker processes that end with the process that started them: :func:`exit_with_parent`.
+"""Worker processes that end with the process that started them: :func:`exit_with_parent`,
+and :func:`worker_pool`, the process pool the project's long tasks run in.
 
 A :class:`concurrent.futures.ProcessPoolExecutor` worker busy with a long task (a
 teacher's demonstrations, a sweep's cells) does not notice that the main process was
@@ -19,8 +20,11 @@ import multiprocessing
 import multiprocessing.connection
 import os
 import threading
+from concurrent.futures import ProcessPoolExecutor
 
-__all__ = ["ORPHAN_EXIT_CODE", "exit_with_parent"]
+from moma_env.vector.sharded import default_start_method
+
+__all__ = ["ORPHAN_EXIT_CODE", "exit_with_parent", "worker_pool"]
 
 ORPHAN_EXIT_CODE = 3
 """The exit status of a worker ended by :func:`exit_with_parent`: its parent died first."""
@@ -42,3 +46,12 @@ def exit_with_parent() -> None:
         os._exit(ORPHAN_EXIT_CODE)  # no clean-up: the task's result has nobody to go to
 
     threading.Thread(target=watch, name="moma-parent-watch", daemon=True).start()
+
+
+def worker_pool(max_workers: int) -> ProcessPoolExecutor:
+    """A process pool of ``max_workers`` workers that start from a clean server process
+    (:func:`~moma_env.vector.sharded.default_start_method`: forked from a driver that ran
+    torch with several threads, a worker would hang at its first parallel torch
+    operation) and end with this process (:func:`exit_with_parent`)."""
+    context = multiprocessing.get_context(default_start_method())
+    return ProcessPoolExecutor(max_workers=max_workers, mp_context=context, initializer=exit_with_parent)

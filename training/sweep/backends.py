@@ -22,16 +22,14 @@ importable on every node (the project installed there, or a shared checkout).
 
 from __future__ import annotations
 
-import multiprocessing as mp
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 from moma_env.config import check_count
-from moma_env.vector.parent_watch import exit_with_parent
-from moma_env.vector.sharded import default_start_method
+from moma_env.vector.parent_watch import worker_pool
 from training.sweep.cells import run_cells
 from training.sweep.spec import Cell
 
@@ -53,10 +51,11 @@ class Backend(Protocol):
 class LocalBackend:
     """A process pool of ``jobs`` workers (1: in this process, no pool).
 
-    The workers start from a clean server process (:func:`~moma_env.vector.sharded.default_start_method`):
-    forked from a driver that has run torch with more than one thread (loading a trained
-    policy does), a worker would hang at its first parallel torch operation, waiting on
-    OpenMP threads the fork did not copy.
+    The pool is :func:`~moma_env.vector.parent_watch.worker_pool`'s: its workers start from
+    a clean server process (forked from a driver that has run torch with more than one
+    thread, as loading a trained policy does, a worker would hang at its first parallel
+    torch operation, waiting on OpenMP threads the fork did not copy) and end with this
+    process.
     """
 
     jobs: int = 1
@@ -69,8 +68,7 @@ class LocalBackend:
             for cells in tasks:
                 on_done(cells, run_cells(cells, options))
             return
-        context = mp.get_context(default_start_method())
-        with ProcessPoolExecutor(max_workers=min(self.jobs, max(1, len(tasks))), mp_context=context, initializer=exit_with_parent) as pool:
+        with worker_pool(min(self.jobs, max(1, len(tasks)))) as pool:
             pending = {pool.submit(run_cells, list(cells), dict(options)): cells for cells in tasks}
             try:
                 while pending:

@@ -39,10 +39,8 @@ from __future__ import annotations
 
 import functools
 import math
-import multiprocessing as mp
 import time
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -54,8 +52,8 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents.learned import ObservationScaling
 from moma_env.vector import MomaVectorEnv
-from moma_env.vector.parent_watch import exit_with_parent
-from moma_env.vector.sharded import default_start_method, shard_sizes
+from moma_env.vector.parent_watch import worker_pool
+from moma_env.vector.sharded import shard_sizes
 from training.evaluation.policies import load_policy
 from training.train.config import TrainConfig, check_teacher
 from training.train.demonstrations import Demonstrations, save_demonstrations
@@ -128,8 +126,7 @@ def collect_demonstrations(
     drive = functools.partial(_drive_copies, spec, teacher, n_copies, rows, seed, route, learner, torch.get_num_threads())
     if workers == 1:
         return drive(*groups[0], report)
-    context = mp.get_context(default_start_method())
-    with ProcessPoolExecutor(max_workers=workers - 1, mp_context=context, initializer=exit_with_parent) as pool:
+    with worker_pool(workers - 1) as pool:
         others = [pool.submit(drive, *group, None) for group in groups[1:]]  # the first group is driven here meanwhile
         parts = [drive(*groups[0], report)] + [future.result() for future in others]
     return _interleave(parts)
