@@ -97,6 +97,48 @@ def test_batch_equals_per_request_measure_bit_for_bit(warm: bool) -> None:
         assert sum(c.warm_counts[0] for c in batch_cams) > n
 
 
+@pytest.mark.parametrize("pnp_method", ["PLANAR_LM", "SQPNP"])
+def test_cameras_of_different_intrinsics_and_noise_are_measured_in_one_group(monkeypatch, pnp_method: str) -> None:
+    """The copies of a random-scenario vector env each draw their camera: one group, one
+    projection and one solve, still bit for bit each camera's own measure."""
+    import moma_env.camera.batch as batch_module
+
+    groups = []
+
+    class CountedGroup(batch_module.FrameGroup):
+        def __init__(self, *args, **kwargs):
+            groups.append(len(args[0]))
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(batch_module, "FrameGroup", CountedGroup)
+    scene_rng = np.random.default_rng(3)
+    n = 12
+    configs = [
+        CameraConfig(
+            fx=float(scene_rng.uniform(300.0, 600.0)),
+            dist=(float(scene_rng.uniform(-0.1, 0.05)), float(scene_rng.uniform(0.0, 0.02)), 0.0, 0.0, 0.0),
+            noise_px=float(scene_rng.uniform(0.2, 1.0)),
+            attitude_noise_deg=float(scene_rng.choice([0.0, 1.5])),
+            pnp_sigma_source=str(scene_rng.choice(["auto", "residuals"])),
+            max_range_m=float(scene_rng.uniform(3.0, 8.0)),
+            pnp_method=pnp_method,
+        )
+        for _ in range(n)
+    ]
+    batch_cams = [GeometricCamera(f"c{i}", cfg) for i, cfg in enumerate(configs)]
+    loop_cams = copy.deepcopy(batch_cams)
+    batch_rngs = [np.random.default_rng([9, i]) for i in range(n)]
+    loop_rngs = copy.deepcopy(batch_rngs)
+    scenes = [random_frame(scene_rng, int(scene_rng.integers(1, 6))) for _ in range(n)]
+    requests = [MeasureRequest(batch_cams[i], T, boards, 0.0, batch_rngs[i]) for i, (T, boards) in enumerate(scenes)]
+    batched = measure_batch(requests)
+    looped = [loop_cams[i].measure(T, boards, 0.0, loop_rngs[i]) for i, (T, boards) in enumerate(scenes)]
+    assert sum(map(len, looped)) > n // 2
+    for a, b in zip(batched, looped):
+        assert_same(a, b)
+    assert groups.count(n) == 1 and len([g for g in groups if g > 1]) == 1
+
+
 def test_shared_generator_and_repeated_camera_follow_request_order() -> None:
     # Two cameras share one generator, and one camera takes two frames (warm starts
     # of its second frame come from its first): the batch is the sequential calls.

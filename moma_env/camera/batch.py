@@ -4,7 +4,8 @@ A vector env steps N copies of a scene; each copy has its own cameras and its
 own random generator. Measured one frame at a time, a geometric frame costs
 mostly Python and numpy call overhead (each call costs a microsecond or two
 however little it computes). :func:`measure_batch` measures the frames of all
-geometric cameras with equal parameters together: one compiled projection of
+geometric cameras with the same PnP solver together, whatever their intrinsics,
+limits and noise: one compiled projection of
 every board of every frame and one compiled PnP solve of every seen board of
 every frame (:class:`~moma_env.camera.geometric.GeometricCamera` uses the same
 code for a single frame, so there is one implementation).
@@ -58,7 +59,8 @@ def measure_batch(requests: Sequence[MeasureRequest]) -> list[list[Detection]]:
     """The detections of every request: ``[r.camera.measure(r.T_w_c, r.boards, r.time, r.rng, r.occluded) for r in requests]``, bit for bit.
 
     Requests whose camera is a :class:`GeometricCamera` are grouped by the
-    camera's kernel parameters (intrinsics, limits, PnP settings); each group
+    camera's PnP solver (``pnp_method``; each board is projected and solved with
+    its own camera's intrinsics, limits and settings); each group
     is projected in one compiled call and solved in one compiled call (one per
     repetition of a camera in the group, when a camera appears more than once).
     Every geometric request is validated before anything is drawn; a bad one

@@ -34,12 +34,14 @@ The reprojection error of a detection is the root mean square, over its corners,
 of the pixel distance between the measured corners and the corners reprojected
 with the estimated pose (with distortion).
 
-Batches: the frames of many cameras with equal parameters (the copies of a vector
-env) are measured together by :func:`moma_env.camera.batch.measure_batch`: one
-projection kernel call (:func:`~moma_env.camera.kernels.project_markers`, every
-board of every frame with its own camera pose) and one solve kernel call
+Batches: the frames of many cameras with the same PnP solver (the copies of a
+vector env, each camera with its own intrinsics and noise in random scenarios) are
+measured together by :func:`moma_env.camera.batch.measure_batch`: one projection
+kernel call (:func:`~moma_env.camera.kernels.project_markers`, every board of every
+frame with its own camera pose and parameters) and one solve kernel call
 (:func:`~moma_env.camera.kernels.solve_boards`, every seen board, each with its
-camera's world up), bit for bit the frames measured one by one. ``measure`` is
+camera's world up, parameters and settings), bit for bit the frames measured one
+by one. ``measure`` is
 the one-frame case of the same code (:class:`FrameGroup`).
 
 Warm start (``CameraConfig.pnp_warm_start``, off by default): the camera
@@ -151,7 +153,7 @@ class GeometricCamera:
     cache: its keys are ids of the original's layout objects, which mean
     nothing to a copy (and could name other objects in another process).
 
-    Several frames of cameras with equal parameters (e.g. the copies of a
+    Several frames of cameras with the same solver (e.g. the copies of a
     vector env) are measured together by :func:`moma_env.camera.batch.measure_batch`;
     :meth:`measure` is its one-frame case.
     """
@@ -177,8 +179,9 @@ class GeometricCamera:
         )
         self._settings.setflags(write=False)
         self._warm_start = cfg.pnp_warm_start and self._first_solver is None
-        #: Frames measured together must agree on these (the kernels' inputs shared by all boards).
-        self.batch_key = (self._parameters.tobytes(), self._settings.tobytes(), self._first_solver, self._refine_lm)
+        #: Frames measured together must agree on these (the solver; the kernels take each
+        #: board's own camera parameters and settings).
+        self.batch_key = (self._first_solver, self._refine_lm)
         self._warm_poses: dict[int, np.ndarray] = {}
         self._warm_time = -math.inf
         #: Boards solved from a warm start: ``[accepted, rejected (solved in full)]`` since construction.
@@ -291,7 +294,10 @@ class GeometricCamera:
         up_rows = np.empty((n_boards, 3))
         up_rows[:] = up_c
         T = np.zeros((n_boards, 4, 4))
-        rms, cov, _ = self._solve_boards(obj, px, starts, up_m, up_rows, np.zeros(n_boards, dtype=np.int8), T, settings)
+        rms, cov, _ = self._solve_boards(
+            obj, px, starts, up_m, up_rows, np.zeros(n_boards, dtype=np.int8), T,
+            self._parameters[None], settings[None], np.zeros(n_boards, dtype=np.int64),
+        )
         return T, rms, cov
 
     def _solve_boards(
@@ -303,30 +309,42 @@ class GeometricCamera:
         up_c: np.ndarray,
         status: np.ndarray,
         T: np.ndarray,
-        settings: np.ndarray | None = None,
+        parameters: np.ndarray,
+        settings: np.ndarray,
+        board_camera: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`solve_boards` of boards from any frames of cameras with this camera's
-        parameters: ``up_c`` (K, 3) world up in C per board, ``status`` (K,) int8, in:
-        1 where ``T[k]`` (K, 4, 4, in and out) holds a warm start, out: how each board
-        was solved. Returns ``(rms, cov, status)`` (see
-        :func:`moma_env.camera.kernels.solve_boards`)."""
+        solver (``batch_key``): ``up_c`` (K, 3) world up in C per board, ``status`` (K,)
+        int8, in: 1 where ``T[k]`` (K, 4, 4, in and out) holds a warm start, out: how
+        each board was solved; ``parameters`` (C, P) and ``settings`` (C, S) the kernel
+        inputs of the cameras, ``board_camera`` (K,) int64 the row of each board's. Returns
+        ``(rms, cov, status)`` (see :func:`moma_env.camera.kernels.solve_boards`)."""
         n_boards = len(starts) - 1
         rms = np.empty(n_boards)
         cov = np.empty((n_boards, 6, 6))  # written for every solved board
         use_given = self._first_solver is not None
-        given = np.array(self._solve_with_opencv(obj, px, starts, T), dtype=bool) if use_given else _NOTHING_GIVEN
-        solve_boards(
-            obj, px, starts, self._parameters, up_m, up_c, self._settings if settings is None else settings,
-            use_given, given, T, rms, cov, status,
+        given = (
+            np.array(self._solve_with_opencv(obj, px, starts, T, parameters, board_camera), dtype=bool)
+            if use_given
+            else _NOTHING_GIVEN
         )
+        solve_boards(obj, px, starts, parameters, settings, board_camera, up_m, up_c, use_given, given, T, rms, cov, status)
         return rms, cov, status
 
-    def _solve_with_opencv(self, obj: np.ndarray, px: np.ndarray, starts: np.ndarray, T: np.ndarray) -> list[bool]:
-        """OpenCV's solvePnP (methods IPPE, ITERATIVE, SQPNP) of every board: poses into ``T``;
-        per board, True if it was solved."""
+    def _solve_with_opencv(
+        self, obj: np.ndarray, px: np.ndarray, starts: np.ndarray, T: np.ndarray, parameters: np.ndarray,
+        board_camera: np.ndarray,
+    ) -> list[bool]:
+        """OpenCV's solvePnP (methods IPPE, ITERATIVE, SQPNP) of every board, its pixels
+        undistorted with its camera's row of ``parameters`` (``board_camera``): poses into
+        ``T``; per board, True if it was solved."""
         xy = np.empty_like(px)
-        undistort_points(px, self._parameters, xy)
         bounds = starts.tolist()
+        if len(parameters) == 1:
+            undistort_points(px, parameters[0], xy)
+        else:
+            for k, camera in enumerate(board_camera.tolist()):
+                undistort_points(px[bounds[k] : bounds[k + 1]], parameters[camera], xy[bounds[k] : bounds[k + 1]])
         spans = [(i, i, bounds[i], bounds[i + 1], None) for i in range(len(bounds) - 1)]
         T[:, 2:, 3] = 1.0  # a board whose solve fails stays at R = 0, t = (0, 0, 1)
         return self._solve(obj.reshape(-1, 1, 3), xy.reshape(-1, 1, 2), spans, T)
@@ -442,7 +460,11 @@ def check_frame(T_w_c: object, time: object, rng: object) -> tuple[np.ndarray, f
 
 
 class FrameGroup:
-    """Frames of geometric cameras with equal kernel parameters (``batch_key``), measured together.
+    """Frames of geometric cameras with the same solver (``batch_key``), measured together.
+
+    Each frame's boards are projected and solved with its own camera's parameters
+    and settings (rows of per-frame tables handed to the kernels), so the cameras
+    may differ in intrinsics, lens, limits and noise.
 
     Three stages, so that a batch of many cameras keeps every frame's random
     draws in the order of sequential ``measure`` calls: the constructor projects
@@ -464,7 +486,8 @@ class FrameGroup:
 
     __slots__ = (
         "cameras", "poses", "boards", "times", "rngs", "geos", "first_board", "any_visible", "board_visible",
-        "board_markers", "visible", "rows", "px", "obj", "noise", "up_c", "owner", "visible_counts",
+        "board_markers", "visible", "rows", "px", "obj", "noise", "up_c", "owner", "visible_counts", "parameters",
+        "settings",
     )
 
     def __init__(
@@ -514,8 +537,15 @@ class FrameGroup:
         visible = np.empty(n_markers, dtype=bool)
         centres = np.empty((n_markers, 3))
         board_visible = np.empty(n_boards, dtype=np.int64)
-        parameters = cameras[0]._parameters
-        if not project_markers(board_poses, board_markers, corners, parameters, uv, visible, centres, board_visible):
+        if n_frames == 1:
+            self.parameters, self.settings = cameras[0]._parameters[None], cameras[0]._settings[None]
+            board_camera = np.zeros(n_boards, dtype=np.int64)
+        else:
+            # Per frame: its camera's kernel inputs (row f of each table).
+            self.parameters = np.array([camera._parameters for camera in cameras])
+            self.settings = np.array([camera._settings for camera in cameras])
+            board_camera = owner
+        if not project_markers(board_poses, board_markers, corners, self.parameters, board_camera, uv, visible, centres, board_visible):
             return
         self.any_visible = True
         first_board = self.first_board
@@ -620,6 +650,7 @@ class FrameGroup:
             seen_g = [g for g in range(first_board[1]) if board_visible[g]]
             seen_f = [0] * len(seen_g)
             seen_b = seen_g
+            board_camera = np.zeros(len(seen_g), dtype=np.int64)
             bounds = [0]
             for g in seen_g:
                 bounds.append(bounds[-1] + 4 * board_visible[g])
@@ -631,7 +662,7 @@ class FrameGroup:
                 in_wave[frames] = True
                 mask &= in_wave[self.owner]
             index_g = np.flatnonzero(mask)
-            index_f = self.owner[index_g]
+            board_camera = index_f = self.owner[index_g]
             seen_g, seen_f = index_g.tolist(), index_f.tolist()
             seen_b = (index_g - np.array(first_board)[index_f]).tolist()
             starts = np.zeros(len(seen_g) + 1, dtype=np.int64)
@@ -664,7 +695,9 @@ class FrameGroup:
                 if start is not None:
                     T[k] = start
                     status[k] = 1
-        rms, cov, status = cameras[frames[0]]._solve_boards(obj, px, starts, up_m, up_c, status, T)
+        rms, cov, status = cameras[frames[0]]._solve_boards(
+            obj, px, starts, up_m, up_c, status, T, self.parameters, self.settings, board_camera
+        )
         rms_list = rms.tolist()
         cov_sums = cov.reshape(n_seen, 36).sum(axis=1).tolist()  # finite only if the covariance is (see finite_or_none)
         status_list = status.tolist() if any_warm else None

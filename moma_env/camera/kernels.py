@@ -10,8 +10,10 @@ compare them with those and with per-marker definitions).
 
 Camera parameters travel as one float64 vector, built by :func:`camera_parameters`.
 :func:`project_markers` and :func:`solve_boards` take boards of many frames at once
-(each board with its own camera pose and world up), so that a batch of frames of
-cameras with equal parameters costs one call each (see :mod:`moma_env.camera.batch`).
+(each board with its own camera pose and world up, and its row of a table of camera
+parameters and solve settings), so that a batch of frames costs one call each, even
+when every frame's camera has its own intrinsics and noise (the random scenarios of a
+vector env; see :mod:`moma_env.camera.batch`).
 """
 
 from __future__ import annotations
@@ -210,7 +212,8 @@ def project_markers(
     poses: np.ndarray,
     board_markers: np.ndarray,
     corners_m: np.ndarray,
-    p: np.ndarray,
+    parameters: np.ndarray,
+    board_camera: np.ndarray,
     uv: np.ndarray,
     visible: np.ndarray,
     centres: np.ndarray,
@@ -222,13 +225,14 @@ def project_markers(
     ``board_markers[b]:board_markers[b + 1]``. Every board is planar (markers in
     ``z_M = 0``), so its face normal in C is ``poses[b, :, 2]``. The boards may
     come from several camera poses (a batch of measurements): each carries its
-    own ``T_c_m``.
+    own ``T_c_m`` and names the row of ``parameters`` of the camera that saw it.
 
     Args:
         poses: (B, 3, 4) top rows of ``T_c_m`` of each board (m).
         board_markers: (B + 1,) int64, non-decreasing, ``board_markers[B] == M``.
         corners_m: (M, 4, 3) marker corners in their board frames M (m), ArUco order.
-        p: camera parameters (:func:`camera_parameters`).
+        parameters: (C, P) camera parameters (:func:`camera_parameters`), one row per camera.
+        board_camera: (B,) int64 row of ``parameters`` of each board's camera.
         uv: (M, 4, 2) output pixels (see :func:`_project_marker`).
         visible: (M,) output mask.
         centres: (M, 3) output marker centres in C (m).
@@ -240,6 +244,7 @@ def project_markers(
     count = 0
     for b in range(poses.shape[0]):
         T = poses[b]
+        p = parameters[board_camera[b]]
         nx = T[0, 2]
         ny = T[1, 2]
         nz = T[2, 2]
@@ -442,10 +447,11 @@ def solve_boards(
     obj: np.ndarray,
     px: np.ndarray,
     starts: np.ndarray,
-    p: np.ndarray,
+    parameters: np.ndarray,
+    all_settings: np.ndarray,
+    board_camera: np.ndarray,
     up_m: np.ndarray,
     up_c: np.ndarray,
-    settings: np.ndarray,
     use_given: bool,
     given: np.ndarray,
     T: np.ndarray,
@@ -496,19 +502,22 @@ def solve_boards(
       estimated from the pose's cost (see :func:`solve_settings`). ``sigma = 0``
       gives an exactly zero covariance; a singular ``J^T J`` gives NaN.
 
-    The boards may come from several frames and cameras of equal parameters
-    ``p`` (a batch): each board carries its own ``up_c`` row.
+    The boards may come from several frames and cameras (a batch): each board
+    carries its own ``up_c`` row and the row ``board_camera[b]`` of ``parameters``
+    and ``all_settings`` of the camera that saw it (the same arithmetic as a call
+    with that camera's alone); ``settings`` above is that row.
 
     Args:
         obj: (n, 3) visible corners in their board frames M (m), board after board.
         px: (n, 2) their measured pixels.
         starts: (K + 1,) first row of each board in ``obj``/``px``, then ``n``.
-        p: camera parameters (:func:`camera_parameters`).
+        parameters: (C, P) camera parameters (:func:`camera_parameters`), one row per camera.
+        all_settings: (C, S) the cameras' settings (:func:`solve_settings`), one row per camera.
+        board_camera: (K,) int64 row of ``parameters`` and ``all_settings`` of each board's camera.
         up_m: (K, 3) world up in each board's frame M as its mount declares it
             (unit vectors); a NaN row: not known (lower cost).
         up_c: (K, 3) world up in the camera frame C of the camera that saw each
             board (unit vectors).
-        settings: see :func:`solve_settings`.
         use_given: start from the poses in ``T`` instead of the homographies.
         given: (K,) bool, read only with ``use_given``: True where ``T[b]`` holds
             a pose; the other boards failed (NaN error).
@@ -521,11 +530,12 @@ def solve_boards(
     """
     n = px.shape[0]
     xy = np.empty((n, 2))
-    undistort_points(px, p, xy)
     W = np.empty((n, 4))
-    pixel_weights(xy, p, W)
+    for b in range(starts.shape[0] - 1):
+        p = parameters[board_camera[b]]
+        undistort_points(px[starts[b] : starts[b + 1]], p, xy[starts[b] : starts[b + 1]])
+        pixel_weights(xy[starts[b] : starts[b + 1]], p, W[starts[b] : starts[b + 1]])
     obj_xy = np.ascontiguousarray(obj[:, :2])
-    upright = settings[_UPRIGHT] != 0.0
     candidates = np.empty((2, 4, 4))
     costs = np.empty(2)
     info = np.empty((6, 6))
@@ -534,6 +544,9 @@ def solve_boards(
     for b in range(starts.shape[0] - 1):
         first = starts[b]
         end = starts[b + 1]
+        p = parameters[board_camera[b]]
+        settings = all_settings[board_camera[b]]
+        upright = settings[_UPRIGHT] != 0.0
         o = obj_xy[first:end]
         x = xy[first:end]
         w = W[first:end]
