@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from functools import partial
 
+from moma_env.vector.parent_watch import worker_pool
 from training.experiments.leapfrog_run import CameraFactory, LeapfrogConfig, LeapfrogRun, run_leapfrog
 
 __all__ = ["run_many", "describe_run"]
@@ -46,7 +46,8 @@ def run_many(
         n_runs: number of runs (>= 1).
         seed: seed of the first run.
         log: gets one line per finished run.
-        jobs: worker processes (>= 1); 1 runs in this process.
+        jobs: worker processes (>= 1); 1 runs in this process. The workers
+            (:func:`~moma_env.vector.parent_watch.worker_pool`) end with this process.
         camera_factory: the observer's camera (see :func:`run_leapfrog`); with
             ``jobs > 1`` it must be picklable (a module-level function).
     """
@@ -67,7 +68,7 @@ def run_many(
         for s in seeds:
             done(one_run(config, s))
     else:
-        with ProcessPoolExecutor(max_workers=min(jobs, n_runs)) as pool:
+        with worker_pool(min(jobs, n_runs)) as pool:
             for run in pool.map(one_run, [config] * n_runs, seeds):
                 done(run)
     return runs
