@@ -21,7 +21,7 @@ from training.train.config import TrainConfig
 from training.train.envs import env_spec, make_vec_env, wrap_normalisation
 from training.train.models import build_model
 from training.train.demonstrations import Demonstrations
-from training.train.pretrain import behaviour_clone, choice_agreement, collect_demonstrations, discounted_returns, seed_normalisation
+from training.train.pretrain import ModelRowPolicy, behaviour_clone, choice_agreement, collect_demonstrations, discounted_returns, seed_normalisation
 from training.train.run import PRETRAINING, train
 
 TASK = "top_observer_team4"  # greedy parallel turns: several movers, commit_legs, action masks
@@ -130,6 +130,23 @@ def test_copies_driven_in_two_processes_give_the_rows_of_one():
     assert two.stride == one.stride == 3 * 4 and (two.episodes, two.successes) == (one.episodes, one.successes)
     for field in ("observations", "actions", "masks", "rewards", "episode_ends", "complete"):
         assert np.array_equal(getattr(two, field), getattr(one, field)), field
+
+
+@pytest.mark.parametrize("route", ["shared", "centralised"])
+def test_a_model_row_policy_acts_on_each_row_whatever_rows_come_with_it(route):
+    config = tiny(route=route, net_arch=(64, 64))
+    venv = make_vec_env(config, 0)
+    model = build_model(config, venv)
+    venv.close()
+    demos = collect_demonstrations(env_spec(config), "greedy", 2, 200, seed=3, route=route)
+    learner = ModelRowPolicy(model.policy, None)
+    whole = learner(demos.observations, demos.masks)
+    assert whole.shape == demos.actions.shape and whole.dtype.kind == "i"
+    for part in (slice(0, 1), slice(1, 9), slice(5, None)):
+        np.testing.assert_array_equal(learner(demos.observations[part], demos.masks[part]), whole[part])
+    per_agent = demos.masks.reshape(len(demos), -1, 2)
+    chosen = np.take_along_axis(per_agent, whole.reshape(len(demos), -1)[:, :, None], axis=2)[:, :, 0]
+    assert chosen.all()  # the most likely allowed action
 
 
 def learner_refusing_in_workers(observations, masks):

@@ -100,9 +100,9 @@ def collect_demonstrations(
             split into ``workers`` contiguous groups (:func:`~moma_env.vector.sharded.shard_sizes`)
             driven side by side, each with its own teachers, and their rows are joined
             in copy order. Every copy's episodes are its own, so the rows are those of
-            one process bit for bit, as long as ``learner`` gives a row the same action
-            in a smaller batch; with ``workers > 1`` the learner must pickle
-            (:class:`ModelRowPolicy` does) and runs with this process's torch threads.
+            one process bit for bit, as long as ``learner`` acts on a row whatever rows
+            come with it (:class:`ModelRowPolicy` does); with ``workers > 1`` the learner
+            must pickle and runs with this process's torch threads.
         report: called with a line of progress after each tenth of the env steps of the
             copies driven in this process (the other groups step as many times, each
             at its own pace), or None (silent).
@@ -527,7 +527,8 @@ def _dagger_rounds(
 
 class ModelRowPolicy:
     """A PPO-like policy's most likely actions on demonstration rows (among the allowed
-    ones, for a masked policy): a :data:`RowPolicy` that pickles, to act in a worker process.
+    ones, for a masked policy), row by row: a :data:`RowPolicy` that pickles, to act in a
+    worker process.
 
     Args:
         policy: the model's ``policy`` (SB3 ``ActorCriticPolicy`` or sb3-contrib's maskable one).
@@ -540,9 +541,17 @@ class ModelRowPolicy:
         self.normalise = normalise
 
     def __call__(self, observations: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        """The most likely allowed action of every row, each row's computed alone: torch's
+        matrix products may give a row other last bits in a batch of another size, and so,
+        near a tie, another action; row by row, a row's action is its own whichever rows
+        come with it (a group of copies of any size, a round's rows all at once)."""
         obs = observations if self.normalise is None else self.normalise(observations)
-        if isinstance(self.policy, MaskableActorCriticPolicy):
-            actions, _ = self.policy.predict(obs, deterministic=True, action_masks=masks)
-        else:
-            actions, _ = self.policy.predict(obs, deterministic=True)
-        return actions
+        masked = isinstance(self.policy, MaskableActorCriticPolicy)
+        actions = []
+        for i in range(len(obs)):
+            if masked:
+                action, _ = self.policy.predict(obs[i : i + 1], deterministic=True, action_masks=masks[i : i + 1])
+            else:
+                action, _ = self.policy.predict(obs[i : i + 1], deterministic=True)
+            actions.append(action)
+        return np.concatenate(actions)
