@@ -90,3 +90,33 @@ def test_an_unwatched_worker_outlives_its_main_process(tmp_path):
 def test_a_process_not_started_by_multiprocessing_is_refused():
     with pytest.raises(RuntimeError, match="started by multiprocessing"):
         exit_with_parent()
+
+
+def test_a_raising_pool_block_ends_its_workers_at_once():
+    """An error (or Ctrl-C) in the main process's share of the work is raised without
+    waiting for the workers' running tasks, and the workers are gone."""
+    from moma_env.vector.parent_watch import worker_pool
+
+    start = time.monotonic()
+    with pytest.raises(KeyError, match="the main process's own work"):
+        with worker_pool(2) as pool:
+            pids = {pool.submit(os.getpid).result() for _ in range(4)}
+            running = [pool.submit(time.sleep, 60) for _ in range(2)]  # long tasks, as a teacher's demonstrations are
+            time.sleep(0.5)
+            raise KeyError("the main process's own work failed")
+    assert time.monotonic() - start < 30.0
+    assert all(_gone_within(pid, 5.0) for pid in pids)
+    assert all(future.done() and future.exception() is not None for future in running)
+
+
+def test_a_pool_block_that_ends_normally_waits_for_its_tasks():
+    from moma_env.vector.parent_watch import worker_pool
+
+    with worker_pool(1) as pool:
+        future = pool.submit(_slow_square, 12)
+    assert future.result(timeout=0) == 144
+
+
+def _slow_square(x: int) -> int:
+    time.sleep(1.0)
+    return x * x

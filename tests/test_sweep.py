@@ -164,12 +164,12 @@ def test_the_local_pool_does_not_fork_the_driver(monkeypatch):
 
     contexts = []
 
-    class Recording(parent_watch.ProcessPoolExecutor):
-        def __init__(self, *args, **kwargs):
-            contexts.append(kwargs.get("mp_context"))
-            super().__init__(*args, **kwargs)
+    class Recording(parent_watch.WorkerPool):
+        def __init__(self, max_workers, context):
+            contexts.append(context)
+            super().__init__(max_workers, context)
 
-    monkeypatch.setattr(parent_watch, "ProcessPoolExecutor", Recording)
+    monkeypatch.setattr(parent_watch, "WorkerPool", Recording)
     spec = SweepSpec(scenarios=("top_observer",), policies=("random",), seeds=(0, 1), max_cycles=5)
     rows = []
     LocalBackend(2).run([[cell] for cell in spec.cells()], spec.options, lambda cells, out: rows.extend(out))
