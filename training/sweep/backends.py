@@ -55,7 +55,7 @@ class LocalBackend:
     a clean server process (forked from a driver that has run torch with more than one
     thread, as loading a trained policy does, a worker would hang at its first parallel
     torch operation, waiting on OpenMP threads the fork did not copy) and end with this
-    process.
+    process, or at once on an error or Ctrl-C.
     """
 
     jobs: int = 1
@@ -68,18 +68,15 @@ class LocalBackend:
             for cells in tasks:
                 on_done(cells, run_cells(cells, options))
             return
+        # An error or Ctrl-C here leaves the pool's block: its workers end at once and the
+        # pending tasks are cancelled (WorkerPool).
         with worker_pool(min(self.jobs, max(1, len(tasks)))) as pool:
             pending = {pool.submit(run_cells, list(cells), dict(options)): cells for cells in tasks}
-            try:
-                while pending:
-                    done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                    for future in done:
-                        cells = pending.pop(future)
-                        on_done(cells, future.result())
-            except BaseException:
-                for future in pending:
-                    future.cancel()
-                raise
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    cells = pending.pop(future)
+                    on_done(cells, future.result())
 
 
 @dataclass(frozen=True)
