@@ -144,9 +144,21 @@ def test_a_model_row_policy_acts_on_each_row_whatever_rows_come_with_it(route):
     assert whole.shape == demos.actions.shape and whole.dtype.kind == "i"
     for part in (slice(0, 1), slice(1, 9), slice(5, None)):
         np.testing.assert_array_equal(learner(demos.observations[part], demos.masks[part]), whole[part])
+    for i in range(0, len(demos), 7):  # SB3's own predict of the row alone
+        alone, _ = model.policy.predict(demos.observations[i : i + 1], deterministic=True, action_masks=demos.masks[i : i + 1])
+        np.testing.assert_array_equal(alone.reshape(whole[i].shape), whole[i])
     per_agent = demos.masks.reshape(len(demos), -1, 2)
     chosen = np.take_along_axis(per_agent, whole.reshape(len(demos), -1)[:, :, None], axis=2)[:, :, 0]
     assert chosen.all()  # the most likely allowed action
+
+
+def test_a_model_row_policy_of_continuous_actions_is_refused():
+    config = tiny(scenario="top_observer", action_mode="velocity", algo="ppo", pretrain=None)
+    venv = make_vec_env(config, 0)
+    model = build_model(config, venv)
+    venv.close()
+    with pytest.raises(TypeError, match="discrete actions"):
+        ModelRowPolicy(model.policy, None)
 
 
 def learner_refusing_in_workers(observations, masks):

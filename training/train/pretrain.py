@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from gymnasium import spaces
 from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
@@ -537,6 +538,8 @@ class ModelRowPolicy:
     """
 
     def __init__(self, policy: torch.nn.Module, normalise: Callable[[np.ndarray], np.ndarray] | None):
+        if not isinstance(getattr(policy, "action_space", None), (spaces.Discrete, spaces.MultiDiscrete)):
+            raise TypeError(f"ModelRowPolicy acts in the switching mode's discrete actions, got a policy of {getattr(policy, 'action_space', None)!r}")
         self.policy = policy
         self.normalise = normalise
 
@@ -546,12 +549,18 @@ class ModelRowPolicy:
         near a tie, another action; row by row, a row's action is its own whichever rows
         come with it (a group of copies of any size, a round's rows all at once)."""
         obs = observations if self.normalise is None else self.normalise(observations)
-        masked = isinstance(self.policy, MaskableActorCriticPolicy)
-        actions = []
-        for i in range(len(obs)):
-            if masked:
-                action, _ = self.policy.predict(obs[i : i + 1], deterministic=True, action_masks=masks[i : i + 1])
-            else:
-                action, _ = self.policy.predict(obs[i : i + 1], deterministic=True)
-            actions.append(action)
-        return np.concatenate(actions)
+        policy = self.policy
+        masked = isinstance(policy, MaskableActorCriticPolicy)
+        # What policy.predict(row, deterministic=True[, action_masks=mask]) does, without its
+        # per-call checks: one tensor of the rows, a forward pass per row (a view of it).
+        policy.set_training_mode(False)
+        rows, _ = policy.obs_to_tensor(obs)
+        actions = np.empty((len(obs), *policy.action_space.shape), dtype=np.int64)
+        with torch.no_grad():
+            for i in range(len(obs)):
+                if masked:
+                    distribution = policy.get_distribution(rows[i : i + 1], masks[i : i + 1])
+                else:
+                    distribution = policy.get_distribution(rows[i : i + 1])
+                actions[i] = distribution.get_actions(deterministic=True).numpy().reshape(policy.action_space.shape)
+        return actions
