@@ -562,5 +562,5 @@ class ModelRowPolicy:
                     distribution = policy.get_distribution(rows[i : i + 1], masks[i : i + 1])
                 else:
                     distribution = policy.get_distribution(rows[i : i + 1])
-                actions[i] = distribution.get_actions(deterministic=True).numpy().reshape(policy.action_space.shape)
+                actions[i] = distribution.get_actions(deterministic=True).cpu().numpy().reshape(policy.action_space.shape)
         return actions
