@@ -178,6 +178,8 @@ class GeometricCamera:
             self._upright, self._sigma_px, cfg.pnp_sigma_floor_px, self._prior_rad, cfg.warm_max_rms_px
         )
         self._settings.setflags(write=False)
+        # The kernels' tables of one camera (a frame measured alone): one row each, made once.
+        self._parameter_rows, self._settings_rows = self._parameters[None], self._settings[None]
         self._warm_start = cfg.pnp_warm_start and self._first_solver is None
         #: Frames measured together must agree on these (the solver; the kernels take each
         #: board's own camera parameters and settings).
@@ -296,7 +298,7 @@ class GeometricCamera:
         T = np.zeros((n_boards, 4, 4))
         rms, cov, _ = self._solve_boards(
             obj, px, starts, up_m, up_rows, np.zeros(n_boards, dtype=np.int8), T,
-            self._parameters[None], settings[None], np.zeros(n_boards, dtype=np.int64),
+            self._parameter_rows, settings[None], np.zeros(n_boards, dtype=np.int64),
         )
         return T, rms, cov
 
@@ -538,7 +540,7 @@ class FrameGroup:
         centres = np.empty((n_markers, 3))
         board_visible = np.empty(n_boards, dtype=np.int64)
         if n_frames == 1:
-            self.parameters, self.settings = cameras[0]._parameters[None], cameras[0]._settings[None]
+            self.parameters, self.settings = cameras[0]._parameter_rows, cameras[0]._settings_rows
             board_camera = np.zeros(n_boards, dtype=np.int64)
         else:
             # Per frame: its camera's kernel inputs (row f of each table).

@@ -89,9 +89,9 @@ class WorkerPool(ProcessPoolExecutor):
         ``BrokenProcessPool``), cancel the pending tasks, and shut the pool down."""
         self._abandon_end.close()
         self.shutdown(wait=True, cancel_futures=True)
-        self._abandoned.close()
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        """The executor's shutdown; with ``wait`` (the workers are gone) the pipe's ends are closed too."""
         super().shutdown(wait=wait, cancel_futures=cancel_futures)
         if wait:
             self._abandon_end.close()
