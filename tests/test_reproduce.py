@@ -111,3 +111,17 @@ def test_unknown_runs_and_damaged_checkpoints_give_one_line_and_exit_2(runs, tmp
     assert "cannot read the policy's weights" in _one_error_line(capsys)
     with pytest.raises(SystemExit):
         main([str(runs["a"])])  # one run without --retrain: argparse's usage error
+
+
+def test_a_setting_missing_from_an_older_manifest_counts_as_its_default(runs, tmp_path):
+    import json
+
+    older = tmp_path / "older"
+    shutil.copytree(runs["a"], older)
+    manifest = json.loads((older / "manifest.json").read_text())
+    del manifest["config"]["kl_to_start"]  # a run made before the setting existed
+    (older / "manifest.json").write_text(json.dumps(manifest))
+    assert compare_runs(runs["a"], older).run_differences == []
+    manifest["config"]["team_action"] = "one_start"
+    (older / "manifest.json").write_text(json.dumps(manifest))
+    assert compare_runs(runs["a"], older).run_differences == [("config.team_action", "per_agent", "one_start")]

@@ -12,8 +12,9 @@ state dict (SB3 zips keep it as ``policy.pth``) must be equal in shape, dtype an
 bit (``torch.equal``), and so must the ``VecNormalize`` statistics (the running means,
 variances and counts of observations and returns, and the clipping settings). The
 timesteps, the algorithm and the route must agree. Settings of the two manifests that
-differ are listed too; settings that cannot change the weights (the progress bar, the
-worker processes, the checkpoint interval) are not.
+differ are listed too (a setting that one manifest lacks, added to ``TrainConfig`` after
+that run was made, counts as its default); settings that cannot change the weights (the
+progress bar, the worker processes, the checkpoint interval) are not.
 
 ``--retrain`` runs the ``moma-env train`` command a published policy's manifest
 records (``published.command``) with ``--out DIR`` instead of the original folder and
@@ -32,6 +33,7 @@ cannot remake it).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import io
 import pickle
 import shlex
@@ -45,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from agents.learned import MANIFEST, TrainingDirError, published_dir, read_manifest, read_published
+from training.train.config import TrainConfig
 
 __all__ = ["Comparison", "compare_runs", "run_folder", "retrain_published", "main"]
 
@@ -194,10 +197,13 @@ def compare_runs(a: str | Path, b: str | Path) -> Comparison:
     for key in ("num_timesteps", "sb3_class", "route"):
         if manifests[0][key] != manifests[1][key]:
             result.run_differences.append((key, manifests[0][key], manifests[1][key]))
+    # A setting added to TrainConfig after a run was made is missing from its manifest: it had the default.
+    defaults = {f.name: f.default for f in dataclasses.fields(TrainConfig) if f.default is not dataclasses.MISSING}
     configs = [m["config"] for m in manifests]
     for key in sorted(set(configs[0]) | set(configs[1])):
-        if key not in RESULT_FREE_FIELDS and configs[0].get(key) != configs[1].get(key):
-            result.run_differences.append((f"config.{key}", configs[0].get(key), configs[1].get(key)))
+        values = [config[key] if key in config else defaults.get(key) for config in configs]
+        if key not in RESULT_FREE_FIELDS and values[0] != values[1]:
+            result.run_differences.append((f"config.{key}", values[0], values[1]))
 
     tensors = [_policy_tensors(f, m) for f, m in zip(folders, manifests)]
     for name in sorted(set(tensors[0]) | set(tensors[1])):
