@@ -125,3 +125,21 @@ def test_a_setting_missing_from_an_older_manifest_counts_as_its_default(runs, tm
     manifest["config"]["team_action"] = "one_start"
     (older / "manifest.json").write_text(json.dumps(manifest))
     assert compare_runs(runs["a"], older).run_differences == [("config.team_action", "per_agent", "one_start")]
+
+
+def test_a_run_records_the_library_versions_and_the_comparison_names_those_that_differ(runs, tmp_path):
+    import json
+
+    from agents.learned import read_manifest
+
+    versions = read_manifest(runs["a"])["versions"]
+    assert {"python", "numpy", "numba", "pymunk", "opencv", "torch", "stable_baselines3"} <= set(versions)
+    other = tmp_path / "other"
+    shutil.copytree(runs["a"], other)
+    manifest = json.loads((other / "manifest.json").read_text())
+    manifest["versions"]["numpy"] = "0.0.1"
+    del manifest["versions"]["pymunk"]  # an older manifest records fewer: not a difference
+    (other / "manifest.json").write_text(json.dumps(manifest))
+    comparison = compare_runs(runs["a"], other)
+    assert comparison.run_differences == [("versions.numpy", versions["numpy"], "0.0.1")]
+    assert comparison.identical  # versions explain a difference; they are not one

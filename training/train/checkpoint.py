@@ -16,13 +16,13 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import importlib
+import platform
 import re
 import subprocess
 from pathlib import Path
 from typing import Any
 
-import stable_baselines3
-import torch
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
@@ -32,10 +32,33 @@ from moma_env import ENV_VERSION
 from moma_env.io import atomic_path, write_json
 from training.train.config import ALGORITHMS, TrainConfig
 
-__all__ = ["save_checkpoint", "read_manifest", "checkpoint_files", "remove_stale_temporaries", "source_revision"]
+__all__ = ["save_checkpoint", "read_manifest", "checkpoint_files", "remove_stale_temporaries", "source_revision", "library_versions"]
 
 #: The repository holding this file (where ``git`` is asked for the commit).
 _REPOSITORY = Path(__file__).resolve().parents[2]
+
+
+#: The modules whose versions a run's results depend on, by the key the manifest records them under.
+_VERSIONED_MODULES = {
+    "numpy": "numpy", "numba": "numba", "pymunk": "pymunk", "opencv": "cv2", "gymnasium": "gymnasium",
+    "pettingzoo": "pettingzoo", "stable_baselines3": "stable_baselines3", "sb3_contrib": "sb3_contrib", "torch": "torch",
+}
+
+
+def library_versions() -> dict[str, str]:
+    """The versions a run's weights depend on besides the code: Python, the machine's
+    architecture, and each installed module of :data:`_VERSIONED_MODULES` (one not
+    installed is left out). A run remade with other versions may differ in its last bits."""
+    versions = {"python": platform.python_version(), "machine": platform.machine()}
+    for key, module_name in _VERSIONED_MODULES.items():
+        try:
+            module = importlib.import_module(module_name)
+        except ImportError:
+            continue
+        version = getattr(module, "__version__", None) or getattr(module, "version", None)
+        if isinstance(version, str):
+            versions[key] = version
+    return versions
 
 
 def source_revision(repository: Path = _REPOSITORY) -> dict[str, Any]:
@@ -108,7 +131,7 @@ def save_checkpoint(
         "action_space": repr(model.action_space),
         "wall_time_s": float(wall_time_s),
         "saved_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "versions": {"stable_baselines3": stable_baselines3.__version__, "torch": torch.__version__},
+        "versions": library_versions(),
         **(extra or {}),
     }
     write_json(out / MANIFEST, manifest)

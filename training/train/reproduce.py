@@ -12,7 +12,7 @@ state dict (SB3 zips keep it as ``policy.pth``) must be equal in shape, dtype an
 bit (``torch.equal``), and so must the ``VecNormalize`` statistics (the running means,
 variances and counts of observations and returns, and the clipping settings). The
 timesteps, the algorithm and the route must agree. Settings of the two manifests that
-differ are listed too (a setting that one manifest lacks, added to ``TrainConfig`` after
+differ, and library versions both record that differ, are listed too (a setting that one manifest lacks, added to ``TrainConfig`` after
 that run was made, counts as its default); settings that cannot change the weights (the
 progress bar, the worker processes, the checkpoint interval) are not.
 
@@ -68,8 +68,9 @@ class Comparison:
             side, another shape or dtype, or the largest absolute difference).
         statistics_differences: ``(name, what)`` of every normalisation statistic that
             differs (or ``"missing"`` when one run has statistics and the other none).
-        run_differences: ``(key, a, b)``: timesteps, algorithm, route or a setting of the
-            two manifests that differs (settings in :data:`RESULT_FREE_FIELDS` left out).
+        run_differences: ``(key, a, b)``: timesteps, algorithm, route, a setting of the
+            two manifests (settings in :data:`RESULT_FREE_FIELDS` left out) or a library
+            version both record (``versions.numpy``, ...) that differs.
     """
 
     tensors: int = 0
@@ -204,6 +205,11 @@ def compare_runs(a: str | Path, b: str | Path) -> Comparison:
         values = [config[key] if key in config else defaults.get(key) for config in configs]
         if key not in RESULT_FREE_FIELDS and values[0] != values[1]:
             result.run_differences.append((f"config.{key}", values[0], values[1]))
+
+    versions = [m.get("versions") if isinstance(m.get("versions"), dict) else {} for m in manifests]
+    for key in sorted(set(versions[0]) & set(versions[1])):  # an older manifest records fewer
+        if versions[0][key] != versions[1][key]:
+            result.run_differences.append((f"versions.{key}", versions[0][key], versions[1][key]))
 
     tensors = [_policy_tensors(f, m) for f, m in zip(folders, manifests)]
     for name in sorted(set(tensors[0]) | set(tensors[1])):
