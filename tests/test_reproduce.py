@@ -133,7 +133,7 @@ def test_a_run_records_the_library_versions_and_the_comparison_names_those_that_
     from agents.learned import read_manifest
 
     versions = read_manifest(runs["a"])["versions"]
-    assert {"python", "numpy", "numba", "pymunk", "opencv", "torch", "stable_baselines3"} <= set(versions)
+    assert {"python", "machine", "cpu", "numpy", "numba", "pymunk", "opencv", "torch", "stable_baselines3"} <= set(versions)
     other = tmp_path / "other"
     shutil.copytree(runs["a"], other)
     manifest = json.loads((other / "manifest.json").read_text())

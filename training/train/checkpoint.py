@@ -32,7 +32,7 @@ from moma_env import ENV_VERSION
 from moma_env.io import atomic_path, write_json
 from training.train.config import ALGORITHMS, TrainConfig
 
-__all__ = ["save_checkpoint", "read_manifest", "checkpoint_files", "remove_stale_temporaries", "source_revision", "library_versions"]
+__all__ = ["save_checkpoint", "read_manifest", "checkpoint_files", "remove_stale_temporaries", "source_revision", "library_versions", "cpu_model"]
 
 #: The repository holding this file (where ``git`` is asked for the commit).
 _REPOSITORY = Path(__file__).resolve().parents[2]
@@ -45,11 +45,26 @@ _VERSIONED_MODULES = {
 }
 
 
+def cpu_model() -> str:
+    """The processor's model name (Linux's ``/proc/cpuinfo``, else ``platform.processor()``;
+    ``"unknown"`` when neither says)."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                if key.strip() == "model name" and value.strip():
+                    return value.strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
 def library_versions() -> dict[str, str]:
-    """The versions a run's weights depend on besides the code: Python, the machine's
-    architecture, and each installed module of :data:`_VERSIONED_MODULES` (one not
-    installed is left out). A run remade with other versions may differ in its last bits."""
-    versions = {"python": platform.python_version(), "machine": platform.machine()}
+    """What a run's weights depend on besides the code: Python, the machine's architecture and
+    processor (:func:`cpu_model`), and the version of each installed module of
+    :data:`_VERSIONED_MODULES` (one not installed is left out). A run remade with other
+    versions or on another processor may differ in its last bits, and then in its weights."""
+    versions = {"python": platform.python_version(), "machine": platform.machine(), "cpu": cpu_model()}
     for key, module_name in _VERSIONED_MODULES.items():
         try:
             module = importlib.import_module(module_name)
