@@ -143,3 +143,28 @@ def test_a_run_records_the_library_versions_and_the_comparison_names_those_that_
     comparison = compare_runs(runs["a"], other)
     assert comparison.run_differences == [("versions.numpy", versions["numpy"], "0.0.1")]
     assert comparison.identical  # versions explain a difference; they are not one
+
+
+def test_every_shipped_policys_command_remakes_its_recorded_configuration(monkeypatch):
+    """What the README's retraining runs: each policy in the repository's policies/ folder,
+    retrained from its manifest's command, is configured as it was (a command-line default
+    that changed since would make it train something else)."""
+    import dataclasses
+    import json
+
+    from agents.learned import policies_root
+    from training.cli import build_parser
+    from training.train.command import config_from_args
+
+    monkeypatch.delenv(POLICIES_ENV, raising=False)
+    root = policies_root()
+    names = sorted(p.name for p in root.iterdir() if (p / "manifest.json").is_file())
+    assert "top_observer_team4_legs_bc" in names
+    defaults = {f.name: f.default for f in dataclasses.fields(TrainConfig) if f.default is not dataclasses.MISSING}
+    for name in names:
+        recorded = json.loads((root / name / "manifest.json").read_text())["config"]
+        remade = config_from_args(build_parser().parse_args(retrain_argv(name, "out"))).to_dict()
+        for key, value in remade.items():
+            if key in ("progress_bar", "workers"):  # the retraining hides the bar; workers do not change the weights
+                continue
+            assert value == recorded.get(key, defaults.get(key)), (name, key, value, recorded.get(key))
