@@ -168,3 +168,14 @@ def test_every_shipped_policys_command_remakes_its_recorded_configuration(monkey
             if key in ("progress_bar", "workers"):  # the retraining hides the bar; workers do not change the weights
                 continue
             assert value == recorded.get(key, defaults.get(key)), (name, key, value, recorded.get(key))
+
+
+def test_a_folder_holding_an_interrupted_run_is_refused_not_resumed(tmp_path, policies, capsys):
+    source = tmp_path / "source"
+    train(tiny(steps=128), source)
+    publish(source, "tiny_policy")
+    partial = tmp_path / "partial"
+    train(tiny(), partial)  # 64 timesteps: stands for the checkpoint an interrupted retraining left
+    assert main(["tiny_policy", "--retrain", "--out", str(partial)]) == 2
+    line = _one_error_line(capsys)
+    assert "holds a run of 64 timesteps, not the 128" in line and "empty folder" in line

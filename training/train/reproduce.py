@@ -23,7 +23,8 @@ deterministic for a configuration, a torch thread count, a machine and the libra
 versions (docs/training.md, "Determinism"), so on the same kind of machine with the
 versions the manifest records (``versions``) a difference means the code behaves
 otherwise than at the commit the manifest names. A ``DIR`` that already holds the
-finished run is compared without training again.
+finished run is compared without training again; one holding an interrupted run's checkpoint
+is refused (resumed, its envs would restart at new layouts: not the uninterrupted run).
 
 Exit status: 0 the same policy bit for bit, 1 a difference (each printed), 2 bad input
 (one line: an unknown name or folder, a damaged checkpoint, a policy whose command
@@ -271,11 +272,19 @@ def retrain_published(name: str, out: str | Path) -> Comparison:
 
     Raises:
         TrainingDirError: see :func:`retrain_argv` and :func:`compare_runs`; the training
-            command failing (its exit status).
+            command failing (its exit status); ``out`` holding a run of other timesteps (the
+            checkpoint of an interrupted run, which resumed would not be the uninterrupted run).
     """
     argv = retrain_argv(name, out)
     out = Path(out)
-    if not (out / MANIFEST).is_file():
+    if (out / MANIFEST).is_file():
+        held, wanted = read_manifest(out)["num_timesteps"], read_published(name)["num_timesteps"]
+        if held != wanted:  # a checkpoint of an interrupted run: resuming it would not give the uninterrupted run
+            raise TrainingDirError(
+                f"{str(out)!r} holds a run of {held} timesteps, not the {wanted} of {name!r}: a resumed run is not the "
+                "uninterrupted one, so retrain into an empty folder"
+            )
+    else:
         from training.cli import main as cli_main
 
         print("moma-env " + shlex.join(argv), flush=True)
