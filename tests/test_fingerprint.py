@@ -54,6 +54,26 @@ def test_check_passes_on_its_own_output_and_fails_on_a_changed_hash(tmp_path):
     out.write_text(json.dumps(data))
     assert main([*only, "--check", str(out)], report=lines.append) == 1
     assert any(line.startswith("DIFFERS: caterpillar_sled") for line in lines)
+    assert not any(line.startswith("note:") for line in lines)  # the same machine: nothing of it to name
+
+
+def test_a_difference_names_what_of_the_machine_differs_from_the_references(tmp_path):
+    from training.provenance import library_versions
+
+    out = tmp_path / "fp.json"
+    only = ["--only", "caterpillar_sled action_mode=switching max_cycles=250"]
+    assert main([*only, "--out", str(out)], report=lambda line: None) == 0
+    data = json.loads(out.read_text())
+    assert data["machine"] == library_versions() and "cpu" in data["machine"] and "numpy" in data["machine"]
+    data["machine"]["numpy"] = "0.0.1"
+    out.write_text(json.dumps(data))
+    lines: list[str] = []
+    assert main([*only, "--check", str(out)], report=lines.append) == 0  # identical: the machine is not named
+    assert not any(line.startswith("note:") for line in lines)
+    data["fingerprints"][0]["sha256"] = "0" * 64
+    out.write_text(json.dumps(data))
+    assert main([*only, "--check", str(out)], report=lines.append) == 1
+    assert f"note: the reference was made with numpy '0.0.1', this machine has {library_versions()['numpy']!r}" in lines
 
 
 def test_bad_arguments_are_refused(tmp_path):

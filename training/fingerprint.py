@@ -15,7 +15,9 @@ record. Run it before and after a change::
     python -m training.fingerprint --check before.json    # on the new code: exit 1 on any difference
 
 A fingerprint is a property of the code *and* of the machine's floating point
-(BLAS kernels, FMA): compare fingerprints made on one machine only.
+(BLAS kernels, FMA): compare fingerprints made on one machine only. The file records the
+machine (:func:`training.provenance.library_versions`: processor, Python, the numerical
+libraries' versions), and ``--check`` names what of it differs when a case differs.
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
+
+from training.provenance import differing_versions, library_versions
 
 __all__ = ["CASES", "Case", "fingerprint", "main", "serialise"]
 
@@ -212,11 +216,14 @@ def main(argv: Sequence[str] | None = None, report: Callable[[str], None] = prin
     parser.add_argument("--seed", type=int, default=0, help="seed of every run (default 0)")
     args = parser.parse_args(argv)
     reference = None
+    reference_machine = None
     if args.check is not None:
         try:
-            reference = json.loads(args.check.read_text())["fingerprints"]
+            stored = json.loads(args.check.read_text())
+            reference = stored["fingerprints"]
         except (OSError, ValueError, KeyError, TypeError) as error:
             parser.error(f"--check {args.check}: not a fingerprint file ({error})")
+        reference_machine = stored.get("machine")
     cases = [case for case in CASES if args.only in case.label]
     if not cases:
         parser.error(f"--only {args.only!r} matches no case")
@@ -228,11 +235,14 @@ def main(argv: Sequence[str] | None = None, report: Callable[[str], None] = prin
     if args.out is not None:
         from moma_env.io import write_json
 
-        write_json(args.out, {"seed": args.seed, "fingerprints": rows})
+        write_json(args.out, {"seed": args.seed, "machine": library_versions(), "fingerprints": rows})
     if reference is not None:
         problems = _compare(rows, reference)
         for line in problems:
             report(line)
+        if problems:  # a difference the machine may explain rather than the code
+            for key, theirs, ours in differing_versions(reference_machine, library_versions()):
+                report(f"note: the reference was made with {key} {theirs!r}, this machine has {ours!r}")
         report(f"{len(rows) - len(problems)} of {len(rows)} cases identical to {args.check}")
         return 1 if problems else 0
     return 0

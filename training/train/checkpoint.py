@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import contextlib
 import datetime
-import importlib
-import platform
 import re
 import subprocess
 from pathlib import Path
@@ -30,50 +28,13 @@ from stable_baselines3.common.vec_env import VecNormalize
 from agents.learned import MANIFEST, MANIFEST_FORMAT, read_manifest
 from moma_env import ENV_VERSION
 from moma_env.io import atomic_path, write_json
+from training.provenance import library_versions
 from training.train.config import ALGORITHMS, TrainConfig
 
-__all__ = ["save_checkpoint", "read_manifest", "checkpoint_files", "remove_stale_temporaries", "source_revision", "library_versions", "cpu_model"]
+__all__ = ["save_checkpoint", "read_manifest", "checkpoint_files", "remove_stale_temporaries", "source_revision"]
 
 #: The repository holding this file (where ``git`` is asked for the commit).
 _REPOSITORY = Path(__file__).resolve().parents[2]
-
-
-#: The modules whose versions a run's results depend on, by the key the manifest records them under.
-_VERSIONED_MODULES = {
-    "numpy": "numpy", "numba": "numba", "pymunk": "pymunk", "opencv": "cv2", "gymnasium": "gymnasium",
-    "pettingzoo": "pettingzoo", "stable_baselines3": "stable_baselines3", "sb3_contrib": "sb3_contrib", "torch": "torch",
-}
-
-
-def cpu_model() -> str:
-    """The processor's model name (Linux's ``/proc/cpuinfo``, else ``platform.processor()``;
-    ``"unknown"`` when neither says)."""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            for line in f:
-                key, _, value = line.partition(":")
-                if key.strip() == "model name" and value.strip():
-                    return value.strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
-
-
-def library_versions() -> dict[str, str]:
-    """What a run's weights depend on besides the code: Python, the machine's architecture and
-    processor (:func:`cpu_model`), and the version of each installed module of
-    :data:`_VERSIONED_MODULES` (one not installed is left out). A run remade with other
-    versions or on another processor may differ in its last bits, and then in its weights."""
-    versions = {"python": platform.python_version(), "machine": platform.machine(), "cpu": cpu_model()}
-    for key, module_name in _VERSIONED_MODULES.items():
-        try:
-            module = importlib.import_module(module_name)
-        except ImportError:
-            continue
-        version = getattr(module, "__version__", None) or getattr(module, "version", None)
-        if isinstance(version, str):
-            versions[key] = version
-    return versions
 
 
 def source_revision(repository: Path = _REPOSITORY) -> dict[str, Any]:

@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from agents.learned import MANIFEST, TrainingDirError, published_dir, read_manifest, read_published
+from training.provenance import differing_versions
 from training.train.config import TrainConfig
 
 __all__ = ["Comparison", "compare_runs", "run_folder", "retrain_published", "main"]
@@ -207,10 +208,8 @@ def compare_runs(a: str | Path, b: str | Path) -> Comparison:
         if key not in RESULT_FREE_FIELDS and values[0] != values[1]:
             result.run_differences.append((f"config.{key}", values[0], values[1]))
 
-    versions = [m.get("versions") if isinstance(m.get("versions"), dict) else {} for m in manifests]
-    for key in sorted(set(versions[0]) & set(versions[1])):  # an older manifest records fewer
-        if versions[0][key] != versions[1][key]:
-            result.run_differences.append((f"versions.{key}", versions[0][key], versions[1][key]))
+    for key, value_a, value_b in differing_versions(manifests[0].get("versions"), manifests[1].get("versions")):
+        result.run_differences.append((f"versions.{key}", value_a, value_b))  # an older manifest records fewer
 
     tensors = [_policy_tensors(f, m) for f, m in zip(folders, manifests)]
     for name in sorted(set(tensors[0]) | set(tensors[1])):
