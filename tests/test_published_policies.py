@@ -41,14 +41,6 @@ def run_dir(tmp_path_factory) -> Path:
     return out
 
 
-@pytest.fixture
-def policies(tmp_path, monkeypatch) -> Path:
-    folder = tmp_path / "policies"
-    folder.mkdir()
-    monkeypatch.setenv(POLICIES_ENV, str(folder))
-    return folder
-
-
 def _actions(policy, seed: int = 3, steps: int = 12) -> list[dict]:
     return episode_actions(policy, "top_observer", policy.env_options, seed, steps)
 

@@ -37,14 +37,6 @@ def runs(tmp_path_factory) -> dict[str, Path]:
     return made
 
 
-@pytest.fixture
-def policies(tmp_path, monkeypatch) -> Path:
-    folder = tmp_path / "policies"
-    folder.mkdir()
-    monkeypatch.setenv(POLICIES_ENV, str(folder))
-    return folder
-
-
 def _one_error_line(capsys) -> str:
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("python -m training.train.reproduce: "), err
