@@ -88,7 +88,8 @@ def test_a_policy_whose_command_cannot_remake_it_is_refused(tmp_path, policies, 
 
 def test_unknown_runs_and_damaged_checkpoints_give_one_line_and_exit_2(runs, tmp_path, policies, capsys):
     assert main(["no_such_policy", str(runs["a"])]) == 2
-    assert "neither a published policy nor the folder of a training run" in _one_error_line(capsys)
+    line = _one_error_line(capsys)
+    assert "'no_such_policy' is neither a published policy (published: none)" in line and "nor the folder of a training run" in line
     damaged = tmp_path / "damaged"
     shutil.copytree(runs["a"], damaged)
     from agents.learned import read_manifest

@@ -47,11 +47,11 @@ from typing import Any
 
 import numpy as np
 
-from agents.learned import MANIFEST, TrainingDirError, published_dir, read_manifest, read_published
+from agents.learned import MANIFEST, TrainingDirError, published_dir, published_names, read_manifest, read_published
 from training.provenance import differing_versions
 from training.train.config import TrainConfig
 
-__all__ = ["Comparison", "compare_runs", "run_folder", "retrain_published", "main"]
+__all__ = ["Comparison", "compare_runs", "run_folder", "retrain_argv", "retrain_published", "main"]
 
 #: TrainConfig fields that do not change what a run learns (not listed as differences).
 RESULT_FREE_FIELDS = frozenset({"progress_bar", "workers", "subproc", "checkpoint_every"})
@@ -125,7 +125,8 @@ def run_folder(spec: str | Path) -> Path:
             read_published(text)
             return published
     if not path.is_dir():
-        raise TrainingDirError(f"{text!r} is neither a published policy nor the folder of a training run")
+        known = ", ".join(published_names()) or "none"
+        raise TrainingDirError(f"{text!r} is neither a published policy (published: {known}) nor the folder of a training run")
     read_manifest(path)
     return path
 
