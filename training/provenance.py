@@ -26,6 +26,9 @@ _DISTRIBUTIONS = {
     "stable_baselines3": ("stable-baselines3",),
     "sb3_contrib": ("sb3-contrib",),
     "torch": ("torch",),
+    "torchrl": ("torchrl",),
+    "tensordict": ("tensordict",),
+    "ray": ("ray",),
 }
 
 

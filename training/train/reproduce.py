@@ -9,11 +9,12 @@
 (``policies/NAME``, as ``moma-env evaluate --policy`` takes them). The comparison reads
 each run's final checkpoint, the one its manifest names: every tensor of the policy's
 state dict (SB3 zips keep it as ``policy.pth``) must be equal in shape, dtype and every
-bit (``torch.equal``), and so must the ``VecNormalize`` statistics (the running means,
+bit, and so must the ``VecNormalize`` statistics (the running means,
 variances and counts of observations and returns, and the clipping settings). The
 timesteps, the algorithm and the route must agree. Settings of the two manifests that
-differ, and library versions both record that differ, are listed too (a setting that one manifest lacks, added to ``TrainConfig`` after
-that run was made, counts as its default); settings that cannot change the weights (the
+differ, and library versions both record that differ, are listed too (a setting that one
+manifest lacks, added to ``TrainConfig`` after that run was made, counts as its default);
+settings that cannot change the weights (the
 progress bar, the worker processes, the checkpoint interval) are not.
 
 ``--retrain`` runs the ``moma-env train`` command a published policy's manifest
@@ -131,8 +132,8 @@ def run_folder(spec: str | Path) -> Path:
     return path
 
 
-def _policy_tensors(folder: Path, manifest: Mapping[str, Any]) -> dict[str, Any]:
-    """The policy's state dict kept in the run's final model zip."""
+def _policy_tensors(folder: Path, manifest: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """The policy's state dict kept in the run's final model zip, each tensor as a numpy array."""
     import torch
 
     path = folder / manifest["model"]
@@ -142,9 +143,9 @@ def _policy_tensors(folder: Path, manifest: Mapping[str, Any]) -> dict[str, Any]
         state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
     except Exception as err:  # a damaged zip fails in zipfile or torch, each with its own error
         raise TrainingDirError(f"cannot read the policy's weights in {str(path)!r} (damaged or not an SB3 zip): {err}") from None
-    if not isinstance(state, dict):
-        raise TrainingDirError(f"{str(path)!r}: {POLICY_MEMBER} holds a {type(state).__name__}, not a state dict")
-    return state
+    if not isinstance(state, dict) or not all(isinstance(t, torch.Tensor) for t in state.values()):
+        raise TrainingDirError(f"{str(path)!r}: {POLICY_MEMBER} holds a {type(state).__name__}, not a state dict of tensors")
+    return {name: tensor.detach().cpu().numpy() for name, tensor in state.items()}
 
 
 def _statistics(folder: Path, manifest: Mapping[str, Any]) -> dict[str, np.ndarray] | None:
@@ -187,14 +188,25 @@ def _array_difference(a: np.ndarray, b: np.ndarray) -> str | None:
     return "values differ"
 
 
+def _differences(a: Mapping[str, np.ndarray], b: Mapping[str, np.ndarray]) -> list[tuple[str, str]]:
+    """``(name, what)`` of every array of ``a`` or ``b`` missing on one side or differing (:func:`_array_difference`)."""
+    found = []
+    for name in sorted(set(a) | set(b)):
+        if name not in a or name not in b:
+            found.append((name, "missing in " + ("the first" if name not in a else "the second")))
+        else:
+            what = _array_difference(a[name], b[name])
+            if what is not None:
+                found.append((name, what))
+    return found
+
+
 def compare_runs(a: str | Path, b: str | Path) -> Comparison:
     """Compare the final checkpoints of runs ``a`` and ``b`` (folders or published names; see the module docstring).
 
     Raises:
         TrainingDirError: a run that cannot be found or read.
     """
-    import torch
-
     folders = [run_folder(a), run_folder(b)]
     manifests = [read_manifest(f) for f in folders]
     result = Comparison()
@@ -213,27 +225,13 @@ def compare_runs(a: str | Path, b: str | Path) -> Comparison:
         result.run_differences.append((f"versions.{key}", value_a, value_b))  # an older manifest records fewer
 
     tensors = [_policy_tensors(f, m) for f, m in zip(folders, manifests)]
-    for name in sorted(set(tensors[0]) | set(tensors[1])):
-        if name not in tensors[0] or name not in tensors[1]:
-            result.tensor_differences.append((name, "missing in " + ("the first" if name not in tensors[0] else "the second")))
-            continue
-        ta, tb = tensors[0][name], tensors[1][name]
-        result.tensors += 1
-        if ta.shape != tb.shape or ta.dtype != tb.dtype or not torch.equal(ta, tb):
-            what = _array_difference(ta.detach().numpy(), tb.detach().numpy())
-            result.tensor_differences.append((name, what or "values differ"))
-
+    result.tensors = len(set(tensors[0]) & set(tensors[1]))
+    result.tensor_differences = _differences(*tensors)
     statistics = [_statistics(f, m) for f, m in zip(folders, manifests)]
     if (statistics[0] is None) != (statistics[1] is None):
         result.statistics_differences.append(("statistics", "missing in " + ("the first" if statistics[0] is None else "the second")))
     elif statistics[0] is not None and statistics[1] is not None:
-        for name in sorted(set(statistics[0]) | set(statistics[1])):
-            if name not in statistics[0] or name not in statistics[1]:
-                result.statistics_differences.append((name, "missing in " + ("the first" if name not in statistics[0] else "the second")))
-                continue
-            what = _array_difference(statistics[0][name], statistics[1][name])
-            if what is not None:
-                result.statistics_differences.append((name, what))
+        result.statistics_differences = _differences(*statistics)
     return result
 
 

@@ -30,6 +30,7 @@ from agents.learned import MANIFEST
 from agents.rllib_policy import BACKEND, RllibPolicy, read_rllib_manifest
 from moma_env import ENV_VERSION
 from moma_env.io import write_json
+from training.provenance import library_versions
 from training.train.backend_run import RunProgress, start_run
 from training.train.evaluation import headline
 from training.train.rllib_config import RllibTrainConfig
@@ -76,9 +77,6 @@ def _checkpoints(out: Path) -> list[Path]:
 
 def _save(out: Path, algo: Any, config: RllibTrainConfig, steps: int, wall_time_s: float, extra: dict[str, Any]) -> dict[str, Any]:
     """Checkpoint ``algo`` at ``steps``, then the manifest naming it, then delete older checkpoints."""
-    import ray
-    import torch
-
     name = f"checkpoint_{steps:012d}"
     final = out / name
     if not final.is_dir():
@@ -97,7 +95,7 @@ def _save(out: Path, algo: Any, config: RllibTrainConfig, steps: int, wall_time_
         "config": config.to_dict(),
         "wall_time_s": float(wall_time_s),
         "saved_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "versions": {"ray": ray.__version__, "torch": torch.__version__},
+        "versions": library_versions(),
         **extra,
     }
     write_json(out / MANIFEST, manifest)

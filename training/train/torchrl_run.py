@@ -42,6 +42,7 @@ from agents.torchrl_policy import BACKEND, TorchRLPolicy, actor_network, critic_
 from moma_env import ENV_VERSION
 from moma_env.config import ConfigError
 from moma_env.io import atomic_write_bytes, write_json
+from training.provenance import library_versions
 from training.train.backend_run import RunProgress, start_run
 from training.train.evaluation import headline
 from training.train.torchrl_config import TorchRLTrainConfig
@@ -148,9 +149,7 @@ def _checkpoints(out: Path) -> list[Path]:
 
 def _save(out: Path, learner: _Learner, config: TorchRLTrainConfig, steps: int, wall_time_s: float, extra: dict[str, Any]) -> dict[str, Any]:
     """Checkpoint at ``steps``, then the manifest naming it, then delete older checkpoints."""
-    import tensordict
     import torch
-    import torchrl
 
     name = f"checkpoint_{steps:012d}.pt"
     buffer = io.BytesIO()
@@ -168,7 +167,7 @@ def _save(out: Path, learner: _Learner, config: TorchRLTrainConfig, steps: int, 
         "collect_s": float(learner.collect_s),
         "learn_s": float(learner.learn_s),
         "saved_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "versions": {"torch": torch.__version__, "torchrl": torchrl.__version__, "tensordict": tensordict.__version__},
+        "versions": library_versions(),
         **extra,
     }
     write_json(out / MANIFEST, manifest)
