@@ -32,6 +32,12 @@ flags and reward of the step that ended, and in ``infos[i]`` the keys
 last infos), ``"final_state"`` (the last ``state()``), ``"final_time"`` (the
 episode's simulated duration, s) and, in switching mode, ``"final_action_masks"``.
 :meth:`reset_at` resets one copy alone.
+
+Action masks (switching mode): ``action_masks()`` gives every UGV's mask for the next
+step. With ``EnvConfig.action_masks`` on, every UGV's infos carry that mask already, so
+after a ``reset`` or ``step`` the batch returns those (:class:`LatestMasks`) instead of
+computing them again; after :meth:`reset_at` or :meth:`call_at`, which may change a
+copy, that copy's masks are computed anew.
 """
 
 from __future__ import annotations
@@ -43,15 +49,67 @@ import numpy as np
 from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
+from moma_env.env.agent_names import is_observer_agent
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
 from moma_env.vector.collection import deferred_collection
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.camera import MeasureRequest, measure_batch
 
-__all__ = ["FINAL_KEYS", "MomaVectorEnv"]
+__all__ = ["FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "masks_in_infos"]
 
 #: The keys the autoreset adds to a copy's infos (see the module docstring).
 FINAL_KEYS = ("final_observation", "final_info", "final_state", "final_time", "final_action_masks")
+
+
+def masks_in_infos(infos: Sequence[Mapping[str, Any]], agents: Sequence[str]) -> dict[str, np.ndarray] | None:
+    """UGV agent -> ``(num_envs, n)`` int8: the ``"action_mask"`` each copy's infos carry for
+    every UGV of ``agents`` (``EnvConfig.action_masks``), stacked; None if one is missing."""
+    ugvs = [a for a in agents if not is_observer_agent(a)]
+    try:
+        return {a: np.stack([info[a]["action_mask"] for info in infos]) for a in ugvs} if ugvs and infos else None
+    except KeyError:
+        return None
+
+
+class LatestMasks:
+    """A batch's action masks for the next step as its last reset's or step's infos carried
+    them (:func:`masks_in_infos`), so that ``action_masks()`` need not compute them again.
+
+    :meth:`take` keeps them (None when the infos carry none), :meth:`drop` forgets them,
+    :meth:`stale` marks one copy's row as possibly changed since (a call on that copy), and
+    :meth:`get` returns copies of them after recomputing the stale rows, or None when none
+    are kept.
+    """
+
+    __slots__ = ("_masks", "_stale")
+
+    def __init__(self) -> None:
+        self._masks: dict[str, np.ndarray] | None = None
+        self._stale: set[int] = set()
+
+    def take(self, infos: Sequence[Mapping[str, Any]], agents: Sequence[str]) -> None:
+        self._masks = masks_in_infos(infos, agents)
+        self._stale.clear()
+
+    def drop(self) -> None:
+        self._masks = None
+        self._stale.clear()
+
+    def stale(self, index: int) -> None:
+        if self._masks is not None:
+            self._stale.add(index)
+
+    def get(self, copy_masks: Callable[[int], Mapping[str, np.ndarray]]) -> dict[str, np.ndarray] | None:
+        """agent -> ``(num_envs, n)`` int8 (new arrays), the stale rows from ``copy_masks(index)``."""
+        masks = self._masks
+        if masks is None:
+            return None
+        for index in sorted(self._stale):
+            row = copy_masks(index)
+            for agent, rows in masks.items():
+                rows[index] = row[agent]
+        self._stale.clear()
+        return {agent: rows.copy() for agent, rows in masks.items()}
 
 
 def _stack(values: Sequence[Any]) -> Any:
@@ -81,6 +139,8 @@ class MomaVectorEnv:
         self.state_space: spaces.Box = first.state_space
         self._masks = first.config.action_mode == "switching"
         self._started = False
+        self._masks_in_infos = first.config.action_masks  # every UGV's infos carry its mask
+        self._latest_masks = LatestMasks()
         #: The batch measurement of a step: every copy's camera requests -> that copy's
         #: detections (:func:`measure_copies`); an instance attribute, so a benchmark can
         #: time it by wrapping it.
@@ -107,14 +167,21 @@ class MomaVectorEnv:
         """Reset every copy (see the module docstring for the seeds); ``options``: one dict for
         every copy or a sequence of ``num_envs``, one per copy."""
         seeds, per_copy = copy_seeds(seed, self.num_envs), copy_options(options, self.num_envs)
+        self._latest_masks.drop()
         results = [env.reset(seed=s, options=o) for env, s, o in zip(self.envs, seeds, per_copy)]
         self._started = True
         observations = {a: _stack([obs[a] for obs, _ in results]) for a in self.possible_agents}
-        return observations, tuple(infos for _, infos in results)
+        infos = tuple(infos for _, infos in results)
+        if self._masks_in_infos:
+            self._latest_masks.take(infos, self.possible_agents)
+        return observations, infos
 
     def reset_at(self, index: int, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, Any], dict]:
         """Reset copy ``index`` alone; its observations (agent -> one copy's observation) and infos."""
-        return self.envs[checked_index(index, self.num_envs)].reset(seed=checked_seed(seed), options=options)
+        index = checked_index(index, self.num_envs)
+        seed = checked_seed(seed)
+        self._latest_masks.stale(index)
+        return self.envs[index].reset(seed=seed, options=options)
 
     # ------------------------------------------------------------------ step
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
@@ -128,8 +195,12 @@ class MomaVectorEnv:
         returned for this batch (what a sharded batch's caller checked once for all shards)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
+        self._latest_masks.drop()
         with deferred_collection():
-            return self._step(checked)
+            out = self._step(checked)
+            if self._masks_in_infos:
+                self._latest_masks.take(out[4], self.possible_agents)
+        return out
 
     def _step(self, checked: Mapping[str, np.ndarray]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
         agents = self.possible_agents
@@ -165,7 +236,11 @@ class MomaVectorEnv:
 
     # ------------------------------------------------------------------ the rest
     def action_masks(self) -> dict[str, np.ndarray]:
-        """Switching mode: agent -> ``(num_envs, n)`` int8, each copy's ``action_masks()``."""
+        """Switching mode: agent -> ``(num_envs, n)`` int8, each copy's ``action_masks()`` (the
+        ones the last reset's or step's infos carried, if they did: see the module docstring)."""
+        latest = self._latest_masks.get(lambda index: self.envs[index].action_masks())
+        if latest is not None:
+            return latest
         masks = [env.action_masks() for env in self.envs]
         return {a: np.stack([m[a] for m in masks]) for a in masks[0]}
 
@@ -181,7 +256,9 @@ class MomaVectorEnv:
         """``function(env, *args, **kwargs)`` on copy ``index``'s parallel env ``env``, and its
         result (what :class:`~moma_env.vector.sharded.ShardedVectorEnv` runs in the copy's
         worker; there ``function`` must be picklable: a module-level function)."""
-        return function(self.envs[checked_index(index, self.num_envs)], *args, **kwargs)
+        index = checked_index(index, self.num_envs)
+        self._latest_masks.stale(index)
+        return function(self.envs[index], *args, **kwargs)
 
     def close(self) -> None:
         for env in self.envs:

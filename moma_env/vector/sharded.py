@@ -41,9 +41,9 @@ from gymnasium import spaces
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.vector.collection import deferred_collection
-from moma_env.vector.env import MomaVectorEnv
+from moma_env.vector.env import LatestMasks, MomaVectorEnv
 
-__all__ = ["ShardedVectorEnv", "default_start_method", "shard_sizes"]
+__all__ = ["ShardedVectorEnv", "copy_action_masks", "default_start_method", "shard_sizes"]
 
 
 def default_start_method() -> str:
@@ -55,6 +55,11 @@ def shard_sizes(num_envs: int, workers: int) -> list[int]:
     """How many copies each of ``workers`` shards holds: contiguous, differing by at most one."""
     base, extra = divmod(num_envs, workers)
     return [base + (1 if k < extra else 0) for k in range(workers)]
+
+
+def copy_action_masks(env: MomaParallelEnv) -> dict[str, np.ndarray]:
+    """One copy's ``action_masks()`` (module level: it runs in the copy's worker)."""
+    return env.action_masks()
 
 
 def _run(vector: MomaVectorEnv, command: str, payload: Any) -> Any:
@@ -267,6 +272,8 @@ class ShardedVectorEnv:
         self.render_mode = self.spec_env.render_mode
         self.state_space: spaces.Box = self.spec_env.state_space
         self._started = False
+        self._masks_in_infos = self.spec_env.config.action_masks  # every UGV's infos carry its mask
+        self._latest_masks = LatestMasks()
 
     # ------------------------------------------------------------------ spaces
     def single_observation_space(self, agent: str) -> spaces.Space:
@@ -316,14 +323,19 @@ class ShardedVectorEnv:
         ``options``: one dict for every copy or a sequence of ``num_envs``, one per copy."""
         seeds = self._rows(copy_seeds(seed, self.num_envs))
         per_copy = self._rows(copy_options(options, self.num_envs))
+        self._latest_masks.drop()
         results = self._broadcast("reset", list(zip(seeds, per_copy)))
         self._started = True
         observations = {a: _join([obs[a] for obs, _ in results]) for a in self.possible_agents}
-        return observations, tuple(info for _, infos in results for info in infos)
+        infos = tuple(info for _, infos in results for info in infos)
+        if self._masks_in_infos:
+            self._latest_masks.take(infos, self.possible_agents)
+        return observations, infos
 
     def reset_at(self, index: int, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, Any], dict]:
         """Reset copy ``index`` alone; its observations (agent -> one copy's observation) and infos."""
         seed = checked_seed(seed)
+        self._latest_masks.stale(checked_index(index, self.num_envs))
         return self._at(index, "reset_at", lambda local: (local, seed, options))
 
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
@@ -333,6 +345,7 @@ class ShardedVectorEnv:
             raise RuntimeError("call reset() before step()")
         # The workers' replies (every copy's infos, unpickled here) live until the next step,
         # like the local shard's: the collector waits for the end of the batch step for both.
+        self._latest_masks.drop()
         with deferred_collection():
             checked = checked_actions(actions, self.possible_agents, self.single_action_space, self.num_envs)
             payloads = [{a: rows[s.first : s.first + s.size] for a, rows in checked.items()} for s in self._shards]
@@ -340,7 +353,10 @@ class ShardedVectorEnv:
             agents = self.possible_agents
             observations = {a: _join([r[0][a] for r in results]) for a in agents}
             rewards, terminations, truncations = ({a: np.concatenate([r[j][a] for r in results]) for a in agents} for j in (1, 2, 3))
-            return observations, rewards, terminations, truncations, tuple(info for r in results for info in r[4])
+            infos = tuple(info for r in results for info in r[4])
+            if self._masks_in_infos:
+                self._latest_masks.take(infos, agents)
+            return observations, rewards, terminations, truncations, infos
 
     def sample_actions(self, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """Uniform random actions of every agent for every copy, drawn from ``rng``
@@ -349,7 +365,11 @@ class ShardedVectorEnv:
 
     # ------------------------------------------------------------------ the rest
     def action_masks(self) -> dict[str, np.ndarray]:
-        """Switching mode: agent -> ``(num_envs, n)`` int8, each copy's ``action_masks()``."""
+        """Switching mode: agent -> ``(num_envs, n)`` int8, each copy's ``action_masks()`` (the
+        ones the last reset's or step's infos carried, if they did, as :class:`MomaVectorEnv`)."""
+        latest = self._latest_masks.get(lambda index: self._at(index, "call", lambda local: (local, copy_action_masks, (), {})))
+        if latest is not None:
+            return latest
         parts = self._broadcast("action_masks", [None] * self.workers)
         return {a: np.concatenate([p[a] for p in parts]) for a in parts[0]}
 
@@ -364,6 +384,7 @@ class ShardedVectorEnv:
     def call_at(self, index: int, function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
         """``function(env, *args, **kwargs)`` on copy ``index``'s parallel env, run in its worker
         (``function``, the arguments and the result must pickle)."""
+        self._latest_masks.stale(checked_index(index, self.num_envs))
         return self._at(index, "call", lambda local: (local, function, args, kwargs))
 
     def close(self) -> None:
