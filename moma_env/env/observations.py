@@ -161,7 +161,7 @@ def _box(features: Sequence[Feature]) -> spaces.Box:
     return spaces.Box(low=low, high=high, dtype=np.float32)
 
 
-@dataclass
+@dataclass(slots=True)
 class DeviceSnapshot:
     """What the estimator and the owner know of one device at this step."""
 

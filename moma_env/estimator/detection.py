@@ -13,7 +13,7 @@ import numpy as np
 __all__ = ["Detection", "frame_fusion_covariance"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, slots=True)
 class Detection:
     """A board detected in one image.
 

@@ -43,7 +43,7 @@ class Status(enum.Enum):
 EVENT_KINDS = ("static", "mobile", "frozen", "lost", "relocalised")
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, slots=True)
 class RobotEstimate:
     """A snapshot of one robot's estimate.
 
@@ -94,7 +94,7 @@ class RobotEstimate:
         return math.sqrt(max(0.0, float(cov[5, 5])))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class SwitchEvent:
     """A change in a robot's phase or status.
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from types import MappingProxyType
 
 from moma_env.estimator import Detection, RobotEstimate, Status
@@ -26,7 +26,7 @@ __all__ = ["Frame", "Switch", "Pose2D"]
 Pose2D = tuple[float, float, float]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Switch:
     """A state change the simulation handled this step.
 
@@ -42,7 +42,7 @@ class Switch:
     reason: str | None = None
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, slots=True)
 class Frame:
     """The simulation after a ``reset`` or a ``step``.
 
@@ -86,7 +86,8 @@ class Frame:
 
     def __getstate__(self) -> dict:
         # Read-only views cannot be pickled: store their dicts, and rewrap them on load.
-        return {k: dict(v) if isinstance(v, MappingProxyType) else v for k, v in self.__dict__.items()}
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        return {k: dict(v) if isinstance(v, MappingProxyType) else v for k, v in values.items()}
 
     def __setstate__(self, state: dict) -> None:
         for k, v in state.items():

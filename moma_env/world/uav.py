@@ -40,7 +40,7 @@ __all__ = ["GRAVITY", "UAVState", "UAVDynamics", "uav_body_transform"]
 GRAVITY = 9.81
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class UAVState:
     """Snapshot of the observer's state.
 
