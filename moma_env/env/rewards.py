@@ -108,7 +108,7 @@ REWARD_TERMS: tuple[RewardTerm, ...] = (
 )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class RewardStep:
     """One step's reward: the total, each weighted term, and what happened."""
 
