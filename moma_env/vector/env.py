@@ -35,8 +35,8 @@ episode's simulated duration, s) and, in switching mode, ``"final_action_masks"`
 
 Action masks (switching mode): ``action_masks()`` gives every UGV's mask for the next
 step. With ``EnvConfig.action_masks`` on, every UGV's infos carry that mask already, so
-after a ``reset`` or ``step`` the batch returns those (:class:`LatestMasks`) instead of
-computing them again; after :meth:`reset_at` or :meth:`call_at`, which may change a
+after a ``reset`` or ``step`` the batch returns those (:class:`LatestMasks`, read from the
+infos when asked for) instead of computing them again; after :meth:`reset_at` or :meth:`call_at`, which may change a
 copy, that copy's masks are computed anew.
 """
 
@@ -65,8 +65,10 @@ def masks_in_infos(infos: Sequence[Mapping[str, Any]], agents: Sequence[str]) ->
     """UGV agent -> ``(num_envs, n)`` int8: the ``"action_mask"`` each copy's infos carry for
     every UGV of ``agents`` (``EnvConfig.action_masks``), stacked; None if one is missing."""
     ugvs = [a for a in agents if not is_observer_agent(a)]
+    if not ugvs or not infos:
+        return None
     try:
-        return {a: np.stack([info[a]["action_mask"] for info in infos]) for a in ugvs} if ugvs and infos else None
+        return {a: np.stack([info[a]["action_mask"] for info in infos]) for a in ugvs}
     except KeyError:
         return None
 
@@ -75,35 +77,44 @@ class LatestMasks:
     """A batch's action masks for the next step as its last reset's or step's infos carried
     them (:func:`masks_in_infos`), so that ``action_masks()`` need not compute them again.
 
-    :meth:`take` keeps them (None when the infos carry none), :meth:`drop` forgets them,
-    :meth:`stale` marks one copy's row as possibly changed since (a call on that copy), and
-    :meth:`get` returns copies of them after recomputing the stale rows, or None when none
-    are kept.
+    :meth:`take` keeps the infos (nothing is read until the masks are asked for, so a
+    step pays nothing for them: a worker's shard, or a caller that never asks),
+    :meth:`drop` forgets them, :meth:`stale` marks one copy's row as possibly changed
+    since (a call on that copy), and :meth:`get` returns the masks, new arrays, with the
+    stale rows recomputed, or None when the infos carry none. The infos' mask arrays are
+    read at the first :meth:`get` after a step: changed in place before, they change it.
     """
 
-    __slots__ = ("_masks", "_stale")
+    __slots__ = ("_infos", "_agents", "_masks", "_stale")
 
     def __init__(self) -> None:
+        self._infos: Sequence[Mapping[str, Any]] | None = None
+        self._agents: Sequence[str] = ()
         self._masks: dict[str, np.ndarray] | None = None
         self._stale: set[int] = set()
 
     def take(self, infos: Sequence[Mapping[str, Any]], agents: Sequence[str]) -> None:
-        self._masks = masks_in_infos(infos, agents)
+        self._infos, self._agents, self._masks = infos, agents, None
         self._stale.clear()
 
     def drop(self) -> None:
-        self._masks = None
+        self._infos, self._masks = None, None
         self._stale.clear()
 
     def stale(self, index: int) -> None:
-        if self._masks is not None:
+        if self._infos is not None:
             self._stale.add(index)
 
     def get(self, copy_masks: Callable[[int], Mapping[str, np.ndarray]]) -> dict[str, np.ndarray] | None:
         """agent -> ``(num_envs, n)`` int8 (new arrays), the stale rows from ``copy_masks(index)``."""
-        masks = self._masks
-        if masks is None:
+        if self._infos is None:
             return None
+        if self._masks is None:
+            self._masks = masks_in_infos(self._infos, self._agents)
+            if self._masks is None:
+                self.drop()
+                return None
+        masks = self._masks
         for index in sorted(self._stale):
             row = copy_masks(index)
             for agent, rows in masks.items():

@@ -367,11 +367,15 @@ class ShardedVectorEnv:
     def action_masks(self) -> dict[str, np.ndarray]:
         """Switching mode: agent -> ``(num_envs, n)`` int8, each copy's ``action_masks()`` (the
         ones the last reset's or step's infos carried, if they did, as :class:`MomaVectorEnv`)."""
-        latest = self._latest_masks.get(lambda index: self._at(index, "call", lambda local: (local, copy_action_masks, (), {})))
+        latest = self._latest_masks.get(self._copy_masks)
         if latest is not None:
             return latest
         parts = self._broadcast("action_masks", [None] * self.workers)
         return {a: np.concatenate([p[a] for p in parts]) for a in parts[0]}
+
+    def _copy_masks(self, index: int) -> dict[str, np.ndarray]:
+        """Copy ``index``'s ``action_masks()``, computed in its worker."""
+        return self._at(index, "call", lambda local: (local, copy_action_masks, (), {}))
 
     def state(self) -> np.ndarray:
         """``(num_envs, state_dim)`` float32: each copy's ``state()``."""
