@@ -30,6 +30,7 @@ _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 
 __all__ = [
     "wrap_angle",
+    "hypot_kernel",
     "rot_x",
     "rot_y",
     "rot_z",
@@ -67,6 +68,81 @@ __all__ = [
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """Wrap an angle (rad) to the interval [-pi, pi)."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+#: Veltkamp's splitting constant, 2**27 + 1, and the smallest normal float64.
+_SPLITTER = 134217729.0
+_DBL_MIN = 2.2250738585072014e-308
+
+
+@numba.njit(cache=True)
+def _split(x: float) -> tuple[float, float]:
+    """``x`` as ``hi + lo``, each with at most 26 significant bits (Dekker, Veltkamp)."""
+    t = x * _SPLITTER
+    hi = t - (t - x)
+    return hi, x - hi
+
+
+@numba.njit(cache=True)
+def _exact_product(x: float, y: float) -> tuple[float, float]:
+    """``x * y`` as ``hi + lo`` (Dekker's product)."""
+    xh, xl = _split(x)
+    yh, yl = _split(y)
+    p = xh * yh
+    q = xh * yl + xl * yh
+    z = p + q
+    return z, p - z + q + xl * yl
+
+
+@numba.njit(cache=True)
+def _exact_sum(a: float, b: float) -> tuple[float, float]:
+    """``a + b`` as ``hi + lo`` for ``|a| >= |b|`` (Dekker's fast two-sum)."""
+    x = a + b
+    return x, b - (x - a)
+
+
+@numba.njit(cache=True)
+def hypot_kernel(x: float, y: float) -> float:
+    """``math.hypot(x, y)``, compiled, bit for bit: CPython's vector norm (3.10 on: scaled
+    by a power of two, squares and sums carried in two floats, a square root with one
+    differential correction), not the C library's ``hypot``, which differs from it in the
+    last bit for about 0.6 % of arguments. Bit for bit where the larger magnitude is a
+    normal float (at least 2.2e-308); below that, within one unit of the last place.
+    ``tests/test_geometry.py`` compares the two."""
+    a = abs(x)
+    b = abs(y)
+    if math.isinf(a) or math.isinf(b):
+        return math.inf
+    if math.isnan(a) or math.isnan(b):
+        return math.nan
+    largest = a if a > b else b
+    if largest == 0.0:
+        return largest
+    scaled_back = 1.0
+    _, exponent = math.frexp(largest)
+    if exponent < -1023:  # subnormal: normalise first
+        a /= _DBL_MIN
+        b /= _DBL_MIN
+        largest /= _DBL_MIN
+        scaled_back = _DBL_MIN
+        _, exponent = math.frexp(largest)
+    scale = math.ldexp(1.0, -exponent)
+    csum = 1.0
+    frac1 = 0.0
+    frac2 = 0.0
+    for v in (a, b):
+        v *= scale
+        hi, lo = _exact_product(v, v)
+        csum, rest = _exact_sum(csum, hi)
+        frac1 += lo
+        frac2 += rest
+    h = math.sqrt(csum - 1.0 + (frac1 + frac2))
+    hi, lo = _exact_product(-h, h)
+    csum, rest = _exact_sum(csum, hi)
+    frac1 += lo
+    frac2 += rest
+    h += (csum - 1.0 + (frac1 + frac2)) / (2.0 * h)
+    return scaled_back * (h / scale)
 
 
 def rot_x(angle: float) -> np.ndarray:

@@ -9,13 +9,13 @@ same inputs with the same messages.
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numpy as np
 import pytest
 
 from moma_env import geometry as g
 from moma_env.estimator import Detection, EstimatorConfig, MomaEstimator, OutlierGate, OutlierGateConfig, SwitchWindow
-from moma_env.estimator import gate as gate_module
 from moma_env.estimator import moma as moma_module
 from moma_env.estimator.uncertainty import (
     LinearError,
@@ -304,17 +304,108 @@ def test_jacobians_match_the_block_built_reference_bit_for_bit(seed):
         assert same_bits(upright_projection_jacobian(A, B), reference_upright(A, B))
 
 
-def test_gate_angle_matches_the_sum_it_replaces():
-    rng = np.random.default_rng(0)
-    for _ in range(500):
-        a = tuple(g.rotvec_to_matrix(rng.normal(0.0, 2.0, 3)).ravel().tolist())
-        b = tuple(g.rotvec_to_matrix(rng.normal(0.0, 2.0, 3)).ravel().tolist())
+class ReferenceGate:
+    """The outlier gate as it was written in plain Python (deques of tuples), before its
+    state became one array judged by a compiled call: the reference of the test below."""
+
+    def __init__(self, cfg: OutlierGateConfig):
+        self.cfg = cfg
+        self.accepted: deque = deque(maxlen=cfg.history)
+        self.rotation = None
+        self.last_accepted = 0.0
+        self.pending: deque = deque(maxlen=cfg.start_samples)
+        self.last_pending = 0.0
+
+    @staticmethod
+    def split(T):
+        (a, b, c, x), (d, e, f, y), (g_, h, i, z) = T[:3].tolist()
+        return (x, y, z), (a, b, c, d, e, f, g_, h, i)
+
+    @staticmethod
+    def angle(a, b):
         trace = sum(x * y for x, y in zip(a, b))
-        assert gate_module._angle(a, b) == math.acos(min(1.0, max(-1.0, 0.5 * (trace - 1.0))))
-    gate = OutlierGate(OutlierGateConfig())
-    T = random_pose(rng)
-    gate.reset(seed=T, time=0.0)
-    assert gate.accept(T, 0.04)
+        return math.acos(min(1.0, max(-1.0, 0.5 * (trace - 1.0))))
+
+    def reset(self, seed=None, time=0.0):
+        self.accepted.clear()
+        self.pending.clear()
+        self.rotation = None
+        if seed is not None:
+            p, R = self.split(seed)
+            self.accepted.append(p)
+            self.rotation = R
+            self.last_accepted = time
+
+    def accept(self, T, time):
+        cfg = self.cfg
+        p, R = self.split(T)
+        if self.accepted and time - self.last_accepted > cfg.reset_after_s:
+            self.accepted.clear()
+            self.rotation = None
+        if self.accepted:
+            n = len(self.accepted)
+            mean = [sum(q[k] for q in self.accepted) / n for k in range(3)]
+            if sum(abs(p[k] - mean[k]) for k in range(3)) > cfg.jump_tolerance_m:
+                return False
+            if self.rotation is not None and self.angle(self.rotation, R) > cfg.jump_tolerance_rad:
+                return False
+            self.accepted.append(p)
+            self.rotation = R
+            self.last_accepted = time
+            return True
+        if self.pending and time - self.last_pending > cfg.reset_after_s:
+            self.pending.clear()
+        self.pending.append((p, R))
+        self.last_pending = time
+        if len(self.pending) < cfg.start_samples:
+            return False
+        items = tuple(self.pending)
+        for i in range(len(items)):
+            for j in range(i + 1, len(items)):
+                l1 = sum(abs(items[i][0][k] - items[j][0][k]) for k in range(3))
+                if l1 > cfg.start_tolerance_m or self.angle(items[i][1], items[j][1]) > cfg.start_tolerance_rad:
+                    return False
+        self.accepted.extend(q for q, _ in items)
+        self.rotation = R
+        self.pending.clear()
+        self.last_accepted = time
+        return True
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_gate_decides_as_the_plain_python_gate(seed):
+    """A smooth stream with jumps, wrong rotations, samples at the jump tolerance from the
+    accepted mean (where the mean's last bits decide), gaps longer than ``reset_after_s``
+    and resets (seeded or not): every decision as the reference's."""
+    rng = np.random.default_rng(seed)
+    cfg = [OutlierGateConfig(), OutlierGateConfig(history=1, start_samples=5), OutlierGateConfig(history=6, start_samples=2)][seed % 3]
+    gate, reference = OutlierGate(cfg), ReferenceGate(cfg)
+    p, w, t = rng.normal(0.0, 1.0, 3), rng.normal(0.0, 1.0, 3), 0.0
+    decisions = []
+    for _ in range(800):
+        t += 0.04 if rng.random() > 0.05 else rng.uniform(0.5, 2.0)
+        p, w = p + rng.normal(0.0, 0.01, 3), w + rng.normal(0.0, 0.02, 3)
+        q, v = p, w
+        u = rng.random()
+        if u < 0.1:
+            q = p + rng.normal(0.0, 0.2, 3)  # a jump
+        elif u < 0.25 and reference.accepted:  # at the tolerance from the accepted mean
+            mean = np.mean(np.array(reference.accepted), axis=0)
+            q = mean + np.eye(3)[rng.integers(3)] * rng.choice([-1.0, 1.0]) * cfg.jump_tolerance_m * rng.uniform(0.9, 1.1)
+        if rng.random() < 0.1:
+            v = w + rng.normal(0.0, 0.4, 3)  # a wrong rotation
+        T = g.make_transform(g.rotvec_to_matrix(v), q)
+        r = rng.random()
+        if r < 0.03:
+            seed_pose = T if r < 0.02 else None
+            gate.reset(seed=seed_pose, time=t)
+            reference.reset(seed=seed_pose, time=t)
+        else:
+            got = gate.accept(T, t)
+            assert got == reference.accept(T, t), t
+            decisions.append(got)
+        assert gate.has_history == bool(reference.accepted)
+    assert 50 < sum(decisions) < len(decisions) - 50  # both outcomes, many times
 
 
 # ------------------------------------------------------------------ the input checks

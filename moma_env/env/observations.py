@@ -44,13 +44,15 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from gymnasium import spaces
 
 from moma_env.estimator import Status
+from moma_env.geometry import hypot_kernel
 from moma_env.sim import Frame
 
-__all__ = ["DeviceSnapshot", "Feature", "ObservationLayout", "describe", "device_snapshots", "padded", "STATUS_ORDER"]
+__all__ = ["DEVICE_COLUMNS", "Feature", "ObservationLayout", "describe", "device_table", "padded", "STATUS_ORDER"]
 
 #: Order of the status one-hot.
 STATUS_ORDER = (Status.LOCALISED, Status.HOLDING, Status.LOST)
@@ -161,39 +163,163 @@ def _box(features: Sequence[Feature]) -> spaces.Box:
     return spaces.Box(low=low, high=high, dtype=np.float32)
 
 
-@dataclass(slots=True)
-class DeviceSnapshot:
-    """What the estimator and the owner know of one device at this step."""
+#: Columns of :func:`device_table`, one row per device: what its owner knows of it.
+DEVICE_COLUMNS = (
+    "x",  # estimated pose in W (m, rad); 0 without one
+    "y",
+    "yaw",
+    "has_pose",  # 1 if it has an estimate that is not LOST
+    "static",  # 1 if declared static
+    "localised",  # status one-hot, in STATUS_ORDER
+    "holding",
+    "lost",
+    "staleness",  # age of the last fresh estimate / lost_after_s, clipped to 1 (1 without one)
+    "position_std_m",  # root of the trace of the position covariance (m), NaN without one
+    "heading_std_rad",  # heading standard deviation (rad), NaN without one
+    "seen",  # 1 if the frame's detections involve it
+)
+_X, _Y, _YAW, _HAS_POSE, _STATIC, _LOCALISED, _HOLDING, _LOST, _STALENESS, _POSITION_STD, _HEADING_STD, _SEEN = range(len(DEVICE_COLUMNS))
 
-    pose: tuple[float, float, float] | None  # estimated (x, y, yaw) in W
-    status: Status
-    static: bool
-    staleness: float  # in [0, 1]
-    position_std_m: float  # root of the trace of the position covariance (m), NaN without one
-    heading_std_rad: float  # heading standard deviation (rad), NaN without one
-    seen: bool
 
-
-def device_snapshots(
-    frame: Frame, board_device: Callable[[int], str], camera_owner: Mapping[str, str], lost_after_s: float
-) -> dict[str, DeviceSnapshot]:
-    """What every device's owner knows at ``frame``: its estimate (None when LOST), status,
-    declared state, staleness (age of the last fresh estimate / ``lost_after_s`` (s),
-    clipped to 1), standard deviations, and whether the frame's detections involve it."""
+def device_table(
+    frame: Frame, devices: Sequence[str], board_device: Callable[[int], str], camera_owner: Mapping[str, str], lost_after_s: float
+) -> np.ndarray:
+    """What every device's owner knows at ``frame``, one float64 row per device of
+    ``devices`` with the columns of :data:`DEVICE_COLUMNS`: its estimate (none when LOST),
+    status, declared state, staleness (age of the last fresh estimate / ``lost_after_s``
+    (s), clipped to 1), standard deviations, and whether the frame's detections involve it."""
     seen: set[str] = set()
     for d in frame.detections:
         seen.add(board_device(d.board_id))
         seen.add(camera_owner[d.camera_id])
     t = frame.time
-    snaps = {}
-    for device in frame.truth:
+    mobile = frame.mobile
+    values: list[float] = []
+    for device in devices:
         e = frame.estimates[device]
-        pose = None if e.status is Status.LOST else frame.estimated[device]
-        age = 1.0 if e.last_fresh_time is None else min(1.0, (t - e.last_fresh_time) / lost_after_s)
-        snaps[device] = DeviceSnapshot(
-            pose, e.status, device not in frame.mobile, age, e.position_std_m, e.heading_std_rad, device in seen
-        )
-    return snaps
+        status = e.status
+        pose = None if status is Status.LOST else frame.estimated[device]
+        values += (0.0, 0.0, 0.0, 0.0) if pose is None else (*pose, 1.0)
+        values.append(0.0 if device in mobile else 1.0)
+        values += _ONE_HOT[status]
+        values.append(1.0 if e.last_fresh_time is None else min(1.0, (t - e.last_fresh_time) / lost_after_s))
+        values += (e.position_std_m, e.heading_std_rad, 1.0 if device in seen else 0.0)
+    return np.array(values, dtype=np.float64).reshape(len(devices), len(DEVICE_COLUMNS))
+
+
+@numba.njit(cache=True)
+def _put(out: np.ndarray, k: int, value: float, low: np.ndarray, high: np.ndarray) -> int:
+    """``out[k] = value`` as float32, clipped to ``[low[k], high[k]]`` as numpy's ``clip``
+    does it (NaN kept; ``-0.0`` against a bound ``0.0`` becomes ``0.0``); returns ``k + 1``."""
+    v = np.float32(value)
+    if not math.isnan(v):
+        lo = low[k]
+        hi = high[k]
+        v = v if v > lo else lo
+        v = v if v < hi else hi
+    out[k] = v
+    return k + 1
+
+
+@numba.njit(cache=True)
+def _scaled_std(std: float, scale: float) -> float:
+    """An uncertainty feature (see :func:`uncertainty`): ``std / scale`` clipped to 1, NaN as 1."""
+    v = std / scale
+    return v if v < 1.0 else 1.0
+
+
+@numba.njit(cache=True)
+def _ugv_rows(
+    table: np.ndarray,
+    rows: np.ndarray,
+    goals: np.ndarray,
+    ropes: np.ndarray,
+    scalars: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    sizes: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """Every UGV's observation (the layout of the module docstring) into ``out[u, :sizes[u]]``.
+
+    ``rows[u]``: the row of ``table`` of UGV ``u``, then those of the other devices in
+    order; ``goals[u]``: goal x, y, yaw and 1 (0 without a goal); ``ropes[u]``: the rope
+    feature (read when ``sizes[u]`` leaves room for it); ``scalars``: arena centre x, y,
+    half-diagonal ``R``, time since the last switch, the switch horizon, dwell remaining,
+    dwell (m, s). The same float64 arithmetic as the Python it replaces, then float32.
+    """
+    cx, cy, r = scalars[0], scalars[1], scalars[2]
+    since, horizon, dwell_left, dwell = scalars[3], scalars[4], scalars[5], scalars[6]
+    two_r = 2.0 * r
+    since_feature = since / horizon
+    since_feature = since_feature if since_feature < 1.0 else 1.0
+    dwell_feature = 0.0
+    if dwell > 0:
+        dwell_feature = dwell_left / dwell
+        dwell_feature = dwell_feature if dwell_feature < 1.0 else 1.0
+    for u in range(rows.shape[0]):
+        o = out[u]
+        lo = low[u]
+        hi = high[u]
+        me = rows[u, 0]
+        has_pose = table[me, _HAS_POSE] != 0.0
+        x = table[me, _X]
+        y = table[me, _Y]
+        yaw = table[me, _YAW]
+        c = 0.0
+        s = 0.0
+        k = 0
+        if has_pose:
+            c = math.cos(yaw)
+            s = math.sin(yaw)
+            k = _put(o, k, (x - cx) / r, lo, hi)
+            k = _put(o, k, (y - cy) / r, lo, hi)
+            k = _put(o, k, c, lo, hi)
+            k = _put(o, k, s, lo, hi)
+            k = _put(o, k, 1.0, lo, hi)
+        else:
+            for _ in range(5):
+                k = _put(o, k, 0.0, lo, hi)
+        for column in (_STATIC, _LOCALISED, _HOLDING, _LOST, _STALENESS):
+            k = _put(o, k, table[me, column], lo, hi)
+        k = _put(o, k, _scaled_std(table[me, _POSITION_STD], _POSITION_STD_SCALE_M), lo, hi)
+        k = _put(o, k, _scaled_std(table[me, _HEADING_STD], _HEADING_STD_SCALE_RAD), lo, hi)
+        has_goal = goals[u, 3] != 0.0
+        if has_goal and has_pose:
+            dx = goals[u, 0] - x
+            dy = goals[u, 1] - y
+            dyaw = goals[u, 2] - yaw
+            k = _put(o, k, (c * dx + s * dy) / two_r, lo, hi)
+            k = _put(o, k, (-s * dx + c * dy) / two_r, lo, hi)
+            k = _put(o, k, math.cos(dyaw), lo, hi)
+            k = _put(o, k, math.sin(dyaw), lo, hi)
+            k = _put(o, k, hypot_kernel(dx, dy) / two_r, lo, hi)
+            k = _put(o, k, 1.0, lo, hi)
+        else:
+            for _ in range(5):
+                k = _put(o, k, 0.0, lo, hi)
+            k = _put(o, k, 1.0 if has_goal else 0.0, lo, hi)
+        k = _put(o, k, since_feature, lo, hi)
+        k = _put(o, k, dwell_feature, lo, hi)
+        k = _put(o, k, table[me, _SEEN], lo, hi)
+        for j in range(1, rows.shape[1]):
+            other = rows[u, j]
+            if table[other, _HAS_POSE] != 0.0 and has_pose:
+                dx = table[other, _X] - x
+                dy = table[other, _Y] - y
+                dyaw = table[other, _YAW] - yaw
+                k = _put(o, k, (c * dx + s * dy) / two_r, lo, hi)
+                k = _put(o, k, (-s * dx + c * dy) / two_r, lo, hi)
+                k = _put(o, k, math.cos(dyaw), lo, hi)
+                k = _put(o, k, math.sin(dyaw), lo, hi)
+                k = _put(o, k, 1.0, lo, hi)
+            else:
+                for _ in range(5):
+                    k = _put(o, k, 0.0, lo, hi)
+            for column in (_STATIC, _LOCALISED, _HOLDING, _LOST):
+                k = _put(o, k, table[other, column], lo, hi)
+        if k < sizes[u]:
+            _put(o, k, ropes[u], lo, hi)
 
 
 def padded(value: spaces.Box | np.ndarray, size: int) -> spaces.Box | np.ndarray:
@@ -220,6 +346,7 @@ class ObservationLayout:
         dwell_s: the rules' dwell time (s).
         switch_horizon_s: the time since the last switch (s) at which its feature
             reaches 1 (and stays: it is clipped).
+        goals: UGV agent -> its goal ``(x, y, yaw)`` in W (m, rad); a UGV left out has none.
     """
 
     def __init__(
@@ -232,6 +359,7 @@ class ObservationLayout:
         half_diagonal: float,
         dwell_s: float,
         switch_horizon_s: float,
+        goals: Mapping[str, tuple[float, float, float]] | None = None,
     ):
         self.devices = tuple(devices)
         self.tows = dict(tows)
@@ -240,11 +368,28 @@ class ObservationLayout:
             self.features[agent] = observer_features(self.devices)
         self.spaces = {a: _box(f) for a, f in self.features.items()}
         self._bounds = {a: (space.low, space.high) for a, space in self.spaces.items()}
-        self._others = {a: tuple(d for d in self.devices if d != a) for a in ugv_agents}
         self._cx, self._cy = centre
         self._r = half_diagonal
         self._dwell = dwell_s
         self._switch_horizon = switch_horizon_s
+        # The UGVs' builders' inputs that hold for the episode (see _ugv_rows).
+        self._ugv_agents = tuple(ugv_agents)
+        goals = {} if goals is None else goals
+        index = {d: i for i, d in enumerate(self.devices)}
+        self._rows = np.array(
+            [[index[a], *(index[d] for d in self.devices if d != a)] for a in self._ugv_agents], dtype=np.int64
+        ).reshape(len(self._ugv_agents), len(self.devices))
+        self._goals = np.array(
+            [(*goals[a], 1.0) if a in goals else (0.0, 0.0, 0.0, 0.0) for a in self._ugv_agents], dtype=np.float64
+        ).reshape(len(self._ugv_agents), 4)
+        self._sizes = np.array([len(self.features[a]) for a in self._ugv_agents], dtype=np.int64)
+        width = int(self._sizes.max(initial=0))
+        self._low = np.zeros((len(self._ugv_agents), width), dtype=np.float32)
+        self._high = np.zeros((len(self._ugv_agents), width), dtype=np.float32)
+        for u, agent in enumerate(self._ugv_agents):
+            low, high = self._bounds[agent]
+            self._low[u, : low.shape[0]] = low
+            self._high[u, : high.shape[0]] = high
 
     # ------------------------------------------------------------------ helpers
     def _abs_pose(self, out: list[float], pose: tuple[float, float, float] | None) -> None:
@@ -265,49 +410,32 @@ class ObservationLayout:
         return obs
 
     # ------------------------------------------------------------------ builders
-    def ugv(
-        self,
-        agent: str,
-        snap: Mapping[str, DeviceSnapshot],
-        goal: tuple[float, float, float] | None,
-        since_switch: float,
-        dwell_remaining: float,
-        rope_fraction: float | None,
-    ) -> np.ndarray:
-        """Observation vector of UGV ``agent``."""
-        me = snap[agent]
-        pose = me.pose
-        out: list[float] = []
-        self._abs_pose(out, pose)
-        out.append(1.0 if me.static else 0.0)
-        out += _ONE_HOT[me.status]
-        out.append(me.staleness)
-        out += uncertainty(me.position_std_m, me.heading_std_rad)
-        two_r = 2.0 * self._r
-        if pose is not None:
-            x, y, yaw = pose
-            c, s = math.cos(yaw), math.sin(yaw)
-        if goal is not None and pose is not None:
-            dx, dy = goal[0] - x, goal[1] - y
-            dyaw = goal[2] - yaw
-            out += [(c * dx + s * dy) / two_r, (-s * dx + c * dy) / two_r, math.cos(dyaw), math.sin(dyaw), math.hypot(dx, dy) / two_r, 1.0]
-        else:
-            out += [0.0, 0.0, 0.0, 0.0, 0.0, 1.0 if goal is not None else 0.0]
-        self._timing(out, since_switch, dwell_remaining)
-        out.append(1.0 if me.seen else 0.0)
-        for other in self._others[agent]:
-            o = snap[other]
-            if o.pose is not None and pose is not None:
-                dx, dy = o.pose[0] - x, o.pose[1] - y
-                dyaw = o.pose[2] - yaw
-                out += [(c * dx + s * dy) / two_r, (-s * dx + c * dy) / two_r, math.cos(dyaw), math.sin(dyaw), 1.0]
-            else:
-                out += [0.0, 0.0, 0.0, 0.0, 0.0]
-            out.append(1.0 if o.static else 0.0)
-            out += _ONE_HOT[o.status]
-        if agent in self.tows:
-            out.append(0.0 if rope_fraction is None else rope_fraction)
-        return self._finish(agent, out)
+    def ugvs(
+        self, table: np.ndarray, since_switch: float, dwell_remaining: float, ropes: Mapping[str, float] | None = None
+    ) -> dict[str, np.ndarray]:
+        """Observation vectors of every UGV agent (agent -> float32 vector, in ``ugv_agents``
+        order), in one compiled call.
+
+        Args:
+            table: :func:`device_table` of ``devices``.
+            since_switch: time since the last switch (s).
+            dwell_remaining: the rules' dwell remaining (s).
+            ropes: towing agent -> its rope length / its maximum (none: 0).
+        """
+        agents = self._ugv_agents
+        n = len(agents)
+        rope = np.zeros(n)
+        if ropes:
+            for u, agent in enumerate(agents):
+                value = ropes.get(agent)
+                if value is not None:
+                    rope[u] = value
+        scalars = np.array((self._cx, self._cy, self._r, since_switch, self._switch_horizon, dwell_remaining, self._dwell))
+        out = np.empty(self._low.shape, dtype=np.float32)
+        _ugv_rows(table, self._rows, self._goals, rope, scalars, self._low, self._high, self._sizes, out)
+        sizes = self._sizes
+        width = out.shape[1]
+        return {a: out[u] if sizes[u] == width else out[u, : sizes[u]] for u, a in enumerate(agents)}
 
     def observer(
         self,

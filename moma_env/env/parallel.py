@@ -52,7 +52,7 @@ from moma_env.env.actions import ActionMode, SwitchingActions, action_mode, pars
 from moma_env.env.agent_names import OBSERVER, observer_agent_names
 from moma_env.env.cameras import build_cameras, floor_for
 from moma_env.env.config import EnvConfig, checked_max_cycles
-from moma_env.env.observations import ObservationLayout, device_snapshots, padded
+from moma_env.env.observations import ObservationLayout, device_table, padded
 from moma_env.env.pixels import observation_spaces, observer_observation
 from moma_env.env.rewards import TeamReward
 from moma_env.estimator import Status
@@ -211,7 +211,10 @@ class MomaParallelEnv(ParallelEnv):
         centre = ((xmin + xmax) / 2.0, (ymin + ymax) / 2.0)
         half_diag = 0.5 * math.hypot(xmax - xmin, ymax - ymin)
         devices = self.simulation.devices
-        self.layout = ObservationLayout(devices, self._ugvs, self._tows, tuple(self._observers), centre, half_diag, scenario.dwell_s, self.config.switch_horizon_s)
+        self.layout = ObservationLayout(
+            devices, self._ugvs, self._tows, tuple(self._observers), centre, half_diag, scenario.dwell_s, self.config.switch_horizon_s,
+            goals=scenario.goals,
+        )
         if not hasattr(self, "_action_spaces"):
             # The spaces are made once: every scenario of the env has the same robots, and a
             # space object (with its sampling generator) stays the same across resets.
@@ -468,19 +471,13 @@ class MomaParallelEnv(ParallelEnv):
         if not self.agents:
             return {}
         sim = self.simulation
-        snaps = device_snapshots(frame, sim.board_device, sim.camera_owner, self.scenario.estimator.lost_after_s)
+        table = device_table(frame, self.layout.devices, sim.board_device, sim.camera_owner, self.scenario.estimator.lost_after_s)
         since = frame.time - frame.last_switch_time
         dwell_left = frame.dwell_remaining
-        obs = {}
         observers = self._observers
-        for agent in self.agents:
-            if agent in observers:
-                continue
-            rope = None
-            sled = self._tows.get(agent)
-            if sled is not None:
-                rope = frame.ropes[sled] / self.scenario.world.sled(sled).max_rope
-            obs[agent] = self.layout.ugv(agent, snaps, self.scenario.goals.get(agent), since, dwell_left, rope)
+        ropes = {agent: frame.ropes[sled] / self.scenario.world.sled(sled).max_rope for agent, sled in self._tows.items()}
+        ugv_obs = self.layout.ugvs(table, since, dwell_left, ropes)
+        obs = {agent: ugv_obs[agent] for agent in self.agents if agent not in observers}
         for agent, uav in observers.items():
             if agent in self.agents:
                 e = frame.estimates[uav.name]
