@@ -616,3 +616,33 @@ def test_the_compiled_detection_steps_are_the_helpers_bit_for_bit(seed):
                 assert same_bits(got[0], g.upright_body_from_mount(T_w_c, mount, 0.3)) and same_bits(got[1], upright_projection_jacobian(T_w_c, mount))
             else:
                 assert same_bits(got[0], T_w_c @ inverse) and same_bits(got[1], compose_jacobian_first(T_w_c, inverse))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_sample_from_a_board_seen_is_the_two_steps_it_fuses_bit_for_bit(seed):
+    """sample_from_board_seen = body_from_board_seen, then LinearError.through, for camera
+    errors of zero, one and two references, with and without P, and detections with and
+    without their noise."""
+    from moma_env.estimator.kernels import body_from_board_seen, sample_from_board_seen
+    from moma_env.estimator.uncertainty import noise_operands
+
+    rng = np.random.default_rng(seed)
+    for k in range(300):
+        T_w_c, T_c_m, mount = (random_pose(rng) for _ in range(3))
+        inverse = g.invert(mount)
+        keys = [[], ["a"], ["a", "b"]][k % 3]
+        camera_error = LinearError(
+            {key: rng.normal(size=(6, 6)) for key in keys}, random_covariance(rng), random_covariance(rng) if k % 2 else None
+        )
+        cov = None if k % 5 == 0 else random_covariance(rng)
+        persistent = None if cov is None or k % 4 == 0 else random_covariance(rng)
+        planar = bool(k % 7 < 4)
+        sample, A_cam, A_meas = body_from_board_seen(T_w_c, T_c_m, mount, inverse, planar, 0.3)
+        want = camera_error.through(A_cam, A_meas, cov, persistent)
+        names, *operands = camera_error.operands()
+        got_sample, *parts = sample_from_board_seen(T_w_c, T_c_m, mount, inverse, planar, 0.3, *operands, *noise_operands(cov, persistent))
+        got = LinearError.of_operands(names, *parts)
+        assert same_bits(got_sample, sample)
+        assert list(got.J) == list(want.J) and all(same_bits(got.J[key], want.J[key]) for key in keys)
+        assert same_bits(got.Q, want.Q)
+        assert (got.P is None) == (want.P is None) and (got.P is None or same_bits(got.P, want.P))

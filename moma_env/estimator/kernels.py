@@ -13,9 +13,15 @@ import numba
 import numpy as np
 
 from moma_env.geometry import invert_kernel, upright_body_kernel
-from moma_env.estimator.uncertainty import compose_first_kernel, compose_jacobians_kernel, inverse_jacobian_kernel, upright_jacobian_kernel
+from moma_env.estimator.uncertainty import (
+    compose_first_kernel,
+    compose_jacobians_kernel,
+    inverse_jacobian_kernel,
+    through_kernel,
+    upright_jacobian_kernel,
+)
 
-__all__ = ["camera_from_reference_board", "body_from_mounted_frame", "body_from_board_seen"]
+__all__ = ["camera_from_reference_board", "body_from_mounted_frame", "body_from_board_seen", "sample_from_board_seen"]
 
 
 @numba.njit(cache=True)
@@ -63,3 +69,19 @@ def body_from_board_seen(T_w_c, T_c_m, T_b_m, T_m_b, planar, plane_z):
     J_cam, J_meas = compose_jacobians_kernel(T_w_c, T_c_m)
     sample, A = body_from_mounted_frame(T_w_m, T_b_m, T_m_b, planar, plane_z)
     return sample, np.dot(A, J_cam), np.dot(A, J_meas)
+
+
+@numba.njit(cache=True)
+def sample_from_board_seen(
+    T_w_c, T_c_m, T_b_m, T_m_b, planar, plane_z, Js, Q, P, has_P, covariance, has_covariance, persistent, has_persistent
+):
+    """:func:`body_from_board_seen`, then the sample's error from the camera's (``Js``, ``Q``,
+    ``P``, ``has_P``: :meth:`LinearError.operands <moma_env.estimator.uncertainty.LinearError.operands>`)
+    and the detection's noise, as :meth:`LinearError.through
+    <moma_env.estimator.uncertainty.LinearError.through>` gives it: one call, the same bits.
+    Returns ``(T_w_b, Js', Q', P', has_P')``."""
+    sample, A_cam, A_meas = body_from_board_seen(T_w_c, T_c_m, T_b_m, T_m_b, planar, plane_z)
+    Js_out, Q_out, P_out, has_P_out = through_kernel(
+        Js, Q, P, has_P, True, A_cam, A_meas, covariance, has_covariance, persistent, has_persistent
+    )
+    return sample, Js_out, Q_out, P_out, has_P_out

@@ -24,8 +24,15 @@ from moma_env.estimator.errors import (
 from moma_env.estimator.fusion import information_fusion
 from moma_env.estimator.gate import OutlierGate
 from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
-from moma_env.estimator.kernels import body_from_board_seen, body_from_mounted_frame, camera_from_reference_board
-from moma_env.estimator.uncertainty import NO_MATRIX, LinearError, RunningErrorMean, compose_jacobian_first, matrix6_array
+from moma_env.estimator.kernels import body_from_mounted_frame, camera_from_reference_board, sample_from_board_seen
+from moma_env.estimator.uncertainty import (
+    NO_MATRIX,
+    LinearError,
+    RunningErrorMean,
+    compose_jacobian_first,
+    matrix6_array,
+    noise_operands,
+)
 from moma_env.estimator.window import SwitchWindow
 from moma_env.geometry import invert, mean_pose, pose_array
 
@@ -538,16 +545,18 @@ class MomaEstimator:
                 continue
             T_w_c, camera_error = located_camera
             own = camera_owner[camera_id]
+            operands = None
             for d in group:
                 r = board_owner[d.board_id]
                 if r.phase is not _REFERENCE and r is not own:
+                    if operands is None:
+                        keys, *operands = camera_error.operands()
                     planar = r.plane_z is not None
-                    sample, A_cam, A_meas = body_from_board_seen(
+                    sample, *parts = sample_from_board_seen(
                         T_w_c, pose_array(d.T_c_m, "T_c_m"), r.board_mounts[d.board_id], r.board_inverses[d.board_id],
-                        planar, r.plane_z if planar else 0.0,
+                        planar, r.plane_z if planar else 0.0, *operands, *noise_operands(d.covariance, d.persistent_covariance),
                     )
-                    error = camera_error.through(A_cam, A_meas, d.covariance, d.persistent_covariance)
-                    samples.setdefault(r, []).append((sample, error))
+                    samples.setdefault(r, []).append((sample, LinearError.of_operands(keys, *parts)))
         for camera_id, (T_w_c, camera_error) in camera_poses.items():
             r = camera_owner[camera_id]
             if r.phase is not _REFERENCE:

@@ -226,6 +226,16 @@ def matrix6_array(M: object, name: str = "matrix") -> np.ndarray:
     return kernel_array(M, (6, 6), name)
 
 
+def noise_operands(covariance: np.ndarray | None, persistent: np.ndarray | None) -> tuple[np.ndarray, bool, np.ndarray, bool]:
+    """A measurement's noise as the compiled calls take it: ``(covariance, given, persistent, given)``,
+    C-ordered float64 6x6 arrays, zero stand-ins where absent (a persistent part only with a covariance)."""
+    if covariance is None:
+        return NO_MATRIX, False, NO_MATRIX, False
+    if persistent is None:
+        return matrix6_array(covariance), True, NO_MATRIX, False
+    return matrix6_array(covariance), True, matrix6_array(persistent), True
+
+
 @numba.njit(cache=True)
 def through_kernel(Js, Q, P, has_P, transform, A, B, covariance, has_covariance, persistent, has_persistent):
     """:meth:`LinearError.through`, compiled: ``(A @ J[s] for each s, Q', P', whether P' exists)``
@@ -311,21 +321,30 @@ class LinearError:
         """``self.transformed(A).plus_noise(B, covariance, persistent)`` in one compiled call, the
         same bits: the error ``A @ e + B @ n`` of an estimate computed from this one and a fresh
         measurement ``n`` (``A`` None: no transform; ``B`` is ignored when ``covariance`` is None)."""
+        keys, stack, Q, P, has_P = self.operands()
+        with_noise = covariance is not None
+        Js, Q, P_out, has_P = through_kernel(
+            stack, Q, P, has_P, A is not None, NO_MATRIX if A is None else matrix6_array(A),
+            matrix6_array(B) if with_noise else NO_MATRIX, *noise_operands(covariance, persistent),
+        )
+        return LinearError.of_operands(keys, Js, Q, P_out, has_P)
+
+    def operands(self) -> tuple[list, np.ndarray, np.ndarray, np.ndarray, bool]:
+        """What the compiled calls take of this error: ``(keys, J stacked (k, 6, 6) in the keys'
+        order, Q, P or a zero stand-in, whether P exists)``; :meth:`of_operands` inverts it."""
         J = self.J
         keys = list(J)
         if len(keys) == 1:  # the usual case: a view, no copy
             stack = np.ascontiguousarray(J[keys[0]])[None]
         else:
             stack = np.array(list(J.values())) if keys else _NO_JACOBIANS
-        with_noise = covariance is not None
         P = self.P
-        Js, Q, P_out, has_P = through_kernel(
-            stack, self.Q, NO_MATRIX if P is None else P, P is not None, A is not None, NO_MATRIX if A is None else matrix6_array(A),
-            matrix6_array(B) if with_noise else NO_MATRIX,
-            matrix6_array(covariance) if with_noise else NO_MATRIX, with_noise,
-            matrix6_array(persistent) if with_noise and persistent is not None else NO_MATRIX, with_noise and persistent is not None,
-        )
-        return LinearError._of(dict(zip(keys, Js)), Q, P_out if has_P else None)
+        return keys, stack, self.Q, NO_MATRIX if P is None else P, P is not None
+
+    @classmethod
+    def of_operands(cls, keys: Sequence, Js: np.ndarray, Q: np.ndarray, P: np.ndarray, has_P: bool) -> LinearError:
+        """A new error from a compiled call's results, in the layout of :meth:`operands` (owning them)."""
+        return cls._of(dict(zip(keys, Js)), Q, P if has_P else None)
 
     def plus_noise(
         self, A: np.ndarray, covariance: np.ndarray | None, persistent: np.ndarray | None = None
