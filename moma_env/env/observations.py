@@ -91,12 +91,29 @@ def _uncertainty_features(prefix: str) -> list[Feature]:
     return [Feature(f"{prefix}.position_std", 0.0, 1.0), Feature(f"{prefix}.heading_std", 0.0, 1.0)]
 
 
+@numba.njit(cache=True)
+def _scaled_std(std: float, scale: float) -> float:
+    """An uncertainty feature: ``std / scale`` clipped to 1; NaN (no estimate) is 1."""
+    v = std / scale
+    return v if v < 1.0 else 1.0  # NaN compares False: 1.0
+
+
+@numba.njit(cache=True)
+def _timing_values(since: float, horizon: float, dwell_left: float, dwell: float) -> tuple[float, float]:
+    """The two timing features: time since the last switch / the switch horizon and dwell
+    remaining / dwell (0 without a dwell), each clipped to 1 (s / s)."""
+    since_feature = since / horizon
+    dwell_feature = 0.0
+    if dwell > 0:
+        dwell_feature = dwell_left / dwell
+        dwell_feature = dwell_feature if dwell_feature < 1.0 else 1.0
+    return (since_feature if since_feature < 1.0 else 1.0), dwell_feature
+
+
 def uncertainty(position_std_m: float, heading_std_rad: float) -> list[float]:
     """The two uncertainty features: standard deviations over their scales, clipped
     to [0, 1]; NaN (no estimate) is 1."""
-    p = position_std_m / _POSITION_STD_SCALE_M
-    h = heading_std_rad / _HEADING_STD_SCALE_RAD
-    return [p if p < 1.0 else 1.0, h if h < 1.0 else 1.0]  # NaN compares False: 1.0
+    return [_scaled_std(position_std_m, _POSITION_STD_SCALE_M), _scaled_std(heading_std_rad, _HEADING_STD_SCALE_RAD)]
 
 
 def _timing_features() -> list[Feature]:
@@ -222,13 +239,6 @@ def _put(out: np.ndarray, k: int, value: float, low: np.ndarray, high: np.ndarra
 
 
 @numba.njit(cache=True)
-def _scaled_std(std: float, scale: float) -> float:
-    """An uncertainty feature (see :func:`uncertainty`): ``std / scale`` clipped to 1, NaN as 1."""
-    v = std / scale
-    return v if v < 1.0 else 1.0
-
-
-@numba.njit(cache=True)
 def _ugv_rows(
     table: np.ndarray,
     rows: np.ndarray,
@@ -251,12 +261,7 @@ def _ugv_rows(
     cx, cy, r = scalars[0], scalars[1], scalars[2]
     since, horizon, dwell_left, dwell = scalars[3], scalars[4], scalars[5], scalars[6]
     two_r = 2.0 * r
-    since_feature = since / horizon
-    since_feature = since_feature if since_feature < 1.0 else 1.0
-    dwell_feature = 0.0
-    if dwell > 0:
-        dwell_feature = dwell_left / dwell
-        dwell_feature = dwell_feature if dwell_feature < 1.0 else 1.0
+    since_feature, dwell_feature = _timing_values(since, horizon, dwell_left, dwell)
     for u in range(rows.shape[0]):
         o = out[u]
         lo = low[u]
@@ -400,8 +405,7 @@ class ObservationLayout:
         out += [(x - self._cx) / self._r, (y - self._cy) / self._r, math.cos(yaw), math.sin(yaw), 1.0]
 
     def _timing(self, out: list[float], since_switch: float, dwell_remaining: float) -> None:
-        out.append(min(1.0, since_switch / self._switch_horizon))
-        out.append(0.0 if self._dwell <= 0 else min(1.0, dwell_remaining / self._dwell))
+        out += _timing_values(since_switch, self._switch_horizon, dwell_remaining, self._dwell)
 
     def _finish(self, agent: str, out: list[float]) -> np.ndarray:
         low, high = self._bounds[agent]
