@@ -322,8 +322,16 @@ class ReferenceGate:
         return (x, y, z), (a, b, c, d, e, f, g_, h, i)
 
     @staticmethod
-    def angle(a, b):
-        trace = sum(x * y for x, y in zip(a, b))
+    def total(values):
+        """Left to right from 0.0 (``sum`` of floats compensates since Python 3.12)."""
+        out = 0.0
+        for v in values:
+            out += v
+        return out
+
+    @classmethod
+    def angle(cls, a, b):
+        trace = cls.total(x * y for x, y in zip(a, b))
         return math.acos(min(1.0, max(-1.0, 0.5 * (trace - 1.0))))
 
     def reset(self, seed=None, time=0.0):
@@ -344,8 +352,8 @@ class ReferenceGate:
             self.rotation = None
         if self.accepted:
             n = len(self.accepted)
-            mean = [sum(q[k] for q in self.accepted) / n for k in range(3)]
-            if sum(abs(p[k] - mean[k]) for k in range(3)) > cfg.jump_tolerance_m:
+            mean = [self.total(q[k] for q in self.accepted) / n for k in range(3)]
+            if self.total(abs(p[k] - mean[k]) for k in range(3)) > cfg.jump_tolerance_m:
                 return False
             if self.rotation is not None and self.angle(self.rotation, R) > cfg.jump_tolerance_rad:
                 return False
@@ -362,7 +370,7 @@ class ReferenceGate:
         items = tuple(self.pending)
         for i in range(len(items)):
             for j in range(i + 1, len(items)):
-                l1 = sum(abs(items[i][0][k] - items[j][0][k]) for k in range(3))
+                l1 = self.total(abs(items[i][0][k] - items[j][0][k]) for k in range(3))
                 if l1 > cfg.start_tolerance_m or self.angle(items[i][1], items[j][1]) > cfg.start_tolerance_rad:
                     return False
         self.accepted.extend(q for q, _ in items)

@@ -168,7 +168,7 @@ class OutlierGate:
     @property
     def has_history(self) -> bool:
         """True when at least one accepted pose is remembered."""
-        return self._state[_N_ACCEPTED] > 0.0
+        return bool(self._state[_N_ACCEPTED] > 0.0)
 
     def reset(self, seed: np.ndarray | None = None, time: float = 0.0) -> None:
         """Forget everything; optionally remember the 4x4 pose ``seed`` as accepted at ``time`` (s)."""
