@@ -10,7 +10,15 @@ importing ``moma_env`` registers ``gymnasium.make("moma_env/TopObserver-v0")`` a
 PettingZoo ids (see :mod:`moma_env.registration`).
 """
 
-from moma_env.registration import register_envs
+from pathlib import Path
+
+from moma_env.kernel_cache import clear_if_sources_changed
+
+# Before any kernel loads: numba's caches of kernels that call kernels of other modules
+# go stale when only the callee's file changes (see moma_env.kernel_cache).
+clear_if_sources_changed(Path(__file__).resolve().parent)
+
+from moma_env.registration import register_envs  # noqa: E402
 
 __version__ = "0.1.0"
 
