@@ -23,6 +23,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from moma_env.io import atomic_write_text
+
 __all__ = ["CACHE_SUFFIXES", "STAMP_NAME", "clear_if_sources_changed", "sources_digest"]
 
 #: Suffixes of numba's cache files: the index of a kernel's compiled versions and their data.
@@ -114,7 +116,5 @@ def clear_if_sources_changed(package_dir: Path) -> bool:
                             removed = True
                         except FileNotFoundError:
                             pass
-        tmp = stamp.with_suffix(f".tmp{os.getpid()}")
-        tmp.write_text(f"{files}\n{sources}\n")
-        tmp.replace(stamp)  # whole or not at all
+        atomic_write_text(stamp, f"{files}\n{sources}\n")
     return removed
