@@ -20,7 +20,8 @@ def test_a_runs_policy_acts_and_the_teacher_labels(tmp_path, capsys):
     from training.train.run import train
 
     config = TrainConfig(scenario="top_observer_team4", algo="maskable_ppo", route="centralised", envs=2, net_arch=(16,),
-                         pretrain="greedy", pretrain_rows=60, pretrain_epochs=1, dagger_rounds=0, steps=0, eval_every=10**6)
+                         pretrain="greedy", pretrain_rows=60, pretrain_epochs=1, dagger_rounds=0, steps=0, eval_every=10**6,
+                         eval_episodes=1, eval_max_cycles=20)
     train(config, tmp_path / "run")
     argv = ["--teacher", "greedy", "--scenario", "top_observer_team4", "--copies", "2", "--rows", "30", "--rounds", "1"]
     assert main([*argv, "--learner", str(tmp_path / "run")]) == 0

@@ -44,7 +44,8 @@ def test_it_prints_the_agreement_of_a_run_with_its_teacher(tmp_path, capsys):
     from training.train.run import train
 
     config = TrainConfig(scenario="top_observer_team4", algo="maskable_ppo", route="centralised", envs=2, net_arch=(16,),
-                         pretrain="greedy", pretrain_rows=60, pretrain_epochs=1, dagger_rounds=0, steps=0, eval_every=10**6)
+                         pretrain="greedy", pretrain_rows=60, pretrain_epochs=1, dagger_rounds=0, steps=0, eval_every=10**6,
+                         eval_episodes=1, eval_max_cycles=20)
     train(config, tmp_path / "run")
     assert main([str(tmp_path / "run"), "--copies", "2", "--rows", "200", "--workers", "1"]) == 0
     lines = capsys.readouterr().out.splitlines()
@@ -66,6 +67,7 @@ def test_the_teacher_drives_envs_with_the_runs_own_timer(tmp_path, capsys, monke
 
     config = TrainConfig(scenario="top_observer_team4", algo="maskable_ppo", route="centralised", envs=2, net_arch=(16,),
                          pretrain="greedy", pretrain_rows=60, pretrain_epochs=1, dagger_rounds=0, steps=0, eval_every=10**6,
+                         eval_episodes=1, eval_max_cycles=20,
                          switch_horizon_s=60.0)
     train(config, tmp_path / "run")
     horizons = []
