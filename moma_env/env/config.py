@@ -130,7 +130,7 @@ class EnvConfig:
             default. A team that holds every robot for longer sees the same
             observation at every step, so a deterministic policy that holds once
             holds to the end of the episode; a horizon as long as an episode keeps
-            the feature changing (docs/training.md).
+            the feature changing (docs/learning.md, "A timer that keeps moving").
         team_action: the action of the whole team as one agent (the centralised
             views: :class:`moma_env.env.centralised.CentralisedTeamEnv`,
             ``gymnasium.make``, :class:`moma_env.vector.team.TeamVectorEnv` and the

@@ -90,7 +90,7 @@ class KLToStart:
         # It runs the actor once, get_distribution below once more: one extra actor pass per
         # minibatch. Computing all from one distribution (get_distribution + predict_values)
         # gives the same loss but other floating-point gradient sums, so not the weights of the
-        # runs in docs/training.md bit for bit; kept as it is for that.
+        # runs in docs/learning.md bit for bit; kept as it is for that.
         self._evaluate: Callable[..., tuple[th.Tensor, th.Tensor, th.Tensor | None]] = type(self.policy).evaluate_actions.__get__(self.policy)
         start.set_training_mode(False)
         for parameter in start.parameters():
