@@ -8,6 +8,7 @@ Subcommands:
     experiment compare  the estimators (moma, fused, ekf, graph, graph_vision) on the same runs: ME_f, ME, % of path, ANEES, time per update.
     bench               environment steps per second against MPE2, memory over a long run; --cli: this command's start-up.
     evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
+    localise            run an estimator on a detection log (recorded or real): TUM trajectories and covariances.
     train               train a coordination policy with Stable-Baselines3 (training/train/).
 
 Every subcommand validates its arguments at the boundary and exits with status 2
@@ -111,7 +112,7 @@ def build_parser() -> CommandParser:
     exp_sub = exp.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
     for add in (_add_square, _add_line, _add_flips, _add_consistency, _add_compare):
         add(exp_sub)
-    for add in (_add_bench, _add_evaluate, _add_train):
+    for add in (_add_bench, _add_evaluate, _add_localise, _add_train):
         add(sub)
     from training.sweep.command import add_sweep_parser
 
@@ -190,6 +191,25 @@ def _add_experiment_arguments(parser: argparse.ArgumentParser, default_runs: int
         "--estimator", choices=ESTIMATOR_NAMES, type=choice(ESTIMATOR_NAMES, "estimator"), default="moma",
         help="the estimator whose trajectories are the runs' 'moma' method (default moma, the paper's; docs/estimators.md)",
     )
+    parser.add_argument(
+        "--record-detections", action="store_true",
+        help="also write each run's detection log, OUT/detections/run_XX.jsonl: every call its estimator took, "
+        "for 'moma-env localise' (docs/estimator.md)",
+    )
+
+
+def _add_localise(sub) -> None:
+    loc = add_subcommand(
+        sub, "localise", "run an estimator on a detection log, recorded by an experiment or written from a real robot (docs/estimator.md)"
+    )
+    loc.add_argument("log", type=Path, help="the detection log (JSON Lines, format moma-detection-log)")
+    loc.add_argument("--out", type=Path, required=True, help="output folder, one run: <robot>.tum, <robot>.cov.txt, summary.json")
+    loc.add_argument(
+        "--estimator", choices=ESTIMATOR_NAMES, type=choice(ESTIMATOR_NAMES, "estimator"), default="moma",
+        help="the estimator, with the log's configuration (default moma, the paper's; docs/estimators.md)",
+    )
+    loc.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
+    loc.set_defaults(handler=_run_localise)
 
 
 def _add_flips(exp_sub) -> None:
@@ -498,7 +518,7 @@ def _run_experiment(args: argparse.Namespace) -> int:
     from training.experiments import line_report, square_report
     from training.experiments.line import summarise_line
     from training.experiments.leapfrog_run import summarise
-    from training.experiments.report_common import plot_observer_errors
+    from training.experiments.report_common import plot_observer_errors, write_detection_logs
     from training.experiments.runner import run_many
 
     report, summarise_runs = (square_report, summarise) if args.experiment == "square" else (line_report, summarise_line)
@@ -509,9 +529,15 @@ def _run_experiment(args: argparse.Namespace) -> int:
     with run_folder(args.out, f"experiment {args.experiment}") as run:
         for observer, config in configs.items():
             out = run.path / observer if len(observers) > 1 else run.path
-            runs = run_many(config, args.runs, args.seed, log=lambda line, o=observer: print(f"[{o}] {line}", file=sys.stderr), jobs=args.jobs)
+            logs: list[str] | None = [] if args.record_detections else None
+            runs = run_many(
+                config, args.runs, args.seed, log=lambda line, o=observer: print(f"[{o}] {line}", file=sys.stderr), jobs=args.jobs,
+                detection_logs=logs,
+            )
             summary = summarise_runs(runs)
             files[observer] = report.write_outputs(runs, summary, config, out)
+            if logs is not None:
+                files[observer]["detections"] = write_detection_logs(logs, out)
             results[observer] = report.results_dict(runs, summary, config)
             tables.append(report.format_table(summary, config, sum(r.completed for r in runs), len(runs)))
             if args.experiment == "line":
@@ -535,6 +561,12 @@ def _run_experiment(args: argparse.Namespace) -> int:
         print(f"moma-env experiment {args.experiment}: not every run completed (see 'completed' in the results); exit status 1",
               file=sys.stderr)
     return 0 if completed else 1
+
+
+def _run_localise(args: argparse.Namespace) -> int:
+    from training.localise import run_localise_command
+
+    return run_localise_command(args.log, args.out, args.estimator, args.json)
 
 
 def _run_consistency(args: argparse.Namespace) -> int:

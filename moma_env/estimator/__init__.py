@@ -51,6 +51,11 @@ One update (:meth:`MomaEstimator.update`)
 
 Declarations (:meth:`MomaEstimator.set_static`) move robots between phases; when a
 robot is declared mobile, every other SETTLING robot is frozen first.
+
+Detection logs (:mod:`moma_env.estimator.log`): every call an estimator takes, one
+JSON object per line, recorded by :class:`RecordingLocaliser` and replayed on any
+estimator by :func:`replay` (``moma-env localise``): how a real robot's detections
+reach the same code the simulator runs.
 """
 
 from moma_env.config import ConfigError
@@ -63,6 +68,7 @@ from moma_env.estimator.errors import (
     UnknownRobotError,
 )
 from moma_env.estimator.gate import OutlierGate
+from moma_env.estimator.log import DetectionLog, DetectionLogError, RecordingLocaliser, read_detection_log, recording_factory, replay
 from moma_env.estimator.moma import MomaEstimator
 from moma_env.estimator.results import EVENT_KINDS, Phase, RobotEstimate, Status, SwitchEvent
 from moma_env.estimator.window import SwitchWindow
@@ -84,4 +90,10 @@ __all__ = [
     "RobotEstimate",
     "SwitchEvent",
     "EVENT_KINDS",
+    "DetectionLog",
+    "DetectionLogError",
+    "RecordingLocaliser",
+    "recording_factory",
+    "read_detection_log",
+    "replay",
 ]

@@ -13,7 +13,7 @@ from collections.abc import Callable
 from functools import partial
 
 from moma_env.vector.parent_watch import worker_pool
-from training.experiments.leapfrog_run import CameraFactory, LeapfrogConfig, LeapfrogRun, run_leapfrog
+from training.experiments.leapfrog_run import CameraFactory, LeapfrogConfig, LeapfrogRun, run_leapfrog, run_leapfrog_recorded
 
 __all__ = ["run_many", "describe_run"]
 
@@ -38,6 +38,7 @@ def run_many(
     log: Callable[[str], None] | None = None,
     jobs: int = 1,
     camera_factory: CameraFactory | None = None,
+    detection_logs: list[str] | None = None,
 ) -> list[LeapfrogRun]:
     """``n_runs`` runs of ``config`` with seeds ``seed .. seed + n_runs - 1``, in seed order.
 
@@ -50,6 +51,9 @@ def run_many(
             (:func:`~moma_env.vector.parent_watch.worker_pool`) end with this process.
         camera_factory: the observer's camera (see :func:`run_leapfrog`); with
             ``jobs > 1`` it must be picklable (a module-level function).
+        detection_logs: when given, each run's detection log (the file's text,
+            :func:`run_leapfrog_recorded`) is appended to it, in seed order; the runs are
+            the same.
     """
     if n_runs < 1:
         raise ValueError(f"n_runs must be >= 1, got {n_runs}")
@@ -58,12 +62,19 @@ def run_many(
     seeds = [seed + k for k in range(n_runs)]
     runs = []
 
-    def done(run: LeapfrogRun) -> None:
+    recording = detection_logs is not None
+
+    def done(result: LeapfrogRun | tuple[LeapfrogRun, str]) -> None:
+        if recording:
+            run, text = result
+            detection_logs.append(text)
+        else:
+            run = result
         runs.append(run)
         if log is not None:
             log(f"run {len(runs)}/{n_runs} {describe_run(run)}")
 
-    one_run = partial(run_leapfrog, camera_factory=camera_factory)
+    one_run = partial(run_leapfrog_recorded if recording else run_leapfrog, camera_factory=camera_factory)
     if jobs == 1 or n_runs == 1:
         for s in seeds:
             done(one_run(config, s))

@@ -1,0 +1,112 @@
+"""``moma-env localise LOG --out DIR``: an estimator run on a detection log.
+
+The log (:mod:`moma_env.estimator.log`) is what a localiser was told: robots, their
+static/mobile declarations and every camera frame's detections, recorded by an
+experiment (``moma-env experiment square --record-detections``) or written from a real
+robot's detector. The estimator named by ``--estimator`` (with the log's
+configuration) takes those calls again, and every robot's estimated trajectory is
+written as a TUM file with its covariances beside it, for ``evo`` or
+:mod:`moma_env.metrics`:
+
+* ``DIR/<robot>.tum``: the robot's estimated ``T_w_b`` after every frame (and once
+  after the robots are declared), the samples with an estimate;
+* ``DIR/<robot>.cov.txt``: their 6x6 covariances, line for line
+  (:mod:`moma_env.metrics.tum_covariance`);
+* ``DIR/summary.json``: the log, the estimator and its configuration, and per robot
+  the samples, those with an estimate and those LOCALISED (fresh).
+
+Replaying a log an experiment recorded on this machine gives that run's trajectories
+bit for bit (``tests/test_detection_log.py``).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from moma_env.estimator import Status
+from moma_env.estimator.log import DetectionLog, DetectionLogError, FrameRecord, read_detection_log, replay
+from moma_env.metrics import Trajectory, TrajectoryRecorder, covariance_path_for, write_covariances, write_tum
+
+__all__ = ["replay_trajectories", "run_localise_command"]
+
+
+def replay_trajectories(log: DetectionLog, localiser: Any) -> tuple[dict[str, Trajectory], dict[str, int]]:
+    """Every robot's estimated trajectory (with covariances) over a replay of ``log`` on
+    ``localiser`` (:func:`moma_env.estimator.log.replay`), and per robot the number of
+    samples where it was LOCALISED. A robot's samples start when it is declared."""
+    recorders: dict[str, TrajectoryRecorder] = {}
+    localised: dict[str, int] = {}
+
+    def sample(time: float, estimates: Mapping[str, Any]) -> None:
+        for name, estimate in estimates.items():
+            recorder = recorders.get(name)
+            if recorder is None:
+                recorder = recorders[name] = TrajectoryRecorder(covariances=True)
+                localised[name] = 0
+            recorder.append(time, estimate.T_w_b, estimate.covariance)
+            localised[name] += estimate.status is Status.LOCALISED
+
+    replay(log, localiser, sample)
+    return {name: recorder.to_trajectory() for name, recorder in recorders.items()}, localised
+
+
+def _fail(message: str) -> int:
+    print(f"moma-env localise: {message}", file=sys.stderr)
+    return 2
+
+
+def run_localise_command(log_path: Path, out: Path, estimator: str, as_json: bool) -> int:
+    """The command (see the module docstring); its exit status (2: a log or estimator that cannot run)."""
+    from moma_env.estimator.registry import localiser_factory
+    from moma_env.io import RunFolderError, run_folder, to_jsonable, write_json
+
+    try:
+        log = read_detection_log(log_path)
+    except (OSError, DetectionLogError) as err:
+        return _fail(str(err))
+    try:
+        localiser = localiser_factory(estimator)(log.estimator)
+    except ImportError as err:
+        return _fail(f"estimator {estimator!r}: {err}")
+    try:
+        trajectories, localised = replay_trajectories(log, localiser)
+    except (ValueError, TypeError, KeyError) as err:  # a call the estimator refuses: the log is not one it can run
+        return _fail(f"{log_path}: the {estimator} estimator refused a record: {err}")
+    frames = [r for r in log.records if isinstance(r, FrameRecord)]
+    summary = {
+        "log": str(log_path),
+        "estimator": estimator,
+        "estimator_config": to_jsonable(log.estimator),
+        "frames": len(frames),
+        "detections": sum(len(r.detections) for r in frames),
+        "robots": {
+            name: {"samples": len(traj), "with_estimate": int(traj.valid.sum()), "localised": localised[name]}
+            for name, traj in trajectories.items()
+        },
+    }
+    try:
+        with run_folder(out, "localise") as run:
+            files: dict[str, Path] = {}
+            for name, traj in trajectories.items():
+                if traj.valid.any():
+                    path = run.path / f"{name.replace('/', '_')}.tum"
+                    write_tum(path, traj)
+                    write_covariances(covariance_path_for(path), traj)
+                    files[name] = path
+            write_json(run.path / "summary.json", summary)
+            files = run.final(files)
+    except RunFolderError as err:
+        return _fail(str(err))
+    if as_json:
+        print(json.dumps(to_jsonable(summary | {"files": files}), indent=2, sort_keys=True))
+    else:
+        print(f"{log_path}: {summary['frames']} frames, {summary['detections']} detections, estimator {estimator}")
+        print(f"{'robot':<16}{'samples':>9}{'estimated':>11}{'localised':>11}")
+        for name, row in summary["robots"].items():
+            print(f"{name:<16}{row['samples']:>9}{row['with_estimate']:>11}{row['localised']:>11}")
+        print("\n".join(f"{name}: {path}" for name, path in files.items()))
+    return 0
