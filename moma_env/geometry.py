@@ -52,6 +52,7 @@ __all__ = [
     "matrix_to_rotvec",
     "matrix_to_quaternion",
     "project_to_rotation",
+    "polar_rotation_kernel",
     "mean_rotation",
     "mean_pose",
     "interpolate_pose",
@@ -346,7 +347,7 @@ def project_to_rotation(M: np.ndarray) -> np.ndarray:
     """
     M = np.asarray(M, dtype=float)
     R = np.empty((3, 3))
-    if _polar_rotation(M, R):
+    if polar_rotation_kernel(M, R):
         return R
     U, _, Vt = np.linalg.svd(M)
     R = U @ Vt
@@ -358,7 +359,7 @@ def project_to_rotation(M: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _polar_rotation(M: np.ndarray, R: np.ndarray) -> bool:
+def polar_rotation_kernel(M: np.ndarray, R: np.ndarray) -> bool:
     """Orthogonal polar factor of a 3x3 ``M`` with ``det(M) > 0``, into ``R``.
 
     Scaled Newton iteration ``X <- (g X + X^-T / g) / 2`` with the determinant

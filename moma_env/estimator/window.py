@@ -8,7 +8,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from moma_env.geometry import project_to_rotation
+from moma_env.geometry import polar_rotation_kernel, project_to_rotation
 
 __all__ = ["SwitchWindow"]
 
@@ -61,6 +61,75 @@ def inlier_mask_kernel(rotations: np.ndarray, xyz: np.ndarray, k: float, floor_m
     return (d_t <= limit_t) & (d_r <= limit_r)
 
 
+@numba.njit(cache=True)
+def _window_sums(
+    rotations: np.ndarray, xyz: np.ndarray, inliers: np.ndarray, count: int, summed: np.ndarray, n_summed: int,
+    R_sum: np.ndarray, t_sum: np.ndarray,
+) -> int:
+    """Bring the running sums ``R_sum`` (9) and ``t_sum`` (3) of the samples ``summed[:n_summed]``
+    to those of ``inliers[:count]``, in place: only the new ones are added when the summed
+    samples are a prefix of the inliers, else the sums start afresh (each added left to
+    right, in inlier order, as summing them anew adds). Returns the new ``n_summed``."""
+    m = n_summed
+    if m > count:
+        m = 0
+    else:
+        for j in range(m):
+            if summed[j] != inliers[j]:
+                m = 0
+                break
+    if m == 0:
+        R_sum[:] = 0.0
+        t_sum[:] = 0.0
+    for j in range(m, count):
+        i = inliers[j]
+        for c in range(9):
+            R_sum[c] += rotations[i, c]
+        for c in range(3):
+            t_sum[c] += xyz[i, c]
+        summed[j] = i
+    return count
+
+
+@numba.njit(cache=True)
+def window_mean_kernel(
+    rotations: np.ndarray, xyz: np.ndarray, n: int, k: float, floor_m: float, floor_rad: float,
+    inliers: np.ndarray, summed: np.ndarray, n_summed: int, R_sum: np.ndarray, t_sum: np.ndarray, T: np.ndarray,
+) -> tuple[int, int, bool]:
+    """The inliers and the mean of a window of ``n`` finite samples in one call (see
+    :class:`SwitchWindow`): the inliers into ``inliers`` (all of them when ``n <= 2``,
+    else :func:`inlier_mask_kernel`'s), the running sums brought up to them
+    (:func:`_window_sums`) and, when there are several, their mean pose into ``T``: the
+    chordal mean of the rotations by :func:`~moma_env.geometry.polar_rotation_kernel`,
+    the mean translation. Returns ``(inlier count, new n_summed, T written)``; ``T`` is
+    not written for a single inlier (its own pose is the mean) nor when the polar
+    iteration does not converge (the caller projects ``R_sum`` by SVD)."""
+    count = 0
+    if n <= 2:
+        for i in range(n):
+            inliers[i] = i
+        count = n
+    else:
+        mask = inlier_mask_kernel(rotations[:n], xyz[:n], k, floor_m, floor_rad)
+        for i in range(n):
+            if mask[i]:
+                inliers[count] = i
+                count += 1
+    if count == 1:
+        return count, n_summed, False
+    n_summed = _window_sums(rotations, xyz, inliers, count, summed, n_summed, R_sum, t_sum)
+    R = np.empty((3, 3))
+    if not polar_rotation_kernel(R_sum.reshape((3, 3)), R):
+        return count, n_summed, False
+    for r in range(3):
+        for c in range(3):
+            T[r, c] = R[r, c]
+        T[r, 3] = t_sum[r] / count
+        T[3, r] = 0.0
+    T[3, 3] = 1.0
+    return count, n_summed, True
+
+
 class SwitchWindow:
     """Up to ``capacity`` 4x4 poses (world frame W, metres), averaged robustly.
 
@@ -79,11 +148,12 @@ class SwitchWindow:
 
     It runs at every update of a settling robot, so it keeps what the next call
     can reuse: the samples' rotations and translations in preallocated
-    ``(capacity, 9)`` and ``(capacity, 3)`` arrays (the inliers come from them in
-    one compiled call, :func:`inlier_mask_kernel`), the inliers and the mean until
+    ``(capacity, 9)`` and ``(capacity, 3)`` arrays, the inliers and the mean until
     the next change, and the running sums of the inliers' rotations and translations
     while the inliers only grow at the end (the same additions in the same
-    order as summing them afresh, so the mean is the same to the bit).
+    order as summing them afresh, so the mean is the same to the bit). The inliers
+    and the mean of a window of finite samples come from one compiled call
+    (:func:`window_mean_kernel`).
 
     Args:
         capacity: most samples.
@@ -104,7 +174,9 @@ class SwitchWindow:
         "_xyz",
         "_finite",
         "_mean",
-        "_sum_index",
+        "_index",
+        "_summed",
+        "_n_summed",
         "_R_sum",
         "_t_sum",
     )
@@ -123,9 +195,11 @@ class SwitchWindow:
         self._xyz = np.empty((capacity, 3))  # row i: the translation of sample i (m)
         self._finite = True  # every sample finite (else the exact numpy statistics decide)
         self._mean: np.ndarray | None = None  # mean of the current inliers
-        self._sum_index: list[int] = []  # the samples summed in _R_sum, _t_sum, in order
-        self._R_sum = [0.0] * 9
-        self._t_sum = [0.0] * 3
+        self._index = np.empty(capacity, dtype=np.int64)  # the kernel's inliers
+        self._summed = np.empty(capacity, dtype=np.int64)  # the samples summed in _R_sum, _t_sum, in order
+        self._n_summed = 0
+        self._R_sum = np.zeros(9)
+        self._t_sum = np.zeros(3)
 
     def __len__(self) -> int:
         return len(self._poses)
@@ -142,9 +216,7 @@ class SwitchWindow:
         self._inliers = None
         self._finite = True
         self._mean = None
-        self._sum_index = []
-        self._R_sum = [0.0] * 9
-        self._t_sum = [0.0] * 3
+        self._n_summed = 0
 
     def append(self, T: np.ndarray, payload: Any = None) -> None:
         """Add a 4x4 pose (copied) and its payload; raises if the window is already full."""
@@ -207,47 +279,30 @@ class SwitchWindow:
         """Average pose of the inliers so far (a new 4x4 array); raises when empty."""
         if self._mean is not None:
             return self._mean.copy()
-        index = self.inliers()
-        if len(index) == 1:
-            self._mean = self._poses[index[0]]
-            return self._mean.copy()
-        # Running sums: add only the new inliers when the summed ones are a prefix.
-        summed = self._sum_index
-        m = len(summed)
-        if m > len(index) or index[:m] != summed:
-            summed = []
-            m = 0
-            R_sum = [0.0] * 9
-            t_sum = [0.0] * 3
-        else:
-            R_sum = self._R_sum
-            t_sum = self._t_sum
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = R_sum
-        sx, sy, sz = t_sum
-        rotations = self._rotations
-        xyz = self._xyz
-        for i in index[m:]:
-            a, b, c, d, e, f, g, h, j = rotations[i].tolist()
-            r00 += a
-            r01 += b
-            r02 += c
-            r10 += d
-            r11 += e
-            r12 += f
-            r20 += g
-            r21 += h
-            r22 += j
-            x, y, z = xyz[i].tolist()
-            sx += x
-            sy += y
-            sz += z
-        self._sum_index = list(index)
-        self._R_sum = [r00, r01, r02, r10, r11, r12, r20, r21, r22]
-        self._t_sum = [sx, sy, sz]
-        count = len(index)
+        n = len(self._poses)
+        if n == 0:
+            raise ValueError("the switch window is empty")
         T = np.empty((4, 4))
-        T[:3, :3] = project_to_rotation(np.array(((r00, r01, r02), (r10, r11, r12), (r20, r21, r22))))
-        T[:3, 3] = (sx / count, sy / count, sz / count)
-        T[3] = _LAST_ROW
+        if self._finite:
+            count, self._n_summed, written = window_mean_kernel(
+                self._rotations, self._xyz, n, float(self.outlier_k), float(self.floor_m), float(self.floor_rad),
+                self._index, self._summed, self._n_summed, self._R_sum, self._t_sum, T,
+            )
+            if self._inliers is None:
+                self._inliers = self._index[:count].tolist()
+        else:
+            index = self.inliers()
+            count, written = len(index), False
+            if count > 1:
+                self._n_summed = _window_sums(
+                    self._rotations, self._xyz, np.array(index, dtype=np.int64), count, self._summed, self._n_summed, self._R_sum, self._t_sum
+                )
+        if count == 1:
+            self._mean = self._poses[self._inliers[0]]
+            return self._mean.copy()
+        if not written:
+            T[:3, :3] = project_to_rotation(self._R_sum.reshape(3, 3))
+            T[:3, 3] = self._t_sum / count
+            T[3] = _LAST_ROW
         self._mean = T
         return T.copy()
