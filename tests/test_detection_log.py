@@ -77,6 +77,14 @@ def test_the_commands_record_and_replay_a_run_into_the_same_files(tmp_path, caps
         assert (replay_dir / f"{robot}.cov.txt").read_text() == (out / "tum" / "run_00" / f"{robot}_moma.cov.txt").read_text()
         assert len(read_tum(replay_dir / f"{robot}.tum")) == len(read_covariances(replay_dir / f"{robot}.cov.txt")[0])
     assert json.loads((replay_dir / "summary.json").read_text())["robots"]["ugv_0"]["localised"] > 0
+    # against the run's ground truth: the experiment's own errors of the main robot
+    assert main(["localise", str(log_path), "--out", str(tmp_path / "errors"), "--truth", str(out / "tum" / "run_00"), "--json"]) == 0
+    errors = json.loads(capsys.readouterr().out)["robots"]
+    run = json.loads((out / "summary.json").read_text())["runs"][0]["metrics"]["moma"]
+    assert errors["ugv_0"]["against_truth"]["mean_error_m"] == run["mean_error"] and errors["ugv_0"]["against_truth"]["final_error_m"] == run["final_error"]
+    assert errors["uav"]["against_truth"]["matched_fraction"] > 0.9
+    assert main(["localise", str(log_path), "--out", str(tmp_path / "none"), "--truth", str(tmp_path)]) == 2
+    assert "no ground-truth file" in capsys.readouterr().err
     # a folder holds one run: the same command again replaces it whole
     assert main(["localise", str(log_path), "--out", str(replay_dir)]) == 0
 

@@ -208,6 +208,15 @@ def _add_localise(sub) -> None:
         "--estimator", choices=ESTIMATOR_NAMES, type=choice(ESTIMATOR_NAMES, "estimator"), default="moma",
         help="the estimator, with the log's configuration (default moma, the paper's; docs/estimators.md)",
     )
+    loc.add_argument(
+        "--truth", type=Path, default=None,
+        help="a folder of ground-truth TUM files, <robot>.tum or <robot>_truth.tum (an experiment's tum/run_XX, a motion "
+        "capture's): also each robot's planar position errors ME, E_f, max, RMSE (default: none)",
+    )
+    loc.add_argument(
+        "--max-dt", type=positive_float("time tolerance (s)"), default=1e-6,
+        help="largest time (s) between a truth sample and the estimate matched to it (default 1e-6: the same instants)",
+    )
     loc.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
     loc.set_defaults(handler=_run_localise)
 
@@ -566,7 +575,7 @@ def _run_experiment(args: argparse.Namespace) -> int:
 def _run_localise(args: argparse.Namespace) -> int:
     from training.localise import run_localise_command
 
-    return run_localise_command(args.log, args.out, args.estimator, args.json)
+    return run_localise_command(args.log, args.out, args.estimator, args.json, args.truth, args.max_dt)
 
 
 def _run_consistency(args: argparse.Namespace) -> int:

@@ -13,7 +13,12 @@ written as a TUM file with its covariances beside it, for ``evo`` or
 * ``DIR/<robot>.cov.txt``: their 6x6 covariances, line for line
   (:mod:`moma_env.metrics.tum_covariance`);
 * ``DIR/summary.json``: the log, the estimator and its configuration, and per robot
-  the samples, those with an estimate and those LOCALISED (fresh).
+  the samples, those with an estimate and those LOCALISED (fresh); with ``--truth
+  TRUTH_DIR``, also each robot's errors against its ground truth, ``TRUTH_DIR/<robot>.tum``
+  or ``TRUTH_DIR/<robot>_truth.tum`` (an experiment's ``tum/run_XX`` folder, or a motion
+  capture's TUM files): :func:`moma_env.metrics.run_metrics`'s planar position errors
+  at the truth's timestamps, each matched to the estimate within ``--max-dt`` seconds
+  (mean ME, final E_f, largest, RMSE, in m, and the share of the truth's samples matched).
 
 Replaying a log an experiment recorded on this machine gives that run's trajectories
 bit for bit (``tests/test_detection_log.py``).
@@ -29,9 +34,9 @@ from typing import Any
 
 from moma_env.estimator import Status
 from moma_env.estimator.log import DetectionLog, DetectionLogError, FrameRecord, read_detection_log, replay
-from moma_env.metrics import Trajectory, TrajectoryRecorder, covariance_path_for, write_covariances, write_tum
+from moma_env.metrics import Trajectory, TrajectoryRecorder, covariance_path_for, read_tum, run_metrics, write_covariances, write_tum
 
-__all__ = ["replay_trajectories", "run_localise_command"]
+__all__ = ["replay_trajectories", "truth_files", "errors_against_truth", "run_localise_command"]
 
 
 def replay_trajectories(log: DetectionLog, localiser: Any) -> tuple[dict[str, Trajectory], dict[str, int]]:
@@ -59,8 +64,35 @@ def _fail(message: str) -> int:
     return 2
 
 
-def run_localise_command(log_path: Path, out: Path, estimator: str, as_json: bool) -> int:
-    """The command (see the module docstring); its exit status (2: a log or estimator that cannot run)."""
+def truth_files(truth_dir: Path, robots: list[str]) -> dict[str, Path]:
+    """Robot -> its ground-truth TUM file in ``truth_dir`` (``<robot>.tum``, else
+    ``<robot>_truth.tum``), for the robots that have one."""
+    found = {}
+    for name in robots:
+        safe = name.replace("/", "_")
+        for candidate in (truth_dir / f"{safe}.tum", truth_dir / f"{safe}_truth.tum"):
+            if candidate.is_file():
+                found[name] = candidate
+                break
+    return found
+
+
+def errors_against_truth(estimate: Trajectory, truth: Trajectory, max_dt: float) -> dict[str, float]:
+    """The planar position errors of ``estimate`` against ``truth`` (m; see the module docstring)."""
+    metrics = run_metrics(estimate, truth, max_dt=max_dt)
+    return {
+        "mean_error_m": metrics.mean_error,
+        "final_error_m": metrics.final_error,
+        "max_error_m": metrics.max_error,
+        "rmse_m": metrics.rmse,
+        "matched_fraction": metrics.valid_fraction,
+    }
+
+
+def run_localise_command(
+    log_path: Path, out: Path, estimator: str, as_json: bool, truth_dir: Path | None = None, max_dt: float = 1e-6
+) -> int:
+    """The command (see the module docstring); its exit status (2: a log, estimator or truth that cannot be used)."""
     from moma_env.estimator.registry import localiser_factory
     from moma_env.io import RunFolderError, run_folder, to_jsonable, write_json
 
@@ -76,6 +108,17 @@ def run_localise_command(log_path: Path, out: Path, estimator: str, as_json: boo
         trajectories, localised = replay_trajectories(log, localiser)
     except (ValueError, TypeError, KeyError) as err:  # a call the estimator refuses: the log is not one it can run
         return _fail(f"{log_path}: the {estimator} estimator refused a record: {err}")
+    against: dict[str, dict[str, float]] = {}
+    if truth_dir is not None:
+        truths = truth_files(truth_dir, list(trajectories))
+        if not truths:
+            names = ", ".join(f"{n}.tum or {n}_truth.tum" for n in trajectories)
+            return _fail(f"--truth {truth_dir}: no ground-truth file of the log's robots ({names})")
+        try:
+            for name, path in truths.items():
+                against[name] = errors_against_truth(trajectories[name], read_tum(path), max_dt)
+        except (OSError, ValueError) as err:
+            return _fail(f"--truth {path}: {err}")
     frames = [r for r in log.records if isinstance(r, FrameRecord)]
     summary = {
         "log": str(log_path),
@@ -85,6 +128,7 @@ def run_localise_command(log_path: Path, out: Path, estimator: str, as_json: boo
         "detections": sum(len(r.detections) for r in frames),
         "robots": {
             name: {"samples": len(traj), "with_estimate": int(traj.valid.sum()), "localised": localised[name]}
+            | ({"against_truth": against[name]} if name in against else {})
             for name, traj in trajectories.items()
         },
     }
@@ -105,8 +149,10 @@ def run_localise_command(log_path: Path, out: Path, estimator: str, as_json: boo
         print(json.dumps(to_jsonable(summary | {"files": files}), indent=2, sort_keys=True))
     else:
         print(f"{log_path}: {summary['frames']} frames, {summary['detections']} detections, estimator {estimator}")
-        print(f"{'robot':<16}{'samples':>9}{'estimated':>11}{'localised':>11}")
+        print(f"{'robot':<16}{'samples':>9}{'estimated':>11}{'localised':>11}" + (f"{'ME cm':>9}{'E_f cm':>9}" if against else ""))
         for name, row in summary["robots"].items():
-            print(f"{name:<16}{row['samples']:>9}{row['with_estimate']:>11}{row['localised']:>11}")
+            errors = row.get("against_truth")
+            extra = f"{100 * errors['mean_error_m']:>9.2f}{100 * errors['final_error_m']:>9.2f}" if errors else ""
+            print(f"{name:<16}{row['samples']:>9}{row['with_estimate']:>11}{row['localised']:>11}" + extra)
         print("\n".join(f"{name}: {path}" for name, path in files.items()))
     return 0
