@@ -174,3 +174,22 @@ def test_the_command_refuses_a_missing_or_unrunnable_log(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "refused a record" in err and "cam" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_the_real_robot_example_of_the_docs_writes_a_log_localise_runs(tmp_path, monkeypatch, capsys):
+    """The Python example of docs/estimator.md, run as written, then the command on its log."""
+    import pathlib
+    import re
+
+    text = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "estimator.md").read_text()
+    example = re.search(r"```python\n(import numpy as np\nfrom moma_env.estimator import Detection.*?)```", text, re.S).group(1)
+    monkeypatch.chdir(tmp_path)
+    exec(compile(example, "docs/estimator.md", "exec"), {})
+    log = read_detection_log(tmp_path / "uav_run.jsonl")
+    assert log.frames == 5
+    assert main(["localise", "uav_run.jsonl", "--out", "out", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    # located from the static UGV's board once the outlier gate has its start (3 samples)
+    assert summary["robots"]["uav"]["localised"] == 3 and summary["robots"]["ugv_0"]["localised"] == 6
+    uav = read_tum(tmp_path / "out" / "uav.tum")
+    assert len(uav) == 3 and np.allclose(uav.positions[-1], [-0.1, 0.01, 2.3], atol=1e-12)  # 2 m above the board, itself 0.3 m up
