@@ -193,3 +193,21 @@ def test_the_real_robot_example_of_the_docs_writes_a_log_localise_runs(tmp_path,
     assert summary["robots"]["uav"]["localised"] == 3 and summary["robots"]["ugv_0"]["localised"] == 6
     uav = read_tum(tmp_path / "out" / "uav.tum")
     assert len(uav) == 3 and np.allclose(uav.positions[-1], [-0.1, 0.01, 2.3], atol=1e-12)  # 2 m above the board, itself 0.3 m up
+
+
+def test_frames_of_one_instant_give_one_sample_the_last_estimate():
+    """Two cameras' images taken at the same time, sent as two updates: one sample."""
+    recorder = RecordingLocaliser(MomaEstimator(), EstimatorConfig())
+    recorder.add_robot("a", boards={3: np.eye(4)}, static=True, initial_pose=np.eye(4), time=0.0)
+    recorder.add_robot("b", cameras={"c1": np.eye(4), "c2": np.eye(4)}, static=False, time=0.0)
+    flip = np.diag([1.0, -1.0, -1.0, 1.0])
+    flip[2, 3] = 2.0
+    for k in range(1, 5):
+        t = 0.04 * k
+        recorder.update(t, [Detection("c1", 3, flip, np.empty((0, 2)), (), t)])
+        recorder.update(t, [Detection("c2", 3, flip, np.empty((0, 2)), (), t)])
+    log = parse_detection_log(recorder.text().splitlines())
+    assert log.frames == 8
+    trajectories, localised = replay_trajectories(log, MomaEstimator(log.estimator))
+    assert trajectories["b"].times.tolist() == [0.0, 0.04, 0.08, 0.12, 0.16]
+    assert same_bits(trajectories["b"].poses[-1], recorder.estimate("b").T_w_b) and localised["b"] >= 1

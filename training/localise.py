@@ -8,8 +8,9 @@ configuration) takes those calls again, and every robot's estimated trajectory i
 written as a TUM file with its covariances beside it, for ``evo`` or
 :mod:`moma_env.metrics`:
 
-* ``DIR/<robot>.tum``: the robot's estimated ``T_w_b`` after every frame (and once
-  after the robots are declared), the samples with an estimate;
+* ``DIR/<robot>.tum``: the robot's estimated ``T_w_b`` after every frame (one sample
+  for frames of one instant; and once after the robots are declared), the samples with
+  an estimate;
 * ``DIR/<robot>.cov.txt``: their 6x6 covariances, line for line
   (:mod:`moma_env.metrics.tum_covariance`);
 * ``DIR/summary.json``: the log, the estimator and its configuration, and per robot
@@ -42,21 +43,29 @@ __all__ = ["replay_trajectories", "truth_files", "errors_against_truth", "run_lo
 def replay_trajectories(log: DetectionLog, localiser: Any) -> tuple[dict[str, Trajectory], dict[str, int]]:
     """Every robot's estimated trajectory (with covariances) over a replay of ``log`` on
     ``localiser`` (:func:`moma_env.estimator.log.replay`), and per robot the number of
-    samples where it was LOCALISED. A robot's samples start when it is declared."""
-    recorders: dict[str, TrajectoryRecorder] = {}
-    localised: dict[str, int] = {}
+    samples where it was LOCALISED. A robot's samples start when it is declared; frames
+    that share a time (two cameras' images of one instant, sent as two updates) give one
+    sample, the estimate after the last of them."""
+    samples: dict[str, list[tuple[float, Any, Any, bool]]] = {}
 
     def sample(time: float, estimates: Mapping[str, Any]) -> None:
         for name, estimate in estimates.items():
-            recorder = recorders.get(name)
-            if recorder is None:
-                recorder = recorders[name] = TrajectoryRecorder(covariances=True)
-                localised[name] = 0
-            recorder.append(time, estimate.T_w_b, estimate.covariance)
-            localised[name] += estimate.status is Status.LOCALISED
+            row = (time, estimate.T_w_b, estimate.covariance, estimate.status is Status.LOCALISED)
+            rows = samples.setdefault(name, [])
+            if rows and rows[-1][0] == time:
+                rows[-1] = row
+            else:
+                rows.append(row)
 
     replay(log, localiser, sample)
-    return {name: recorder.to_trajectory() for name, recorder in recorders.items()}, localised
+    trajectories, localised = {}, {}
+    for name, rows in samples.items():
+        recorder = TrajectoryRecorder(capacity=len(rows), covariances=True)
+        for time, pose, covariance, _ in rows:
+            recorder.append(time, pose, covariance)
+        trajectories[name] = recorder.to_trajectory()
+        localised[name] = sum(fresh for *_, fresh in rows)
+    return trajectories, localised
 
 
 def _fail(message: str) -> int:
