@@ -18,6 +18,7 @@ from moma_env.estimator.log import (
     parse_detection_log,
     read_detection_log,
     recording_factory,
+    recording_localiser,
 )
 from moma_env.estimator.registry import localiser_factory
 from moma_env.metrics import read_tum
@@ -155,6 +156,8 @@ def test_a_call_the_estimator_refuses_is_raised_and_not_recorded():
     localiser = recording_factory(MomaEstimator, logs)(EstimatorConfig())
     assert logs == [localiser] and not hasattr(localiser, "odometry")  # MOMA takes no odometry
     assert hasattr(recording_factory(localiser_factory("ekf"), [])(EstimatorConfig()), "odometry")
+    ekf = localiser_factory("ekf")(EstimatorConfig())
+    assert hasattr(recording_localiser(ekf, EstimatorConfig()), "odometry") and not hasattr(RecordingLocaliser(ekf, EstimatorConfig()), "odometry")
     localiser.add_robot("a", boards={3: np.eye(4)}, static=True, initial_pose=np.eye(4), time=0.0)
     before = list(localiser.lines)
     with pytest.raises(ValueError, match="finite"):

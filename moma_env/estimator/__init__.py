@@ -68,7 +68,15 @@ from moma_env.estimator.errors import (
     UnknownRobotError,
 )
 from moma_env.estimator.gate import OutlierGate
-from moma_env.estimator.log import DetectionLog, DetectionLogError, RecordingLocaliser, read_detection_log, recording_factory, replay
+from moma_env.estimator.log import (
+    DetectionLog,
+    DetectionLogError,
+    RecordingLocaliser,
+    read_detection_log,
+    recording_factory,
+    recording_localiser,
+    replay,
+)
 from moma_env.estimator.moma import MomaEstimator
 from moma_env.estimator.results import EVENT_KINDS, Phase, RobotEstimate, Status, SwitchEvent
 from moma_env.estimator.window import SwitchWindow
@@ -94,6 +102,7 @@ __all__ = [
     "DetectionLogError",
     "RecordingLocaliser",
     "recording_factory",
+    "recording_localiser",
     "read_detection_log",
     "replay",
 ]

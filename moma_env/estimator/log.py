@@ -61,6 +61,7 @@ __all__ = [
     "OdometryRecord",
     "DetectionLog",
     "RecordingLocaliser",
+    "recording_localiser",
     "recording_factory",
     "read_detection_log",
     "parse_detection_log",
@@ -174,10 +175,11 @@ class RecordingLocaliser:
     A call is recorded once ``inner`` has taken it, with its arguments as given; a call
     ``inner`` refuses raises its error and is not recorded, so a log replays without one.
     :attr:`lines` holds the log so far (header first); :meth:`text` is the file's
-    content, for :func:`moma_env.io.atomic_write_text`. The wrapper takes wheel odometry
-    (``odometry``) only when ``inner`` does (:func:`recording_factory` picks the class),
-    so that a driver that feeds odometry only to localisers that take it drives the
-    recorded run exactly as it drives the inner localiser alone.
+    content, for :func:`moma_env.io.atomic_write_text`. This class takes no wheel
+    odometry; :func:`recording_localiser` wraps a localiser in it, or in its subclass
+    with ``odometry`` when the localiser takes odometry, so that a driver that feeds
+    odometry only to localisers that take it drives the recorded run exactly as it
+    drives the inner localiser alone.
 
     Args:
         inner: the localiser that does the work.
@@ -204,16 +206,16 @@ class RecordingLocaliser:
             "name": name,
             "boards": {str(int(k)): _matrix(v) for k, v in (boards or {}).items()},
             "cameras": {str(k): _matrix(v) for k, v in (cameras or {}).items()},
-            "static": static,
+            "static": bool(static),
             "initial_pose": _optional_matrix(initial_pose),
             "time": None if time is None else float(time),
-            "planar": planar,
+            "planar": bool(planar),
         }))
 
     def set_static(self, name: str, static: bool, time: float) -> None:
         """The owner's switch, then record it."""
         self.inner.set_static(name, static, time)
-        self.lines.append(_line({"kind": "static", "name": name, "static": static, "time": float(time)}))
+        self.lines.append(_line({"kind": "static", "name": name, "static": bool(static), "time": float(time)}))
 
     def update(self, time: float, detections: Iterable[Detection]) -> None:
         """One camera frame, then record it."""
@@ -247,14 +249,19 @@ class _RecordingOdometryLocaliser(RecordingLocaliser):
         }))
 
 
+def recording_localiser(inner: Any, config: EstimatorConfig) -> RecordingLocaliser:
+    """``inner`` (made with ``config``) wrapped in a :class:`RecordingLocaliser` that also
+    takes and records wheel odometry when ``inner`` takes it."""
+    cls = _RecordingOdometryLocaliser if callable(getattr(inner, "odometry", None)) else RecordingLocaliser
+    return cls(inner, config)
+
+
 def recording_factory(factory: Callable[[EstimatorConfig], Any], logs: list[RecordingLocaliser]) -> Callable[[EstimatorConfig], RecordingLocaliser]:
     """A localiser factory (``EstimatorConfig -> localiser``) whose localisers are those of
-    ``factory``, each wrapped in a :class:`RecordingLocaliser` appended to ``logs``."""
+    ``factory``, each wrapped by :func:`recording_localiser` and appended to ``logs``."""
 
     def make(config: EstimatorConfig) -> RecordingLocaliser:
-        inner = factory(config)
-        cls = _RecordingOdometryLocaliser if callable(getattr(inner, "odometry", None)) else RecordingLocaliser
-        recorder = cls(inner, config)
+        recorder = recording_localiser(factory(config), config)
         logs.append(recorder)
         return recorder
 
