@@ -15,6 +15,7 @@ from moma_env.estimator.log import (
     FrameRecord,
     OdometryRecord,
     RecordingLocaliser,
+    StaticRecord,
     parse_detection_log,
     read_detection_log,
     recording_factory,
@@ -214,3 +215,35 @@ def test_frames_of_one_instant_give_one_sample_the_last_estimate():
     trajectories, localised = replay_trajectories(log, MomaEstimator(log.estimator))
     assert trajectories["b"].times.tolist() == [0.0, 0.04, 0.08, 0.12, 0.16]
     assert same_bits(trajectories["b"].poses[-1], recorder.estimate("b").T_w_b) and localised["b"] >= 1
+
+
+def test_an_env_episode_replays_into_the_envs_estimates_bit_for_bit():
+    """A coordination task's episode (four UGVs under a UAV, the motion rules, random
+    actions): the log of its estimator, replayed, gives the estimates the env reported
+    at every step."""
+    from moma_env.env.factory import parallel_env
+
+    logs: list[RecordingLocaliser] = []
+    env = parallel_env("top_observer_team4", localiser=recording_factory(MomaEstimator, logs))
+    env.reset(seed=7)
+    rng = np.random.default_rng(7)
+    reported = [env.simulation.frame.estimates]
+    for _ in range(120):
+        if not env.agents:
+            break
+        env.step({a: int(rng.integers(env.action_space(a).n)) for a in env.agents})
+        reported.append(env.simulation.frame.estimates)
+    assert len(logs) == 1
+    log = parse_detection_log(logs[0].text().splitlines())
+    assert log.frames == len(reported)
+    replayed, _ = replay_trajectories(log, MomaEstimator(log.estimator))
+    assert set(replayed) == set(reported[0])
+    switches = sum(isinstance(r, StaticRecord) for r in log.records)
+    assert switches > 0, "the episode switched robots"
+    for name, trajectory in replayed.items():
+        for k, estimates in enumerate(reported):
+            want = estimates[name]
+            if want.T_w_b is None:
+                assert not trajectory.valid[k]
+            else:
+                assert same_bits(trajectory.poses[k], want.T_w_b) and same_bits(trajectory.covariances[k], want.covariance)
