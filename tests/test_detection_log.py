@@ -14,11 +14,11 @@ from moma_env.estimator.log import (
     DetectionLogError,
     FrameRecord,
     OdometryRecord,
+    RecordingFactory,
     RecordingLocaliser,
     StaticRecord,
     parse_detection_log,
     read_detection_log,
-    recording_factory,
     recording_localiser,
 )
 from moma_env.estimator.registry import localiser_factory
@@ -153,10 +153,10 @@ def test_a_detections_fields_come_back_as_recorded():
 
 
 def test_a_call_the_estimator_refuses_is_raised_and_not_recorded():
-    logs = []
-    localiser = recording_factory(MomaEstimator, logs)(EstimatorConfig())
-    assert logs == [localiser] and not hasattr(localiser, "odometry")  # MOMA takes no odometry
-    assert hasattr(recording_factory(localiser_factory("ekf"), [])(EstimatorConfig()), "odometry")
+    factory = RecordingFactory(MomaEstimator)
+    localiser = factory(EstimatorConfig())
+    assert factory.made == [localiser] and not hasattr(localiser, "odometry")  # MOMA takes no odometry
+    assert hasattr(RecordingFactory(localiser_factory("ekf"))(EstimatorConfig()), "odometry")
     ekf = localiser_factory("ekf")(EstimatorConfig())
     assert hasattr(recording_localiser(ekf, EstimatorConfig()), "odometry") and not hasattr(RecordingLocaliser(ekf, EstimatorConfig()), "odometry")
     localiser.add_robot("a", boards={3: np.eye(4)}, static=True, initial_pose=np.eye(4), time=0.0)
@@ -223,8 +223,8 @@ def test_an_env_episode_replays_into_the_envs_estimates_bit_for_bit():
     at every step."""
     from moma_env.env.factory import parallel_env
 
-    logs: list[RecordingLocaliser] = []
-    env = parallel_env("top_observer_team4", localiser=recording_factory(MomaEstimator, logs))
+    recording = RecordingFactory(MomaEstimator)
+    env = parallel_env("top_observer_team4", localiser=recording)
     env.reset(seed=7)
     rng = np.random.default_rng(7)
     reported = [env.simulation.frame.estimates]
@@ -233,8 +233,8 @@ def test_an_env_episode_replays_into_the_envs_estimates_bit_for_bit():
             break
         env.step({a: int(rng.integers(env.action_space(a).n)) for a in env.agents})
         reported.append(env.simulation.frame.estimates)
-    assert len(logs) == 1
-    log = parse_detection_log(logs[0].text().splitlines())
+    assert len(recording.made) == 1 and env.simulation.localiser is recording.made[0]
+    log = parse_detection_log(recording.made[0].text().splitlines())
     assert log.frames == len(reported)
     replayed, _ = replay_trajectories(log, MomaEstimator(log.estimator))
     assert set(replayed) == set(reported[0])
@@ -247,3 +247,26 @@ def test_an_env_episode_replays_into_the_envs_estimates_bit_for_bit():
                 assert not trajectory.valid[k]
             else:
                 assert same_bits(trajectory.poses[k], want.T_w_b) and same_bits(trajectory.covariances[k], want.covariance)
+
+
+def test_evaluate_records_each_episodes_log_and_its_replay_scores_the_same(tmp_path, capsys):
+    """``moma-env evaluate --record-detections``: one log per episode beside its TUM files;
+    localised against the episode's truth, each UGV's ME and E_f are the episode's."""
+    out = tmp_path / "ev"
+    argv = ["evaluate", "--scenario", "top_observer_team4", "--policy", "greedy", "--episodes", "2", "--seed", "5",
+            "--max-cycles", "150", "--out", str(out)]
+    assert main([*argv, "--record-detections", "--json"]) == 0
+    recorded = json.loads(capsys.readouterr().out)
+    assert sorted(p.name for p in (out / "detections").iterdir()) == ["ep_000.jsonl", "ep_001.jsonl"]
+    episodes = json.loads((out / "summary.json").read_text())["episodes"]
+    for k in range(2):
+        assert main(["localise", str(out / "detections" / f"ep_{k:03d}.jsonl"), "--out", str(tmp_path / f"r{k}"),
+                     "--truth", str(out / "tum" / f"ep_{k:03d}"), "--json"]) == 0
+        robots = json.loads(capsys.readouterr().out)["robots"]
+        for name, episode in episodes[k]["robots"].items():
+            assert robots[name]["against_truth"]["mean_error_m"] == episode["metrics"]["mean_error"]
+            assert robots[name]["against_truth"]["final_error_m"] == episode["metrics"]["final_error"]
+    # the same evaluation without recording: the same episodes
+    assert main([*argv, "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert {k: v for k, v in plain.items() if k not in ("files", "wall_time_s")} == {k: v for k, v in recorded.items() if k not in ("files", "wall_time_s")}

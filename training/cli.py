@@ -371,6 +371,11 @@ def _add_evaluate(sub) -> None:
     ev.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
     ev.add_argument("--video", action="store_true", help="write an animated GIF of the first episode")
     ev.add_argument(
+        "--record-detections", action="store_true",
+        help="also write each episode's detection log, OUT/detections/ep_XXX.jsonl: every call its estimator took, "
+        "for 'moma-env localise' (docs/estimator.md)",
+    )
+    ev.add_argument(
         "--action-mode", choices=ACTION_MODE_NAMES, type=choice(ACTION_MODE_NAMES, "action mode"), default=None,
         help="the env's action mode (default: the policy's own, velocity for 'planned', else switching)",
     )
@@ -401,6 +406,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     from training.evaluation.policies import POLICY_ACTION_MODES, builtin_name
     from training.evaluation.progress import EpisodeProgress
     from training.evaluation.report import format_table, write_outputs
+    from training.localise import write_detection_logs
     from training.evaluation.video import GifRecorder
 
     rig = TASKS[args.scenario].configuration if args.scenario in TASKS else args.scenario
@@ -423,6 +429,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
         from moma_env.scenarios import make_scenario
 
         recorder = GifRecorder(fps=make_scenario(rig).world.control_hz)
+    logs: list[str] | None = [] if args.record_detections else None
     start = time.perf_counter()
     try:
         with run_folder(out, "evaluate") as run:
@@ -437,11 +444,14 @@ def _run_evaluate(args: argparse.Namespace) -> int:
                     max_cycles=args.max_cycles,
                     frame_sink=recorder,
                     progress=lambda _episode: bar.update(),
+                    detection_logs=logs,
                     **env_options,
                     **overrides,
                 )
             result = dataclasses.replace(result, policy=label)
             paths = write_outputs(result, run.path)
+            if logs is not None:
+                paths["detections"] = write_detection_logs(logs, run.path, "ep_%03d.jsonl")  # beside tum/ep_XXX
             if recorder is not None:
                 paths["video"] = run.path / f"{args.scenario}_episode_000.gif"
                 recorder.write(paths["video"])
@@ -527,7 +537,8 @@ def _run_experiment(args: argparse.Namespace) -> int:
     from training.experiments import line_report, square_report
     from training.experiments.line import summarise_line
     from training.experiments.leapfrog_run import summarise
-    from training.experiments.report_common import plot_observer_errors, write_detection_logs
+    from training.experiments.report_common import plot_observer_errors
+    from training.localise import write_detection_logs
     from training.experiments.runner import run_many
 
     report, summarise_runs = (square_report, summarise) if args.experiment == "square" else (line_report, summarise_line)
@@ -546,7 +557,7 @@ def _run_experiment(args: argparse.Namespace) -> int:
             summary = summarise_runs(runs)
             files[observer] = report.write_outputs(runs, summary, config, out)
             if logs is not None:
-                files[observer]["detections"] = write_detection_logs(logs, out)
+                files[observer]["detections"] = write_detection_logs(logs, out, "run_%02d.jsonl")  # beside tum/run_XX
             results[observer] = report.results_dict(runs, summary, config)
             tables.append(report.format_table(summary, config, sum(r.completed for r in runs), len(runs)))
             if args.experiment == "line":

@@ -37,7 +37,7 @@ from moma_env.estimator import Status
 from moma_env.estimator.log import DetectionLog, DetectionLogError, FrameRecord, read_detection_log, replay
 from moma_env.metrics import Trajectory, TrajectoryRecorder, covariance_path_for, read_tum, run_metrics, write_covariances, write_tum
 
-__all__ = ["replay_trajectories", "truth_files", "errors_against_truth", "run_localise_command"]
+__all__ = ["replay_trajectories", "truth_files", "errors_against_truth", "write_detection_logs", "run_localise_command"]
 
 
 def replay_trajectories(log: DetectionLog, localiser: Any) -> tuple[dict[str, Trajectory], dict[str, int]]:
@@ -66,6 +66,19 @@ def replay_trajectories(log: DetectionLog, localiser: Any) -> tuple[dict[str, Tr
         trajectories[name] = recorder.to_trajectory()
         localised[name] = sum(fresh for *_, fresh in rows)
     return trajectories, localised
+
+
+def write_detection_logs(logs: list[str], out_dir: Path, name: str) -> Path:
+    """``out_dir/detections/<name % k>``: log ``k`` of ``logs`` (each a detection log's text,
+    :mod:`moma_env.estimator.log`), each whole or not at all; ``name`` a %-pattern such as
+    ``"run_%02d.jsonl"``. Returns the folder."""
+    from moma_env.io import atomic_write_text
+
+    log_dir = out_dir / "detections"
+    log_dir.mkdir(parents=True, exist_ok=True)
+    for k, text in enumerate(logs):
+        atomic_write_text(log_dir / (name % k), text)
+    return log_dir
 
 
 def _fail(message: str) -> int:

@@ -71,9 +71,9 @@ from moma_env.estimator.gate import OutlierGate
 from moma_env.estimator.log import (
     DetectionLog,
     DetectionLogError,
+    RecordingFactory,
     RecordingLocaliser,
     read_detection_log,
-    recording_factory,
     recording_localiser,
     replay,
 )
@@ -101,7 +101,7 @@ __all__ = [
     "DetectionLog",
     "DetectionLogError",
     "RecordingLocaliser",
-    "recording_factory",
+    "RecordingFactory",
     "recording_localiser",
     "read_detection_log",
     "replay",

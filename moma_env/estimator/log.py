@@ -62,7 +62,7 @@ __all__ = [
     "DetectionLog",
     "RecordingLocaliser",
     "recording_localiser",
-    "recording_factory",
+    "RecordingFactory",
     "read_detection_log",
     "parse_detection_log",
     "replay",
@@ -256,16 +256,24 @@ def recording_localiser(inner: Any, config: EstimatorConfig) -> RecordingLocalis
     return cls(inner, config)
 
 
-def recording_factory(factory: Callable[[EstimatorConfig], Any], logs: list[RecordingLocaliser]) -> Callable[[EstimatorConfig], RecordingLocaliser]:
-    """A localiser factory (``EstimatorConfig -> localiser``) whose localisers are those of
-    ``factory``, each wrapped by :func:`recording_localiser` and appended to ``logs``."""
+class RecordingFactory:
+    """A localiser factory (``EstimatorConfig -> localiser``, as ``Simulation`` and
+    ``EnvConfig.localiser`` take one) whose localisers are ``factory``'s, each wrapped by
+    :func:`recording_localiser`; :attr:`made` holds them, the newest last (a simulation
+    makes one per episode: ``made[-1].text()`` is the episode's log once it ends). It
+    pickles and copies with what it holds when ``factory`` does (a class, a module-level
+    function)."""
 
-    def make(config: EstimatorConfig) -> RecordingLocaliser:
-        recorder = recording_localiser(factory(config), config)
-        logs.append(recorder)
+    def __init__(self, factory: Callable[[EstimatorConfig], Any]):
+        if not callable(factory):
+            raise TypeError(f"factory must be a callable EstimatorConfig -> localiser, got {type(factory).__name__}")
+        self.factory = factory
+        self.made: list[RecordingLocaliser] = []
+
+    def __call__(self, config: EstimatorConfig) -> RecordingLocaliser:
+        recorder = recording_localiser(self.factory(config), config)
+        self.made.append(recorder)
         return recorder
-
-    return make
 
 
 # ---------------------------------------------------------------- reading

@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 
 from moma_env.env.factory import parallel_env
+from moma_env.estimator import MomaEstimator, RecordingFactory
+from moma_env.estimator.registry import localiser_factory
 from moma_env.metrics import aggregate
 from moma_env.scenarios import CONFIGURATIONS
 from moma_env.tasks import TASKS
@@ -180,6 +182,7 @@ def evaluate(
     max_cycles: int | None = None,
     frame_sink: FrameSink | None = None,
     progress: ProgressCallback | None = None,
+    detection_logs: list[str] | None = None,
     **overrides: Any,
 ) -> EvaluationResult:
     """Run ``episodes`` episodes of a policy on ``configuration`` and summarise them.
@@ -196,7 +199,11 @@ def evaluate(
         max_cycles: episode length limit in steps (None: the scenario's).
         frame_sink: receives the rendered frames of the first episode.
         progress: called with every finished episode.
-        **overrides: fields of the configuration's dataclass.
+        detection_logs: when given, each episode's detection log (the file's text,
+            :mod:`moma_env.estimator.log`: every call its estimator took) is appended to
+            it, in episode order; the episodes are the same.
+        **overrides: fields of the configuration's dataclass, or env options
+            (``localiser``, ...).
 
     Raises:
         ConfigError: unknown configuration, bad option or override.
@@ -215,6 +222,10 @@ def evaluate(
     else:
         label = type(policy_spec).__name__
         policy = policy_spec
+    recording = None
+    if detection_logs is not None:
+        recording = RecordingFactory(_localiser_factory(overrides.get("localiser")))
+        overrides = {**overrides, "localiser": recording}
     env = parallel_env(
         configuration,
         random_scenarios=random_scenarios,
@@ -229,6 +240,9 @@ def evaluate(
         for k in range(episodes):
             ep = run_episode(env, policy, k, seed + k, frame_sink if k == 0 else None)
             results.append(ep)
+            if recording is not None:
+                detection_logs.append(recording.made[-1].text())
+                recording.made.clear()  # one episode's log in memory at a time
             if progress is not None:
                 progress(ep)
     finally:
@@ -243,5 +257,14 @@ def evaluate(
         robots=robots,
         episodes=tuple(results),
         summary=summarise(results, robots),
-        options=dict(overrides),
+        options={k: v for k, v in overrides.items() if v is not recording},
     )
+
+
+def _localiser_factory(localiser: Any) -> Callable[[Any], Any]:
+    """The localiser factory an env given ``localiser`` (an estimator name, a factory or None) uses."""
+    if localiser is None:
+        return MomaEstimator
+    if isinstance(localiser, str):
+        return localiser_factory(localiser)
+    return localiser

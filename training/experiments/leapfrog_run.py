@@ -43,7 +43,7 @@ from moma_env.config import ConfigError, check_bool, check_choice, check_non_neg
 from moma_env.control.tracking import BoardTrackingController, TrackingControllerConfig
 from moma_env.control.waypoint import WaypointFollower, WaypointFollowerConfig
 from moma_env.estimator import EstimatorConfig, Status
-from moma_env.estimator.log import RecordingLocaliser, recording_factory
+from moma_env.estimator.log import RecordingFactory
 from moma_env.estimator.registry import check_estimator_name, localiser_factory
 from moma_env.markers import BoardLayout, board_for_robot
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, aggregate, run_metrics
@@ -582,9 +582,9 @@ def run_leapfrog_recorded(
 ) -> tuple[LeapfrogRun, str]:
     """:func:`run_leapfrog` with its localiser recorded: the same run, and its detection log
     (:mod:`moma_env.estimator.log`, the file's text: every call the localiser took)."""
-    logs: list[RecordingLocaliser] = []
-    run = run_leapfrog(config, seed, progress, camera_factory, localiser=recording_factory(localiser_factory(config.localiser), logs))
-    return run, logs[-1].text()
+    recording = RecordingFactory(localiser_factory(config.localiser))
+    run = run_leapfrog(config, seed, progress, camera_factory, localiser=recording)
+    return run, recording.made[-1].text()
 
 
 def summarise(runs: list[LeapfrogRun]) -> dict[str, dict]:

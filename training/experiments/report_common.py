@@ -17,12 +17,12 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from moma_env.io import atomic_path, atomic_write_text, write_csv, write_json
+from moma_env.io import atomic_path, write_csv, write_json
 from moma_env.metrics import covariance_path_for, write_covariances, write_tum
 from training.experiments.leapfrog_run import MAIN, LeapfrogConfig, LeapfrogRun
 from training.figure_layout import legend_below
 
-__all__ = ["LABELS", "COLOURS", "cm", "pct", "write_run_tums", "write_detection_logs", "run_record", "config_record", "results_base",
+__all__ = ["LABELS", "COLOURS", "cm", "pct", "write_run_tums", "run_record", "config_record", "results_base",
            "write_experiment_files", "save_figure", "plot_observer_errors"]
 
 #: Display names of the localisation methods (ours and the paper's).
@@ -64,16 +64,6 @@ def write_run_tums(runs: list[LeapfrogRun], out_dir: Path) -> Path:
                     if traj.covariances is not None:
                         write_covariances(covariance_path_for(path), traj)
     return tum_dir
-
-
-def write_detection_logs(logs: list[str], out_dir: Path) -> Path:
-    """``out_dir/detections/run_XX.jsonl``: run k's detection log, ``logs[k]``
-    (:mod:`moma_env.estimator.log`), each whole or not at all."""
-    log_dir = out_dir / "detections"
-    log_dir.mkdir(parents=True, exist_ok=True)
-    for k, text in enumerate(logs):
-        atomic_write_text(log_dir / f"run_{k:02d}.jsonl", text)
-    return log_dir
 
 
 def config_record(config: LeapfrogConfig) -> dict:
