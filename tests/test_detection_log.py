@@ -270,3 +270,24 @@ def test_evaluate_records_each_episodes_log_and_its_replay_scores_the_same(tmp_p
     assert main([*argv, "--json"]) == 0
     plain = json.loads(capsys.readouterr().out)
     assert {k: v for k, v in plain.items() if k not in ("files", "wall_time_s")} == {k: v for k, v in recorded.items() if k not in ("files", "wall_time_s")}
+
+
+@pytest.mark.parametrize("copy_env", ["pickle", "deepcopy"])
+def test_an_env_recording_its_estimator_copies_with_its_log(copy_env):
+    """A copy of the env (the rollout policies copy envs) continues the same log as the original."""
+    import copy
+    import pickle
+
+    from moma_env.env.factory import parallel_env
+
+    env = parallel_env("top_observer_team4", localiser=RecordingFactory(MomaEstimator))
+    env.reset(seed=1)
+    for _ in range(5):
+        env.step({a: 1 for a in env.agents})
+    other = pickle.loads(pickle.dumps(env)) if copy_env == "pickle" else copy.deepcopy(env)
+    for e in (env, other):
+        for _ in range(5):
+            e.step({a: 1 for a in e.agents})
+    assert other.simulation.localiser is not env.simulation.localiser
+    assert other.simulation.localiser.text() == env.simulation.localiser.text()
+    assert parse_detection_log(env.simulation.localiser.text().splitlines()).frames == 11
