@@ -291,3 +291,13 @@ def test_an_env_recording_its_estimator_copies_with_its_log(copy_env):
     assert other.simulation.localiser is not env.simulation.localiser
     assert other.simulation.localiser.text() == env.simulation.localiser.text()
     assert parse_detection_log(env.simulation.localiser.text().splitlines()).frames == 11
+
+
+def test_evaluate_records_the_estimator_it_was_given_and_keeps_it_in_its_options():
+    from training.evaluation import evaluate
+
+    logs: list[str] = []
+    result = evaluate("top_observer", "scripted", 1, seed=3, max_cycles=30, detection_logs=logs, localiser="ekf")
+    assert result.options == {"localiser": "ekf"} and len(logs) == 1
+    records = parse_detection_log(logs[0].splitlines()).records
+    assert any(isinstance(r, FrameRecord) for r in records)

@@ -26,7 +26,7 @@ from moma_env.config import (
     check_numbers,
     check_positive,
 )
-from moma_env.estimator.registry import check_estimator_name, localiser_factory
+from moma_env.estimator.registry import check_estimator_name, resolve_localiser
 
 __all__ = ["ACTION_MODES", "TEAM_ACTIONS", "RewardConfig", "EnvConfig", "checked_max_cycles"]
 
@@ -231,9 +231,7 @@ class EnvConfig:
     @property
     def localiser_factory(self) -> Callable[[Any], Any] | None:
         """The localiser factory :attr:`localiser` names or is (None: the MOMA estimator)."""
-        if isinstance(self.localiser, str):
-            return localiser_factory(self.localiser)
-        return self.localiser
+        return None if self.localiser is None else resolve_localiser(self.localiser)
 
     @property
     def observer_is_agent(self) -> bool:

@@ -30,7 +30,7 @@ from moma_env.config import ConfigError
 from moma_env.estimator.config import EstimatorConfig
 from moma_env.estimator.moma import MomaEstimator
 
-__all__ = ["ESTIMATORS", "fused_estimator", "localiser_factory", "check_estimator_name"]
+__all__ = ["ESTIMATORS", "fused_estimator", "localiser_factory", "resolve_localiser", "check_estimator_name"]
 
 
 def fused_estimator(config: EstimatorConfig) -> MomaEstimator:
@@ -87,3 +87,13 @@ def localiser_factory(name: str) -> Callable[[EstimatorConfig], Any]:
     """The localiser factory of estimator ``name`` (ConfigError for an unknown name;
     ImportError naming the extra to install when an optional dependency is missing)."""
     return ESTIMATORS[check_estimator_name("estimator", name)]()
+
+
+def resolve_localiser(spec: str | Callable[[EstimatorConfig], Any] | None) -> Callable[[EstimatorConfig], Any]:
+    """The localiser factory ``spec`` names or is: an estimator name (:func:`localiser_factory`),
+    a factory itself, or None for the MOMA estimator (what a simulation given none runs)."""
+    if spec is None:
+        return MomaEstimator
+    if isinstance(spec, str):
+        return localiser_factory(spec)
+    return spec

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from moma_env.env.factory import parallel_env
-from moma_env.estimator import MomaEstimator, RecordingFactory
-from moma_env.estimator.registry import localiser_factory
+from moma_env.estimator import RecordingFactory
+from moma_env.estimator.registry import resolve_localiser
 from moma_env.metrics import aggregate
 from moma_env.scenarios import CONFIGURATIONS
 from moma_env.tasks import TASKS
@@ -223,16 +223,17 @@ def evaluate(
         label = type(policy_spec).__name__
         policy = policy_spec
     recording = None
+    env_options = overrides
     if detection_logs is not None:
-        recording = RecordingFactory(_localiser_factory(overrides.get("localiser")))
-        overrides = {**overrides, "localiser": recording}
+        recording = RecordingFactory(resolve_localiser(overrides.get("localiser")))
+        env_options = {**overrides, "localiser": recording}
     env = parallel_env(
         configuration,
         random_scenarios=random_scenarios,
         action_mode=action_mode,
         max_cycles=max_cycles,
         render_mode="rgb_array" if frame_sink is not None else None,
-        **overrides,
+        **env_options,
     )
     try:
         robots = tuple(robot_agents(env))
@@ -257,14 +258,5 @@ def evaluate(
         robots=robots,
         episodes=tuple(results),
         summary=summarise(results, robots),
-        options={k: v for k, v in overrides.items() if v is not recording},
+        options=dict(overrides),
     )
-
-
-def _localiser_factory(localiser: Any) -> Callable[[Any], Any]:
-    """The localiser factory an env given ``localiser`` (an estimator name, a factory or None) uses."""
-    if localiser is None:
-        return MomaEstimator
-    if isinstance(localiser, str):
-        return localiser_factory(localiser)
-    return localiser
