@@ -47,3 +47,34 @@ def test_the_env_clock_times_the_vec_env_under_the_wrappers():
         assert inner.unwrapped is inner
     finally:
         inner.close()
+
+
+def test_batch_size_rows_record_their_size_and_ratio_to_the_first():
+    from training.train.bench import compare_batch_sizes
+
+    rows = compare_batch_sizes(256, 1, [64, 128], envs=2, scenario="top_observer", n_steps=32)
+    assert [r["batch_size"] for r in rows] == [64, 128]
+    assert all(r["n_steps"] == 32 and r["round"] == 0 and r["algo"] == "maskable_ppo" for r in rows)
+    assert rows[0]["x_first"] == 1.0
+    assert rows[1]["x_first"] == pytest.approx(rows[1]["env_steps_per_s"] / rows[0]["env_steps_per_s"])
+
+
+def test_the_command_line_refuses_bad_batch_sizes():
+    from training.train.bench import main
+
+    for bad in ("0,256", "x", ""):
+        with pytest.raises(SystemExit):
+            main(["--batch-sizes", bad])
+
+
+def test_the_table_shows_the_minibatch_size_of_rows_that_give_one():
+    from training.train.bench import format_training
+
+    row = {"scenario": "top_observer_team4", "algo": "maskable_ppo", "route": "shared", "envs": 32, "subproc": False, "workers": 2,
+           "timesteps": 65536, "seconds": 10.0, "timesteps_per_s": 6553.6, "env_steps_per_s": 1638.4, "env_s": 6.0,
+           "learner_bound_env_steps_per_s": 5000.0}
+    plain = format_training([row])
+    assert "batch" not in plain[1]
+    lines = format_training([row | {"batch_size": 2048}, row | {"batch_size": 256}])
+    assert "batch" in lines[1] and len(lines[2]) == len(plain[2]) + 7
+    assert lines[3].split()[5] == "2048" and lines[4].split()[5] == "256"

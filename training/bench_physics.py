@@ -58,6 +58,7 @@ import pymunk
 import pymunk.batch as pbatch
 
 from moma_env.world import COLLISION_SLOP, World, WorldConfig
+from training.cli_args import int_list
 from moma_env.world.arena import add_static_shapes
 from moma_env.world.sled import SledBody
 from moma_env.world.ugv import UGVBody
@@ -605,19 +606,9 @@ def format_physics_bench(rows: Sequence[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def _sizes(text: str) -> list[int]:
-    try:
-        sizes = [int(part) for part in text.replace(",", " ").split()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--num-envs takes integers like 64,256,1024, got {text!r}") from None
-    if not sizes or min(sizes) < 1:
-        raise argparse.ArgumentTypeError(f"--num-envs must be >= 1, got {text!r}")
-    return sizes
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Per-copy pymunk spaces against one shared space for a batched env.")
-    parser.add_argument("--num-envs", type=_sizes, default=[64, 256, 1024], help="copies, comma-separated (default 64,256,1024)")
+    parser.add_argument("--num-envs", type=int_list("copy count", 1), default=[64, 256, 1024], help="copies, comma-separated (default 64,256,1024)")
     parser.add_argument("--steps", type=int, default=20, help="control steps per layout and round (default 20)")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (default 3)")
     parser.add_argument("--cases", default=",".join(CASES), help=f"comma-separated rows of {list(CASES)}")

@@ -29,6 +29,7 @@ __all__ = [
     "name_list",
     "int_at_least",
     "int_at_least_or",
+    "int_list",
     "field_assignment",
     "field_assignments",
     "positive_float",
@@ -60,6 +61,21 @@ def int_at_least(minimum: int, what: str) -> Callable[[str], int]:
         if value < minimum:
             raise argparse.ArgumentTypeError(f"{what} must be >= {minimum}, got {value}")
         return value
+
+    return parse
+
+
+def int_list(what: str, minimum: int) -> Callable[[str], list[int]]:
+    """An argparse type: comma-separated integers >= ``minimum`` (``"64,256,1024"``), at least one."""
+
+    def parse(text: str) -> list[int]:
+        try:
+            values = [int(part) for part in text.replace(",", " ").split()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected comma-separated integer {what}s such as 64,256, got {text!r}") from None
+        if not values or min(values) < minimum:
+            raise argparse.ArgumentTypeError(f"each {what} must be an integer >= {minimum}, got {text!r}")
+        return values
 
     return parse
 

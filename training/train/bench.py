@@ -26,6 +26,7 @@ collection, over ``learn_s`` alone: an upper bound).
 from __future__ import annotations
 
 import time
+from typing import Any
 
 from agents.learned import torch_threads
 from training.bench_common import time_calls
@@ -33,17 +34,20 @@ from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.models import build_model, training_logger
 
-__all__ = ["training_fps", "torchrl_training_fps", "bench_training", "compare_backends", "main"]
+__all__ = ["training_fps", "torchrl_training_fps", "bench_training", "compare_backends", "compare_batch_sizes", "main"]
 
 
 def training_fps(
     steps: int, envs: int, route: str = "shared", subproc: bool = False, scenario: str = "top_observer", algo: str = "ppo",
-    workers: int | None = None,
+    workers: int | None = None, **learning: Any,
 ) -> dict:
     """One training measurement (see the module docstring); ``workers``: the batched env split
-    over that many processes (``moma-env train --workers``)."""
+    over that many processes (``moma-env train --workers``); ``learning``: other
+    :class:`~training.train.config.TrainConfig` fields (``batch_size``, ``n_steps``, ...),
+    recorded in the row."""
     config = TrainConfig(
-        scenario=scenario, algo=algo, steps=steps, envs=envs, route=route, subproc=subproc, workers=workers, checkpoint_every=10**9
+        scenario=scenario, algo=algo, steps=steps, envs=envs, route=route, subproc=subproc, workers=workers, checkpoint_every=10**9,
+        **learning,
     )
     with torch_threads(config.torch_threads):
         venv = wrap_normalisation(make_vec_env(config, config.seed), config)
@@ -68,6 +72,7 @@ def training_fps(
         "timesteps_per_s": timesteps / elapsed, "env_steps_per_s": env_steps / elapsed,
         "env_s": clocks["env"], "collect_s": clocks["collect"], "learn_s": clocks["learn"],
         "learner_bound_env_steps_per_s": env_steps / (clocks["collect"] - clocks["env"] + clocks["learn"]),
+        **learning,
     }
 
 
@@ -120,17 +125,21 @@ def bench_training(steps: int) -> list[dict]:
 
 
 def format_training(rows: list[dict]) -> list[str]:
-    """Lines of the training rows of the benchmark table."""
+    """Lines of the training rows of the benchmark table (with a minibatch column, ``batch``,
+    when a row gives its ``batch_size``: ``-`` for the run's default)."""
+    batches = any("batch_size" in r for r in rows)
+    batch_head = f"{'batch':>7}" if batches else ""
     lines = [f"\ntraining (switching, geometric camera): about {rows[0]['timesteps']} timesteps per row; env %: the "
              "share of the time in the env's step; learner bound: env steps/s with an env that cost nothing",
-             f"{'scenario':<20}{'algo':<18}{'route':<13}{'envs':>5}{'workers':>8}{'timesteps/s':>13}{'env steps/s':>13}"
-             f"{'env %':>7}{'learner bound':>15}", "-" * 112]
+             f"{'scenario':<20}{'algo':<18}{'route':<13}{'envs':>5}{'workers':>8}{batch_head}{'timesteps/s':>13}{'env steps/s':>13}"
+             f"{'env %':>7}{'learner bound':>15}", "-" * (112 + len(batch_head))]
     for r in rows:
         workers = r["envs"] if r["subproc"] else (r.get("workers") or 0)
         env_share = "-" if r.get("env_s") is None else f"{100 * r['env_s'] / r['seconds']:.0f}"
         bound = r.get("learner_bound_env_steps_per_s")
+        batch = f"{r.get('batch_size') or '-':>7}" if batches else ""
         lines.append(
-            f"{r['scenario']:<20}{r.get('algo', 'ppo'):<18}{r['route']:<13}{r['envs']:>5}{workers:>8}{r['timesteps_per_s']:>13.0f}"
+            f"{r['scenario']:<20}{r.get('algo', 'ppo'):<18}{r['route']:<13}{r['envs']:>5}{workers:>8}{batch}{r['timesteps_per_s']:>13.0f}"
             f"{r['env_steps_per_s']:>13.0f}{env_share:>7}{'-' if bound is None else f'{bound:.0f}':>15}"
         )
     return lines
@@ -159,13 +168,37 @@ def compare_backends(
     return rows
 
 
+def compare_batch_sizes(
+    steps: int, rounds: int, batch_sizes: list[int], envs: int = 32, scenario: str = "top_observer_team4", workers: int | None = None,
+    n_steps: int | None = None,
+) -> list[dict]:
+    """Interleaved rounds of SB3 MaskablePPO (shared route) on ``scenario`` with each of
+    ``batch_sizes`` as its minibatch size (``--batch-size``), ``envs`` copies split over
+    ``workers`` processes and ``n_steps`` (None: the default) per rollout: one row per
+    round and size, each with ``round`` and ``x_first`` (its env steps per second over the
+    first size's row of the same round)."""
+    rows = []
+    learning = {} if n_steps is None else {"n_steps": n_steps}
+    for k in range(rounds):
+        first = None
+        for size in batch_sizes:
+            row = training_fps(steps, envs=envs, route="shared", scenario=scenario, algo="maskable_ppo", workers=workers,
+                               batch_size=size, **learning) | {"round": k}
+            first = first or row
+            row["x_first"] = row["env_steps_per_s"] / first["env_steps_per_s"]
+            rows.append(row)
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m training.train.bench [--steps N] [--rounds R]``: SB3 MaskablePPO against TorchRL
-    MAPPO on the four-UGV task, interleaved; prints each round and the best and median ratio."""
+    MAPPO on the four-UGV task, interleaved; prints each round and the best and median ratio.
+    With ``--batch-sizes A,B,...``: SB3 MaskablePPO with each minibatch size instead, interleaved,
+    and each size's best and median ratio to the first."""
     import argparse
     import statistics
 
-    from training.cli_args import int_at_least
+    from training.cli_args import int_at_least, int_list
 
     parser = argparse.ArgumentParser(prog="python -m training.train.bench", description=main.__doc__)
     parser.add_argument("--steps", type=int_at_least(1, "step count"), default=32768, help="agent steps per row (default %(default)s)")
@@ -173,9 +206,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--num-envs", type=int_at_least(1, "env count"), default=8, help="env copies (default %(default)s)")
     parser.add_argument("--workers", type=int_at_least(1, "worker count"), default=None,
                         help="also time both backends with the copies split over this many processes (default: not)")
+    parser.add_argument("--batch-sizes", type=int_list("batch size", 2), default=None,
+                        help="comma-separated minibatch sizes: time SB3 MaskablePPO with each instead of the two backends (default: not)")
+    parser.add_argument("--n-steps", type=int_at_least(1, "rollout length"), default=None,
+                        help="with --batch-sizes: rollout length per slot (default: moma-env train's)")
     args = parser.parse_args(argv)
     if args.workers is not None and args.workers > args.num_envs:
         parser.error(f"--workers must be at most --num-envs ({args.num_envs})")
+    if args.batch_sizes is not None:
+        rows = compare_batch_sizes(args.steps, args.rounds, args.batch_sizes, envs=args.num_envs, workers=args.workers, n_steps=args.n_steps)
+        for line in format_training(rows):
+            print(line)
+        for size in args.batch_sizes[1:]:
+            ratios = [r["x_first"] for r in rows if r["batch_size"] == size]
+            print(f"--batch-size {size} / {args.batch_sizes[0]} env steps per second: best {max(ratios):.2f}, "
+                  f"median {statistics.median(ratios):.2f} over {len(ratios)} rounds")
+        return 0
     rows = compare_backends(args.steps, args.rounds, envs=args.num_envs, workers=args.workers)
     for line in format_training(rows):
         print(line)
