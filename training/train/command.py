@@ -18,7 +18,7 @@ from moma_env.config import ConfigError
 from moma_env.tasks import TASKS
 from training.cli_args import ACTION_MODE_NAMES, SCENARIO_NAMES, TEAM_ACTION_NAMES, choice, int_at_least, int_at_least_or
 from training.train.command_common import AUTO, report_training, resolved_workers, scenario_rewards
-from training.train.config import ALGORITHMS, NETWORKS, ROUTES, TEACHERS, TrainConfig, check_teacher
+from training.train.config import ALGORITHMS, DEFAULT_BATCH_SIZE, NETWORKS, PPO_MINIBATCHES, ROUTES, TEACHERS, TrainConfig, check_teacher
 
 if TYPE_CHECKING:
     from moma_env.env.config import RewardConfig
@@ -108,7 +108,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
     tr.add_argument("--net", type=_layers, default=defaults["net_arch"], metavar="SIZES",
                     help=f"hidden layer sizes, e.g. 64,64 (default {','.join(map(str, defaults['net_arch']))})")
     tr.add_argument("--n-steps", type=int_at_least(1, "step count"), default=defaults["n_steps"], help="rollout length per slot (default %(default)s)")
-    tr.add_argument("--batch-size", type=int_at_least(2, "batch size"), default=defaults["batch_size"], help="minibatch size (default %(default)s)")
+    tr.add_argument("--batch-size", type=int_at_least(2, "batch size"), default=defaults["batch_size"],
+                    help=f"minibatch size (default: PPO and MaskablePPO split each rollout into {PPO_MINIBATCHES} minibatches; "
+                         f"behaviour cloning, DAgger, the off-policy algorithms and --backend rllib|torchrl take {DEFAULT_BATCH_SIZE})")
     tr.add_argument("--learning-rate", type=float, default=defaults["learning_rate"], help="learning rate (default %(default)s)")
     tr.add_argument("--gamma", type=float, default=defaults["gamma"], help="discount factor (default %(default)s)")
     tr.add_argument("--ent-coef", type=float, default=defaults["ent_coef"], help="entropy bonus, PPO and A2C (default %(default)s)")

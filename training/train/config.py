@@ -57,6 +57,18 @@ MASKED = frozenset({"maskable_ppo"})
 BOX_ONLY = frozenset({"sac", "td3"})
 #: Algorithms whose model a scripted teacher can initialise (``pretrain``): an actor and a critic.
 PRETRAINABLE = frozenset({"ppo", "maskable_ppo"})
+#: Minibatches per epoch of PPO's and MaskablePPO's updates when ``batch_size`` is None: each
+#: rollout (``n_steps`` x the slots) in this many, as MAPPO does, so that the learner's cost per
+#: sample falls as the batched env's copies grow.
+PPO_MINIBATCHES = 4
+#: Minibatch size (rows) of behaviour cloning, DAgger and the off-policy algorithms when
+#: ``batch_size`` is None, and the RLlib and TorchRL backends' default ``--batch-size``.
+DEFAULT_BATCH_SIZE = 256
+def backend_batch_size(batch_size: int | None) -> int:
+    """``--batch-size`` of ``moma-env train --backend rllib | torchrl``: as given, else :data:`DEFAULT_BATCH_SIZE`."""
+    return DEFAULT_BATCH_SIZE if batch_size is None else batch_size
+
+
 #: Policy networks (``network``): SB3's MLP, or the team network of :mod:`agents.team_network`.
 NETWORKS = ("mlp", "team")
 #: Scripted teachers a run may be cloned from (``pretrain``, ``dagger_teacher``): built-in
@@ -179,7 +191,10 @@ class TrainConfig:
         normalize: wrap the envs in ``VecNormalize`` (observations and rewards).
         net_arch: hidden layer sizes of the policy and value networks.
         n_steps: rollout length per slot (on-policy algorithms).
-        batch_size: minibatch size.
+        batch_size: minibatch size (rows); None: PPO and MaskablePPO update in
+            :data:`PPO_MINIBATCHES` minibatches of each rollout, behaviour cloning, DAgger
+            and the off-policy algorithms in minibatches of :data:`DEFAULT_BATCH_SIZE`
+            (:meth:`minibatch_size`). Runs before 2026-12-06 had 256 as the default.
         learning_rate: optimiser step size.
         gamma: discount factor per step.
         buffer_size: replay buffer capacity in transitions (off-policy algorithms).
@@ -253,7 +268,7 @@ class TrainConfig:
     normalize: bool = True
     net_arch: tuple[int, ...] = (64, 64)
     n_steps: int = 256
-    batch_size: int = 256
+    batch_size: int | None = None
     learning_rate: float = 3e-4
     gamma: float = 0.995
     buffer_size: int = 100_000
@@ -305,7 +320,8 @@ class TrainConfig:
             if self.scenario not in committed:
                 raise ConfigError("team_action", f"{self.team_action!r} needs a task with committed legs, one of {committed}; got {self.scenario!r}")
         check_bool("normalize", self.normalize)
-        check_count("batch_size", self.batch_size, 1)
+        if self.batch_size is not None:
+            check_count("batch_size", self.batch_size, 1)
         check_count("buffer_size", self.buffer_size, 1)
         check_bool("progress_bar", self.progress_bar)
         check_count("torch_threads", self.torch_threads, 1)
@@ -368,6 +384,16 @@ class TrainConfig:
         """Keyword options of :func:`moma_env.env.factory.parallel_env` for this run (a
         task's own options apply beneath them)."""
         return run_env_options(self.action_mode, self.max_cycles, self.rewards, self.switch_horizon_s, self.team_action)
+
+    def minibatch_size(self, rollout: int | None = None) -> int:
+        """The rows of a gradient step: ``batch_size`` if given, else a :data:`PPO_MINIBATCHES`-th
+        of ``rollout`` (PPO's rows per update: ``n_steps`` x the slots; at least 1) or, without
+        one (behaviour cloning, DAgger, the off-policy algorithms), :data:`DEFAULT_BATCH_SIZE`."""
+        if self.batch_size is not None:
+            return self.batch_size
+        if rollout is None:
+            return DEFAULT_BATCH_SIZE
+        return max(1, rollout // PPO_MINIBATCHES)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for the manifest (tuples as lists)."""

@@ -57,12 +57,12 @@ def _hyperparameters(config: TrainConfig, n_slots: int) -> dict[str, Any]:
     kwargs: dict[str, Any] = {"learning_rate": config.learning_rate, "gamma": config.gamma}
     if config.algo in _PPO_LIKE:
         rollout = config.n_steps * n_slots
-        kwargs |= {"n_steps": config.n_steps, "batch_size": min(config.batch_size, rollout), "n_epochs": 5, "ent_coef": config.ent_coef,
+        kwargs |= {"n_steps": config.n_steps, "batch_size": min(config.minibatch_size(rollout), rollout), "n_epochs": 5, "ent_coef": config.ent_coef,
                    "policy_kwargs": {"net_arch": {"pi": net, "vf": net}}}
     elif config.algo == "a2c":
         kwargs |= {"n_steps": config.n_steps, "ent_coef": config.ent_coef, "policy_kwargs": {"net_arch": {"pi": net, "vf": net}}}
     else:  # dqn, sac, td3: off-policy
-        kwargs |= {"batch_size": config.batch_size, "buffer_size": config.buffer_size,
+        kwargs |= {"batch_size": config.minibatch_size(), "buffer_size": config.buffer_size,
                    "learning_starts": min(1000, config.steps // 10), "policy_kwargs": {"net_arch": net}}
     return kwargs
 

@@ -393,7 +393,7 @@ def pretrain_model(
     The teacher's demonstrations come from ``config.envs`` copies of the run's env
     seeded as the run's own envs are (``config.seed``), ``config.pretrain_rows`` rows
     of them, on the run's route, cloned for ``config.pretrain_epochs`` passes of
-    minibatches of ``config.batch_size``. Then each of ``config.dagger_rounds`` DAgger
+    minibatches of ``config.minibatch_size()``. Then each of ``config.dagger_rounds`` DAgger
     rounds adds ``config.dagger_rows`` rows of the states the cloned policy reaches
     (from seeds after the teacher's), labelled with the teacher's actions, and clones
     every row so far for ``config.dagger_epochs`` passes. With ``config.dagger_teacher``
@@ -432,7 +432,7 @@ def pretrain_model(
         seed_normalisation(venv, demonstrations)
     normalise_obs, normalise_reward = _normalisers(venv)
     teacher = {"episodes": demonstrations.episodes, "successes": demonstrations.successes}
-    epochs = behaviour_clone(model, demonstrations, normalise_obs, normalise_reward, config.pretrain_epochs, config.batch_size, config.seed)
+    epochs = behaviour_clone(model, demonstrations, normalise_obs, normalise_reward, config.pretrain_epochs, config.minibatch_size(), config.seed)
     say(_cloned(epochs, start))
     rounds: list[dict[str, Any]] = [{"rows": len(demonstrations), "epochs": epochs}]
     labeller = config.pretrain if config.dagger_teacher is None else config.dagger_teacher
@@ -521,7 +521,7 @@ def _dagger_rounds(
         rounds[-1]["learner_choice_agreement"] = agreement
         say(f"the cloned policy chose as {labeller} on {agreement:.1%} of the rows with a choice")
         cloned = visited if cloned is None else cloned + visited
-        epochs = behaviour_clone(model, cloned, normalise_obs, normalise_reward, config.dagger_epochs, config.batch_size, config.seed + k)
+        epochs = behaviour_clone(model, cloned, normalise_obs, normalise_reward, config.dagger_epochs, config.minibatch_size(), config.seed + k)
         say(_cloned(epochs, start))
         rounds.append({"rows": len(cloned), "epochs": epochs})
 

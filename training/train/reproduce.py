@@ -17,9 +17,10 @@ manifest lacks, added to ``TrainConfig`` after that run was made, counts as its 
 settings that cannot change the weights (the
 progress bar, the worker processes, the checkpoint interval) are not.
 
-``--retrain`` runs the ``moma-env train`` command a published policy's manifest
-records (``published.command``) with ``--out DIR`` instead of the original folder and
-without the progress bar, then compares ``DIR`` with the policy. Training is
+``--retrain`` runs the ``moma-env train`` command of the settings a published policy's
+manifest records (``config``; the command it records, ``published.command``, with every
+setting spelt out that differs from today's defaults) with ``--out DIR`` instead of the
+original folder and without the progress bar, then compares ``DIR`` with the policy. Training is
 deterministic for a configuration, a torch thread count, a machine and the library
 versions (docs/training.md, "Determinism"), so on the same kind of machine with the
 versions the manifest records (``versions``) a difference means the code behaves
@@ -50,6 +51,7 @@ import numpy as np
 
 from agents.learned import MANIFEST, TrainingDirError, published_dir, published_names, read_manifest, read_published
 from training.provenance import differing_versions
+from training.train.command import train_command
 from training.train.config import TrainConfig
 
 __all__ = ["Comparison", "compare_runs", "run_folder", "retrain_argv", "retrain_published", "main"]
@@ -236,7 +238,10 @@ def compare_runs(a: str | Path, b: str | Path) -> Comparison:
 
 
 def retrain_argv(name: str, out: str | Path) -> list[str]:
-    """The ``moma-env train`` arguments (after ``moma-env``) that remake published policy ``name`` into ``out``.
+    """The ``moma-env train`` arguments (after ``moma-env``) that remake published policy ``name`` into ``out``:
+    the command of the settings its manifest records (``config``), every setting that differs
+    from today's defaults spelt out, so that a default changed since (``--batch-size`` on
+    2026-12-06) does not change the run.
 
     Raises:
         TrainingDirError: an unknown name, or a policy whose manifest records no command or
@@ -253,11 +258,10 @@ def retrain_argv(name: str, out: str | Path) -> list[str]:
             f"published policy {name!r} was trained with settings its command cannot express ({', '.join(sorted(omits))}): "
             "retrain it from Python with its manifest's config"
         )
-    argv = shlex.split(command)
-    if argv[:2] != ["moma-env", "train"] or "--out" not in argv:
+    recorded = shlex.split(command)
+    if recorded[:2] != ["moma-env", "train"] or "--out" not in recorded:
         raise TrainingDirError(f"published policy {name!r} records {command!r}, not a moma-env train command with --out")
-    at = argv.index("--out")
-    argv[at + 1] = str(out)
+    argv, _ = train_command(TrainConfig.from_dict(manifest["config"]), out)
     argv = argv[1:]
     if "--no-progress" not in argv:
         argv.append("--no-progress")

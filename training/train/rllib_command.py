@@ -45,6 +45,7 @@ def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
     """The :class:`RllibTrainConfig` of ``moma-env train --backend rllib`` (ConfigError names a bad option)."""
     from moma_env.config import ConfigError
     from training.train.command_common import AUTO, scenario_rewards
+    from training.train.config import backend_batch_size
     from training.train.rllib_config import RllibTrainConfig
 
     if args.algo != "ppo":
@@ -74,7 +75,7 @@ def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
     return RllibTrainConfig(
         scenario=args.scenario, steps=args.timesteps, num_env_runners=args.num_env_runners, envs=args.num_envs, env_route=args.rllib_env,
         seed=args.seed, action_mode=args.action_mode, max_cycles=args.max_cycles, rewards=scenario_rewards(args.scenario, args.reward),
-        net_arch=tuple(args.net), n_steps=args.n_steps, batch_size=train_batch, minibatch_size=min(args.batch_size, train_batch),
+        net_arch=tuple(args.net), n_steps=args.n_steps, batch_size=train_batch, minibatch_size=min(backend_batch_size(args.batch_size), train_batch),
         learning_rate=args.learning_rate, gamma=args.gamma, ent_coef=args.ent_coef, checkpoint_every=args.checkpoint_every,
         eval_every=args.eval_every, eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, eval_sample_actions=args.eval_sample_actions,
     )

@@ -39,6 +39,7 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
     """The :class:`TorchRLTrainConfig` of ``moma-env train --backend torchrl`` (ConfigError names a bad option)."""
     from moma_env.config import ConfigError
     from training.train.command_common import resolved_workers, scenario_rewards
+    from training.train.config import backend_batch_size
     from training.train.torchrl_config import TORCHRL_ACTION_MODE, TorchRLTrainConfig
 
     if args.algo not in ("ppo", "maskable_ppo"):
@@ -67,7 +68,7 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
     return TorchRLTrainConfig(
         scenario=args.scenario, steps=args.timesteps, envs=args.num_envs, seed=args.seed, critic=args.critic,
         max_cycles=args.max_cycles, rewards=scenario_rewards(args.scenario, args.reward), net_arch=tuple(args.net),
-        n_steps=args.n_steps, minibatch_size=min(args.batch_size, args.n_steps * args.num_envs), learning_rate=args.learning_rate,
+        n_steps=args.n_steps, minibatch_size=min(backend_batch_size(args.batch_size), args.n_steps * args.num_envs), learning_rate=args.learning_rate,
         gamma=args.gamma, ent_coef=args.ent_coef, checkpoint_every=args.checkpoint_every, eval_every=args.eval_every,
         eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, eval_sample_actions=args.eval_sample_actions,
         workers=resolved_workers(args.workers, args.num_envs, splits=True), torch_threads=args.torch_threads,
