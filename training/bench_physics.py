@@ -58,10 +58,10 @@ import pymunk
 import pymunk.batch as pbatch
 
 from moma_env.world import COLLISION_SLOP, World, WorldConfig
-from training.cli_args import int_list
 from moma_env.world.arena import add_static_shapes
 from moma_env.world.sled import SledBody
 from moma_env.world.ugv import UGVBody
+from training.cli_args import int_list
 
 __all__ = [
     "CASES",

@@ -42,7 +42,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "check_teacher", "NETWORKS", "TrainConfig", "reward_overrides",
     "run_env_options", "config_to_dict", "config_from_dict", "BackendTrainConfig", "check_learning_fields", "check_workers",
-    "MIN_COPIES_PER_WORKER", "auto_workers", "usable_cores",
+    "MIN_COPIES_PER_WORKER", "auto_workers", "usable_cores", "PPO_MINIBATCHES", "DEFAULT_BATCH_SIZE", "backend_batch_size",
 ]
 
 #: Algorithms by CLI name -> Stable-Baselines3 (or sb3-contrib) class name.
@@ -64,11 +64,6 @@ PPO_MINIBATCHES = 4
 #: Minibatch size (rows) of behaviour cloning, DAgger and the off-policy algorithms when
 #: ``batch_size`` is None, and the RLlib and TorchRL backends' default ``--batch-size``.
 DEFAULT_BATCH_SIZE = 256
-def backend_batch_size(batch_size: int | None) -> int:
-    """``--batch-size`` of ``moma-env train --backend rllib | torchrl``: as given, else :data:`DEFAULT_BATCH_SIZE`."""
-    return DEFAULT_BATCH_SIZE if batch_size is None else batch_size
-
-
 #: Policy networks (``network``): SB3's MLP, or the team network of :mod:`agents.team_network`.
 NETWORKS = ("mlp", "team")
 #: Scripted teachers a run may be cloned from (``pretrain``, ``dagger_teacher``): built-in
@@ -154,6 +149,11 @@ def auto_workers(envs: int, cores: int) -> int | None:
 
 #: Training routes (see the module docstring).
 ROUTES = ("centralised", "shared")
+
+
+def backend_batch_size(batch_size: int | None) -> int:
+    """``--batch-size`` of ``moma-env train --backend rllib | torchrl``: as given, else :data:`DEFAULT_BATCH_SIZE`."""
+    return DEFAULT_BATCH_SIZE if batch_size is None else batch_size
 
 
 @dataclass(frozen=True)
