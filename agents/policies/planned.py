@@ -97,11 +97,11 @@ class PlannedPolicy:
         self._rope_target = {s.name: s.rope_length for s in getattr(world, "sleds", ())}
         self._max_rope = {s.name: s.max_rope for s in getattr(world, "sleds", ())}
         self._dt = 1.0 / world.control_hz
-        # Observer agent -> (its tracking controller, its command -> action scale); the agents follow world.uavs.
+        # Observer agent -> (its tracking controller, as the env's, its command -> action scale); the agents follow world.uavs.
         image_size = (scenario.camera.width, scenario.camera.height)
         self._trackers = {
             agent: (
-                BoardTrackingController(uav.camera_mount[:3, :3], scenario.camera.fx, image_size),
+                BoardTrackingController(uav.camera_mount[:3, :3], scenario.camera.fx, image_size, env.config.tracking),
                 np.array([uav.max_speed, uav.max_speed, uav.max_yaw_rate, uav.max_climb]),
             )
             for agent, uav in zip(env.observer_agents, world.uavs)

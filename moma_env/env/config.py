@@ -26,6 +26,7 @@ from moma_env.config import (
     check_numbers,
     check_positive,
 )
+from moma_env.control import TrackingControllerConfig
 from moma_env.estimator.registry import check_estimator_name, resolve_localiser
 
 __all__ = ["ACTION_MODES", "TEAM_ACTIONS", "RewardConfig", "EnvConfig", "checked_max_cycles"]
@@ -143,6 +144,10 @@ class EnvConfig:
             switching mode with ``commit_legs`` (so that a robot driving a leg
             goes on whatever the team chooses) and the observer flown by its
             controller (see :class:`moma_env.env.centralised.TeamLayout`).
+        tracking: gains and targets of the UAV's board-tracking controller, which flies
+            every UAV that is not an agent (:class:`moma_env.control.TrackingControllerConfig`:
+            how much of the image the boards' spread fills, so how high the UAV climbs, up to
+            ``max_depth``; its defaults unless given).
         localiser: builds each episode's localiser from the scenario's
             ``EstimatorConfig`` (a :class:`moma_env.sim.Localiser`), or the name
             of one of :data:`moma_env.estimator.registry.ESTIMATORS` (``"moma"``,
@@ -164,6 +169,7 @@ class EnvConfig:
     pad_observations: bool = False
     localiser: Callable[[Any], Any] | None = None
     switch_horizon_s: float = DEFAULT_SWITCH_HORIZON_S
+    tracking: TrackingControllerConfig = field(default_factory=TrackingControllerConfig)
     team_action: str = "per_agent"
 
     def __post_init__(self) -> None:
@@ -174,6 +180,8 @@ class EnvConfig:
             object.__setattr__(self, "max_cycles", checked_max_cycles("env.max_cycles", self.max_cycles))
         if not isinstance(self.rewards, RewardConfig):
             raise ConfigError("env.rewards", f"must be a RewardConfig, got {type(self.rewards).__name__}")
+        if not isinstance(self.tracking, TrackingControllerConfig):
+            raise ConfigError("env.tracking", f"must be a TrackingControllerConfig, got {type(self.tracking).__name__}")
         check_choice("env.camera_backend", self.camera_backend, CAMERA_BACKENDS)
         rendered = self.camera_backend == "rendered"
         for name, cls in (("render", RenderConfig), ("floor", FloorConfig)):

@@ -20,6 +20,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 
 from moma_env.camera import FloorConfig, RenderConfig
 from moma_env.config import ConfigError, from_mapping
+from moma_env.control import TrackingControllerConfig
 from moma_env.env.centralised import CentralisedTeamEnv
 from moma_env.env.config import DEFAULT_SWITCH_HORIZON_S, EnvConfig, RewardConfig
 from moma_env.env.parallel import MomaParallelEnv
@@ -182,15 +183,17 @@ def configuration_env(
     localiser: Any = None,
     switch_horizon_s: float = DEFAULT_SWITCH_HORIZON_S,
     team_action: str = "per_agent",
+    tracking: TrackingControllerConfig | Mapping[str, Any] | None = None,
     **overrides: Any,
 ) -> MomaParallelEnv:
     """The PettingZoo parallel env of ``configuration`` (see the module docstring).
 
     ``camera_backend``, ``render``, ``floor``, ``observer_image``,
     ``action_masks``, ``commit_legs``, ``leg_lengths``, ``pad_observations``, ``localiser``,
-    ``switch_horizon_s`` and ``team_action`` are the
+    ``switch_horizon_s``, ``team_action`` and ``tracking`` are the
     :class:`EnvConfig` fields of the same names
-    (``render`` and ``floor`` may be mappings of their fields).
+    (``render``, ``floor`` and ``tracking`` may be mappings of their fields; ``tracking``
+    None: the controller's defaults).
     """
     if rewards is None:
         rewards = RewardConfig()
@@ -200,6 +203,10 @@ def configuration_env(
         render = from_mapping(RenderConfig, render, name="render")
     if isinstance(floor, Mapping):
         floor = from_mapping(FloorConfig, floor, name="floor")
+    if tracking is None:
+        tracking = TrackingControllerConfig()
+    elif isinstance(tracking, Mapping):
+        tracking = from_mapping(TrackingControllerConfig, tracking, name="tracking")
     config = EnvConfig(
         action_mode=action_mode,
         observer_agent=observer_agent,
@@ -216,6 +223,7 @@ def configuration_env(
         localiser=localiser,
         switch_horizon_s=switch_horizon_s,
         team_action=team_action,
+        tracking=tracking,
     )
     scenarios = scenario_factory(configuration, random_scenarios, **overrides)
     return MomaParallelEnv(

@@ -230,7 +230,8 @@ class MomaParallelEnv(ParallelEnv):
             self._observation_spaces = observation_spaces(vector_spaces, tuple(self._observers), self.config.observer_image)
             self._action_spaces = {a: self._make_action_space(a) for a in self.possible_agents}
         image_size = (scenario.camera.width, scenario.camera.height)
-        self._trackers = {uav.name: BoardTrackingController(uav.camera_mount[:3, :3], scenario.camera.fx, image_size) for uav in wc.uavs}
+        self._trackers = {uav.name: BoardTrackingController(uav.camera_mount[:3, :3], scenario.camera.fx, image_size, self.config.tracking)
+                           for uav in wc.uavs}
         n_state = 5 * len(devices) + 7 * len(wc.uavs) + 4 * len(self._ugvs)
         self.state_space = spaces.Box(-np.inf, np.inf, shape=(n_state,), dtype=np.float32)
 
