@@ -152,7 +152,9 @@ ROUTES = ("centralised", "shared")
 
 
 def backend_batch_size(batch_size: int | None) -> int:
-    """``--batch-size`` of ``moma-env train --backend rllib | torchrl``: as given, else :data:`DEFAULT_BATCH_SIZE`."""
+    """A minibatch size given or not: as given, else :data:`DEFAULT_BATCH_SIZE` (``--batch-size``
+    of ``moma-env train --backend rllib | torchrl``, and :meth:`TrainConfig.minibatch_size`
+    without a rollout)."""
     return DEFAULT_BATCH_SIZE if batch_size is None else batch_size
 
 
@@ -389,11 +391,9 @@ class TrainConfig:
         """The rows of a gradient step: ``batch_size`` if given, else a :data:`PPO_MINIBATCHES`-th
         of ``rollout`` (PPO's rows per update: ``n_steps`` x the slots; at least 1) or, without
         one (behaviour cloning, DAgger, the off-policy algorithms), :data:`DEFAULT_BATCH_SIZE`."""
-        if self.batch_size is not None:
-            return self.batch_size
-        if rollout is None:
-            return DEFAULT_BATCH_SIZE
-        return max(1, rollout // PPO_MINIBATCHES)
+        if self.batch_size is None and rollout is not None:
+            return max(1, rollout // PPO_MINIBATCHES)
+        return backend_batch_size(self.batch_size)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for the manifest (tuples as lists)."""
