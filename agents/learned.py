@@ -53,6 +53,7 @@ slower (206 s against 40 s for 20 episodes).
 from __future__ import annotations
 
 import hashlib
+import io
 import os
 import pickle
 import re
@@ -463,6 +464,22 @@ class LearnedPolicy(TrainedUgvPolicy):
         return cls(model, manifest["route"], config["action_mode"], normalise, trained_on, deterministic=deterministic,
                    **trained_env_fields(config))
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickle as the model's Stable-Baselines3 zip (``save``: its weights and settings,
+        not its env) and the constructor's arguments, so that a policy can act in another
+        process even while its model trains on envs of this one (an evaluation split over
+        workers). The copy acts bit for bit like this policy: the same weights, the same
+        torch threads; an ``ObservationScaling`` or no normalisation (another normaliser
+        must pickle on its own)."""
+        saved = io.BytesIO()
+        self.model.save(saved)
+        arguments = {
+            "route": self.route, "action_mode": self.action_mode, "normalise": self.normalise, "configuration": self.configuration,
+            "torch_threads": self.torch_threads, "deterministic": self.deterministic, "switch_horizon_s": self.switch_horizon_s,
+            "team_action": self.team_action,
+        }
+        return _learned_policy_from_zip, (type(self.model), saved.getvalue(), arguments)
+
     def reset(self, env: MomaParallelEnv, seed: int | None = None) -> None:
         """Check that ``env`` fits the model; read its agents (call after ``env.reset``);
         seed the action sampler with ``seed`` (0 if None)."""
@@ -518,3 +535,22 @@ class LearnedPolicy(TrainedUgvPolicy):
         if self._discrete:
             return {a: int(actions[k]) for k, a in enumerate(agents)}
         return {a: np.asarray(actions[k], dtype=np.float32) for k, a in enumerate(agents)}
+
+
+def _learned_policy_from_zip(algorithm: type, saved: bytes, arguments: Mapping[str, Any]) -> LearnedPolicy:
+    """A :class:`LearnedPolicy` unpickled (:meth:`LearnedPolicy.__reduce__`): the model
+    loaded from its saved zip on the CPU. Loading seeds Python's, NumPy's and torch's
+    global generators with the model's seed (Stable-Baselines3's ``set_random_seed``);
+    their states are put back, so unpickling leaves the process's randomness as it was."""
+    import random
+
+    import torch
+
+    python_state, numpy_state = random.getstate(), np.random.get_state()
+    with torch.random.fork_rng(devices=[]):
+        try:
+            model = algorithm.load(io.BytesIO(saved), device="cpu")
+        finally:
+            random.setstate(python_state)
+            np.random.set_state(numpy_state)
+    return LearnedPolicy(model, **arguments)

@@ -369,7 +369,11 @@ def _add_evaluate(sub) -> None:
     layouts.add_argument("--fixed", dest="random_scenarios", action="store_false", help="the configuration's default layout every episode")
     ev.add_argument("--out", type=Path, default=None, help="output folder, one run (default runs/evaluate/<scenario>_<policy>)")
     ev.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
-    ev.add_argument("--video", action="store_true", help="write an animated GIF of the first episode")
+    ev.add_argument("--video", action="store_true", help="write an animated GIF of the first episode (with --jobs 1)")
+    ev.add_argument(
+        "--jobs", type=int_at_least(1, "job count"), default=1,
+        help="worker processes the episodes are split over (default 1: in this process; the same episodes for any value)",
+    )
     ev.add_argument(
         "--record-detections", action="store_true",
         help="also write each episode's detection log, OUT/detections/ep_XXX.jsonl: every call its estimator took, "
@@ -405,6 +409,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     from training.evaluation import PolicyEnvError, PolicyLoadError, evaluate, load_policy, policy_label
     from training.evaluation.policies import POLICY_ACTION_MODES, builtin_name
     from training.evaluation.progress import EpisodeProgress
+    from training.evaluation.runner import PolicyNotPortableError
     from training.evaluation.report import format_table, write_outputs
     from training.localise import write_detection_logs
     from training.evaluation.video import GifRecorder
@@ -417,6 +422,9 @@ def _run_evaluate(args: argparse.Namespace) -> int:
         policy = load_policy(args.policy, args.scenario, args.seed, sample_actions=args.sample_actions)
     except (PolicyLoadError, ConfigError) as err:
         print(f"moma-env evaluate: {err}", file=sys.stderr)
+        return 2
+    if args.video and args.jobs > 1:
+        print("moma-env evaluate: --video records the first episode in this process: give --jobs 1", file=sys.stderr)
         return 2
     label = policy_label(args.policy) + ("_sampled" if args.sample_actions else "")
     env_options = dict(getattr(policy, "env_options", {}))  # a trained policy says which env it fits
@@ -445,6 +453,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
                     frame_sink=recorder,
                     progress=lambda _episode: bar.update(),
                     detection_logs=logs,
+                    jobs=args.jobs,
                     **env_options,
                     **overrides,
                 )
@@ -456,7 +465,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
                 paths["video"] = run.path / f"{args.scenario}_episode_000.gif"
                 recorder.write(paths["video"])
             paths = run.final(paths)
-    except PolicyEnvError as err:  # the policy refused the env at its first reset: the folder is not written
+    except (PolicyEnvError, PolicyNotPortableError) as err:  # refused the env at its first reset, or cannot go to --jobs: nothing written
         print(f"moma-env evaluate: {err}", file=sys.stderr)
         return 2
     wall = time.perf_counter() - start

@@ -11,27 +11,24 @@ deviations over episodes). Nothing here prints or writes files; see
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from moma_env.env.factory import parallel_env
-from moma_env.estimator import RecordingFactory
-from moma_env.estimator.registry import resolve_localiser
 from moma_env.metrics import aggregate
 from moma_env.scenarios import CONFIGURATIONS
 from moma_env.tasks import TASKS
 from moma_env.config import ConfigError
-from training.evaluation.episode import EpisodeResult, FrameSink, robot_agents, run_episode
+from moma_env.vector.parent_watch import worker_pool
+from training.evaluation.episode import EpisodeResult, FrameSink, robot_agents
 from training.evaluation.policies import Policy, load_policy, policy_label
+from training.evaluation.runner import EpisodeRange, ProgressCallback, run_episodes, run_episodes_split
 
 __all__ = ["EvaluationResult", "evaluate", "summarise", "mean_std"]
-
-#: Called after every episode (progress bars).
-ProgressCallback = Callable[[EpisodeResult], None]
-
 
 @dataclass(frozen=True, eq=False)
 class EvaluationResult:
@@ -183,6 +180,8 @@ def evaluate(
     frame_sink: FrameSink | None = None,
     progress: ProgressCallback | None = None,
     detection_logs: list[str] | None = None,
+    jobs: int = 1,
+    executor: Executor | None = None,
     **overrides: Any,
 ) -> EvaluationResult:
     """Run ``episodes`` episodes of a policy on ``configuration`` and summarise them.
@@ -202,13 +201,21 @@ def evaluate(
         detection_logs: when given, each episode's detection log (the file's text,
             :mod:`moma_env.estimator.log`: every call its estimator took) is appended to
             it, in episode order; the episodes are the same.
+        jobs: worker processes the episodes are split over
+            (:mod:`training.evaluation.runner`; 1: every episode in this process). The
+            episodes are the same for any value; a policy object must pickle, and
+            ``frame_sink`` needs ``jobs=1``.
+        executor: a process pool of ``jobs`` workers to run in (a training run's,
+            kept between its evaluations) instead of one started for this call.
         **overrides: fields of the configuration's dataclass, or env options
             (``localiser``, ...).
 
     Raises:
         ConfigError: unknown configuration, bad option or override.
         PolicyLoadError: the policy spec names no loadable policy.
-        ValueError: ``episodes`` < 1 or ``seed`` < 0.
+        ValueError: ``episodes`` < 1, ``seed`` < 0, ``jobs`` < 1, ``jobs`` > 1 with a
+            ``frame_sink``.
+        PolicyNotPortableError: a policy object for ``jobs`` > 1 that does not pickle.
     """
     if configuration not in CONFIGURATIONS and configuration not in TASKS:
         raise ConfigError("scenario", f"unknown configuration or task {configuration!r}; known: {sorted(CONFIGURATIONS) + sorted(TASKS)}")
@@ -216,38 +223,32 @@ def evaluate(
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
+    if jobs > 1 and frame_sink is not None:
+        raise ValueError("recording frames runs the first episode in this process: evaluate with jobs=1")
+    jobs = min(jobs, episodes)
     if isinstance(policy_spec, str):
         label = policy_label(policy_spec)
-        policy = load_policy(policy_spec, configuration, seed)
+        policy = load_policy(policy_spec, configuration, seed)  # PolicyLoadError here, not in a worker
     else:
         label = type(policy_spec).__name__
         policy = policy_spec
-    recording = None
-    env_options = overrides
-    if detection_logs is not None:
-        recording = RecordingFactory(resolve_localiser(overrides.get("localiser")))
-        env_options = {**overrides, "localiser": recording}
-    env = parallel_env(
-        configuration,
-        random_scenarios=random_scenarios,
-        action_mode=action_mode,
-        max_cycles=max_cycles,
-        render_mode="rgb_array" if frame_sink is not None else None,
-        **env_options,
-    )
-    try:
-        robots = tuple(robot_agents(env))
-        results = []
-        for k in range(episodes):
-            ep = run_episode(env, policy, k, seed + k, frame_sink if k == 0 else None)
-            results.append(ep)
-            if recording is not None:
-                detection_logs.append(recording.made[-1].text())
-                recording.made.clear()  # one episode's log in memory at a time
-            if progress is not None:
-                progress(ep)
-    finally:
-        env.close()
+    env_options = {"random_scenarios": random_scenarios, "action_mode": action_mode, "max_cycles": max_cycles, **overrides}
+    logs = detection_logs is not None
+    if jobs == 1:
+        whole = run_episodes(configuration, policy, EpisodeRange(0, episodes), seed, env_options, frame_sink=frame_sink,
+                             progress=progress, detection_logs=logs)
+    else:
+        shipped = policy_spec if isinstance(policy_spec, str) else policy
+        if executor is not None:
+            whole = run_episodes_split(executor, jobs, configuration, shipped, episodes, seed, env_options, progress=progress, detection_logs=logs)
+        else:
+            with worker_pool(jobs) as pool:
+                whole = run_episodes_split(pool, jobs, configuration, shipped, episodes, seed, env_options, progress=progress, detection_logs=logs)
+    if logs:
+        detection_logs.extend(whole.detection_logs)
+    results, robots = list(whole.episodes), whole.robots
     return EvaluationResult(
         configuration=configuration,
         policy=label,

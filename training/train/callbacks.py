@@ -16,7 +16,8 @@ from typing import Any
 from stable_baselines3.common.callbacks import BaseCallback
 
 from moma_env.io import write_json
-from training.train.config import TrainConfig
+from moma_env.vector.parent_watch import WorkerPool, worker_pool
+from training.train.config import TrainConfig, eval_jobs
 from training.train.curves import EVALUATIONS, write_curves
 from training.train.evaluation import evaluate_model, headline
 
@@ -61,6 +62,10 @@ class EvaluationCallback(BaseCallback):
     (:mod:`training.train.curves`), each whole; the numbers also go to the SB3
     logger (``eval/...``, in TensorBoard when it is installed).
 
+    With :func:`~training.train.config.eval_jobs` above 1 the episodes are split over a
+    process pool started at the first evaluation and kept until the callback's ``with``
+    block ends (the run's), so that the workers start, and import torch, once a run.
+
     Args:
         config: the run (``eval_every``, ``eval_episodes``, ``eval_seed``, ...).
         out: the run's folder.
@@ -75,6 +80,18 @@ class EvaluationCallback(BaseCallback):
         self.records = list(records)
         self._wall_time = wall_time
         self._last: int | None = None
+        self._jobs = eval_jobs(config)
+        self._pool: WorkerPool | None = None
+
+    def __enter__(self) -> "EvaluationCallback":
+        return self
+
+    def __exit__(self, exc_type, exc_value, traceback) -> bool:
+        """End the evaluations' worker pool: after its tasks, or at once on an error."""
+        pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.__exit__(exc_type, exc_value, traceback)
+        return False
 
     def _on_training_start(self) -> None:
         self._last = self.num_timesteps
@@ -87,7 +104,9 @@ class EvaluationCallback(BaseCallback):
     def evaluate_now(self) -> dict:
         """Evaluate the current model, log and write the records; return the new record."""
         start = time.perf_counter()
-        result = evaluate_model(self.model, self.config)
+        if self._jobs > 1 and self._pool is None:
+            self._pool = worker_pool(self._jobs)
+        result = evaluate_model(self.model, self.config, jobs=self._jobs, executor=self._pool)
         record = {"num_timesteps": int(self.model.num_timesteps), "wall_time_s": self._wall_time(), **headline(result.summary),
                   "eval_seconds": time.perf_counter() - start, "sample_actions": self.config.eval_sample_actions}
         self.records.append(record)

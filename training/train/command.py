@@ -122,6 +122,9 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
                     help="episodes per evaluation (default %(default)s)")
     tr.add_argument("--eval-seed", type=int_at_least(0, "seed"), default=defaults["eval_seed"],
                     help="seed of the first held-out evaluation episode (default %(default)s)")
+    tr.add_argument("--eval-jobs", type=int_at_least_or(AUTO, 1, "job count"), default=AUTO, metavar="J",
+                    help="worker processes an evaluation's episodes are split over, kept for the run; the same evaluations for "
+                         "any value (sb3 backend only); auto (default): one per usable core, at most one per episode; 1: in this process")
     tr.add_argument("--eval-sample-actions", action="store_true",
                     help="the held-out evaluations sample the policy's actions (default: the most likely one)")
     tr.add_argument("--network", choices=NETWORKS, type=choice(NETWORKS, "network"), default=defaults["network"],
@@ -196,6 +199,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         ent_coef=args.ent_coef,
         checkpoint_every=args.checkpoint_every,
         eval_every=args.eval_every,
+        eval_jobs=None if args.eval_jobs == AUTO else args.eval_jobs,
         eval_episodes=args.eval_episodes,
         eval_seed=args.eval_seed,
         eval_sample_actions=args.eval_sample_actions,
@@ -220,7 +224,7 @@ _VALUE_OPTIONS = MappingProxyType({
     "route": "--route", "max_cycles": "--max-cycles", "switch_horizon_s": "--switch-horizon", "team_action": "--team-action", "n_steps": "--n-steps", "batch_size": "--batch-size",
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",
-    "eval_seed": "--eval-seed", "network": "--network", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",
+    "eval_seed": "--eval-seed", "eval_jobs": "--eval-jobs", "network": "--network", "pretrain": "--pretrain", "pretrain_rows": "--pretrain-rows", "pretrain_epochs": "--pretrain-epochs",
     "dagger_rounds": "--dagger-rounds", "dagger_rows": "--dagger-rows", "dagger_epochs": "--dagger-epochs",
     "dagger_teacher": "--dagger-teacher", "init_from": "--init-from", "kl_to_start": "--kl-to-start",
     "demonstrations": "--demonstrations",

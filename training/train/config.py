@@ -42,7 +42,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "check_teacher", "NETWORKS", "TrainConfig", "reward_overrides",
     "run_env_options", "config_to_dict", "config_from_dict", "BackendTrainConfig", "check_learning_fields", "check_workers",
-    "MIN_COPIES_PER_WORKER", "auto_workers", "usable_cores", "PPO_MINIBATCHES", "DEFAULT_BATCH_SIZE", "backend_batch_size",
+    "MIN_COPIES_PER_WORKER", "auto_workers", "eval_jobs", "usable_cores", "PPO_MINIBATCHES", "DEFAULT_BATCH_SIZE", "backend_batch_size",
 ]
 
 #: Algorithms by CLI name -> Stable-Baselines3 (or sb3-contrib) class name.
@@ -139,6 +139,13 @@ def usable_cores() -> int:
     return os.cpu_count() or 1
 
 
+def eval_jobs(config: "TrainConfig") -> int:
+    """The worker processes of ``config``'s evaluations: ``config.eval_jobs``, or where it
+    is None one per usable core; at most one per episode (1: in this process)."""
+    jobs = config.eval_jobs if config.eval_jobs is not None else usable_cores()
+    return min(jobs, config.eval_episodes)
+
+
 def auto_workers(envs: int, cores: int) -> int | None:
     """The worker processes ``--workers auto`` splits ``envs`` copies over on ``cores`` cores:
     one per core, each stepping at least :data:`MIN_COPIES_PER_WORKER` copies; None (every
@@ -208,6 +215,9 @@ class TrainConfig:
         eval_max_cycles: episode length limit of the evaluations (None: the scenario's).
         eval_sample_actions: the evaluations sample the policy's actions (seeded per
             episode) instead of taking the most likely one.
+        eval_jobs: worker processes an evaluation's episodes are split over, kept for
+            the run (1: in this process; None: :func:`eval_jobs`, one per usable core).
+            The evaluations are the same for any value.
         progress_bar: show SB3's progress bar.
         torch_threads: torch's intra-op threads while training (1: the networks
             are tiny, more threads only contend with the envs for the cores).
@@ -281,6 +291,7 @@ class TrainConfig:
     eval_seed: int = 10_000
     eval_max_cycles: int | None = None
     eval_sample_actions: bool = False
+    eval_jobs: int | None = None
     progress_bar: bool = False
     torch_threads: int = 1
     network: str = "mlp"
@@ -326,6 +337,8 @@ class TrainConfig:
             check_count("batch_size", self.batch_size, 1)
         check_count("buffer_size", self.buffer_size, 1)
         check_bool("progress_bar", self.progress_bar)
+        if self.eval_jobs is not None:
+            check_count("eval_jobs", self.eval_jobs, 1)
         check_count("torch_threads", self.torch_threads, 1)
         check_choice("network", self.network, NETWORKS)
         if self.network == "team" and (self.route != "centralised" or self.action_mode != "switching" or self.algo not in PRETRAINABLE):

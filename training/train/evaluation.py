@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from concurrent.futures import Executor
 from typing import Any
 
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
-from agents.learned import LearnedPolicy, trained_env_fields
+from agents.learned import LearnedPolicy, ObservationScaling, trained_env_fields
 from training.evaluation.harness import EvaluationResult, evaluate
 from training.train.config import TrainConfig
 
@@ -53,10 +54,12 @@ def headline(summary: Mapping[str, Any]) -> dict[str, float]:
 
 
 def live_policy(model: BaseAlgorithm, config: TrainConfig) -> LearnedPolicy:
-    """The model as a policy, normalising observations with the training env's current
-    statistics, on envs like the run's (its observations' timer and team action)."""
+    """The model as a policy, normalising observations with the training env's statistics
+    as they are now (:class:`~agents.learned.ObservationScaling`: a copy, which pickles, so
+    the policy can act in worker processes), on envs like the run's (its observations'
+    timer and team action)."""
     venv = model.get_env()
-    normalise = venv.normalize_obs if isinstance(venv, VecNormalize) and venv.norm_obs else None
+    normalise = ObservationScaling.from_vec_normalize(venv) if isinstance(venv, VecNormalize) else None
     return LearnedPolicy(
         model, config.route, config.action_mode, normalise, config.scenario,
         torch_threads=config.torch_threads, deterministic=not config.eval_sample_actions,
@@ -64,8 +67,10 @@ def live_policy(model: BaseAlgorithm, config: TrainConfig) -> LearnedPolicy:
     )
 
 
-def evaluate_model(model: BaseAlgorithm, config: TrainConfig) -> EvaluationResult:
-    """``config.eval_episodes`` held-out episodes of the model from ``config.eval_seed``."""
+def evaluate_model(model: BaseAlgorithm, config: TrainConfig, jobs: int = 1, executor: Executor | None = None) -> EvaluationResult:
+    """``config.eval_episodes`` held-out episodes of the model from ``config.eval_seed``,
+    in this process or split over ``jobs`` worker processes (in ``executor`` when given:
+    :func:`training.evaluation.harness.evaluate`); the same episodes either way."""
     policy = live_policy(model, config)
     return evaluate(
         config.scenario,
@@ -75,5 +80,7 @@ def evaluate_model(model: BaseAlgorithm, config: TrainConfig) -> EvaluationResul
         random_scenarios=True,
         action_mode=config.action_mode,
         max_cycles=config.eval_max_cycles,
+        jobs=jobs,
+        executor=executor,
         **{k: v for k, v in policy.env_options.items() if k != "action_mode"},
     )

@@ -46,7 +46,8 @@ PRETRAINING = "pretrain.json"
 
 #: Fields of the configuration that a resumed run may change; every other must match the run's.
 RESUMABLE_CHANGES = frozenset(
-    {"steps", "subproc", "workers", "checkpoint_every", "eval_every", "eval_episodes", "eval_seed", "eval_max_cycles", "eval_sample_actions", "progress_bar", "torch_threads"}
+    {"steps", "subproc", "workers", "checkpoint_every", "eval_every", "eval_episodes", "eval_seed", "eval_max_cycles", "eval_sample_actions", "eval_jobs",
+     "progress_bar", "torch_threads"}
 )
 
 
@@ -136,28 +137,29 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
     logger = training_logger(out, model.num_timesteps)
     model.set_logger(logger)
     try:
-        if not resume and (config.pretrain is not None or config.dagger_teacher is not None):
-            from training.train.pretrain import dagger_model, pretrain_model
+        with evaluation:  # its worker pool, if it starts one, ends here
+            if not resume and (config.pretrain is not None or config.dagger_teacher is not None):
+                from training.train.pretrain import dagger_model, pretrain_model
 
-            report = _print_progress if config.progress_bar else None
-            if config.pretrain is not None:
-                record = pretrain_model(model, venv, config, report, kept, keep=out)
-            else:  # DAgger from init_from's policy
-                record = dagger_model(model, venv, config, report, kept)
-            write_json(out / PRETRAINING, record)
-        if config.kl_to_start > 0:
-            start = kl_to_start.start_policy_from(out, model) if resume else kl_to_start.write_start_policy(out, model)
-            kl_to_start.install(model, start, config.kl_to_start, config.ent_coef)
-        if (config.pretrain is not None or config.init_from is not None) and not resume and config.eval_every > 0:
-            evaluation.init_callback(model)  # where the cloned or given policy starts the curves
-            evaluation.evaluate_now()
-        remaining = config.steps - model.num_timesteps
-        if remaining > 0:
-            model.learn(remaining, callback=chain, reset_num_timesteps=not resume, progress_bar=config.progress_bar)
-            if config.eval_every > 0 and (not evaluation.records or evaluation.records[-1]["num_timesteps"] != model.num_timesteps):
+                report = _print_progress if config.progress_bar else None
+                if config.pretrain is not None:
+                    record = pretrain_model(model, venv, config, report, kept, keep=out)
+                else:  # DAgger from init_from's policy
+                    record = dagger_model(model, venv, config, report, kept)
+                write_json(out / PRETRAINING, record)
+            if config.kl_to_start > 0:
+                start = kl_to_start.start_policy_from(out, model) if resume else kl_to_start.write_start_policy(out, model)
+                kl_to_start.install(model, start, config.kl_to_start, config.ent_coef)
+            if (config.pretrain is not None or config.init_from is not None) and not resume and config.eval_every > 0:
+                evaluation.init_callback(model)  # where the cloned or given policy starts the curves
                 evaluation.evaluate_now()
-                logger.record("time/total_timesteps", model.num_timesteps)
-                logger.dump(model.num_timesteps)  # learn has dumped its last row already
+            remaining = config.steps - model.num_timesteps
+            if remaining > 0:
+                model.learn(remaining, callback=chain, reset_num_timesteps=not resume, progress_bar=config.progress_bar)
+                if config.eval_every > 0 and (not evaluation.records or evaluation.records[-1]["num_timesteps"] != model.num_timesteps):
+                    evaluation.evaluate_now()
+                    logger.record("time/total_timesteps", model.num_timesteps)
+                    logger.dump(model.num_timesteps)  # learn has dumped its last row already
         manifest = save()
     finally:
         logger.close()

@@ -38,7 +38,7 @@ def add_torchrl_arguments(parser: argparse.ArgumentParser) -> None:
 def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
     """The :class:`TorchRLTrainConfig` of ``moma-env train --backend torchrl`` (ConfigError names a bad option)."""
     from moma_env.config import ConfigError
-    from training.train.command_common import resolved_workers, scenario_rewards
+    from training.train.command_common import AUTO, resolved_workers, scenario_rewards
     from training.train.config import backend_batch_size
     from training.train.torchrl_config import TORCHRL_ACTION_MODE, TorchRLTrainConfig
 
@@ -48,6 +48,8 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
         raise ConfigError("route", "--backend torchrl trains one actor shared by the UGVs: drop --route centralised (--critic chooses the critic)")
     if args.subproc:
         raise ConfigError("subproc", "--backend torchrl steps its copies in one batched env: drop --subproc (--workers W splits it over W processes)")
+    if args.eval_jobs != AUTO:
+        raise ConfigError("eval_jobs", "--backend torchrl evaluates in this process: drop --eval-jobs (the sb3 backend takes it)")
     if args.action_mode != TORCHRL_ACTION_MODE:
         raise ConfigError("action_mode", f"--backend torchrl trains in {TORCHRL_ACTION_MODE} mode only, got {args.action_mode!r}")
     if args.network != "mlp":
