@@ -152,3 +152,14 @@ def test_training_evaluates_the_same_with_a_worker_pool(tmp_path):
     with pytest.raises(SystemExit) as exit_:
         main(["train", "--scenario", "top_observer", "--timesteps", "0", "--eval-jobs", "0", "--out", str(tmp_path / "x")])
     assert exit_.value.code == 2
+
+
+def test_the_evaluation_benchmark_prints_its_three_ways(capsys):
+    from training.bench_evaluation import WAYS, main as bench
+
+    assert bench(["--policy", "greedy", "--episodes", "2", "--max-cycles", "10", "--rounds", "1"]) == 0
+    table = capsys.readouterr().out.splitlines()
+    assert table[0].startswith("greedy on top_observer_team4, 2 episodes from seed 100000, 2 workers, 1 rounds")
+    rows = [line for line in table if line.startswith("| ") and not line.startswith("| evaluation")]
+    assert [row.split(" | ")[0].lstrip("| ") for row in rows] == list(WAYS)
+    assert rows[0].endswith("| 1.00x | 1.00x |")
