@@ -38,6 +38,7 @@ from training.cli_args import (
     ESTIMATOR_NAMES,
     PRESET_NAMES,
     SCENARIO_NAMES,
+    SET_HELP,
     choice,
     field_assignment,
     field_assignments,
@@ -390,7 +391,7 @@ def _add_evaluate(sub) -> None:
     )
     ev.add_argument(
         "--set", dest="overrides", action="append", type=field_assignment, metavar="FIELD=VALUE", default=None,
-        help="a field of the configuration's dataclass, for every layout (random ones keep the rig's settings: estimator, leg_length, dwell_s, goal tolerances, max_cycles), e.g. --set leg_length=1.5; the value is read as JSON; repeatable (default: none)",
+        help=SET_HELP,
     )
     ev.set_defaults(handler=_run_evaluate)
 
@@ -407,7 +408,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     from moma_env.io import run_folder, to_jsonable
     from moma_env.tasks import TASKS
     from training.evaluation import PolicyEnvError, PolicyLoadError, evaluate, load_policy, policy_label
-    from training.evaluation.policies import POLICY_ACTION_MODES, builtin_name
+    from training.evaluation.policies import POLICY_ACTION_MODES, builtin_name, overrides_beside_policy
     from training.evaluation.progress import EpisodeProgress
     from training.evaluation.runner import PolicyNotPortableError
     from training.evaluation.report import format_table, write_outputs
@@ -428,6 +429,11 @@ def _run_evaluate(args: argparse.Namespace) -> int:
         return 2
     label = policy_label(args.policy) + ("_sampled" if args.sample_actions else "")
     env_options = dict(getattr(policy, "env_options", {}))  # a trained policy says which env it fits
+    try:
+        overrides = overrides_beside_policy(args.policy, env_options, overrides)
+    except ConfigError as err:
+        print(f"moma-env evaluate: {err}", file=sys.stderr)
+        return 2
     if args.action_mode is not None and env_options.get("action_mode", args.action_mode) != args.action_mode:
         print(f"moma-env evaluate: the policy was trained in {env_options['action_mode']!r} mode, not {args.action_mode!r}", file=sys.stderr)
         return 2

@@ -26,6 +26,7 @@ __all__ = [
     "ACTION_MODE_NAMES",
     "TEAM_ACTION_NAMES",
     "ESTIMATOR_NAMES",
+    "SET_HELP",
     "name_list",
     "int_at_least",
     "int_at_least_or",
@@ -48,6 +49,11 @@ ACTION_MODE_NAMES: tuple[str, ...] = ("switching", "velocity")
 TEAM_ACTION_NAMES: tuple[str, ...] = ("per_agent", "one_start")
 #: ``moma_env.estimator.registry.ESTIMATORS`` (the paper's ``moma`` first).
 ESTIMATOR_NAMES: tuple[str, ...] = ("moma", "fused", "ekf", "graph", "graph_vision")
+#: The help of ``--set FIELD=VALUE`` (``evaluate``, ``sweep``: ``moma_env.env.factory.checked_overrides``).
+SET_HELP = ("a field of the configuration's dataclass, for every layout (random ones keep the rig's settings: estimator, leg_length, "
+            "dwell_s, goal tolerances, max_cycles), e.g. --set leg_length=1.5, or an env option (EnvConfig: tracking, leg_lengths, "
+            "switch_horizon_s, rewards, ...; not action_mode or max_cycles, which have their own options), e.g. "
+            "--set 'tracking={\"fill\": 0.5}'; the value is read as JSON; repeatable (default: none)")
 
 
 def int_at_least(minimum: int, what: str) -> Callable[[str], int]:

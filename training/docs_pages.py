@@ -55,7 +55,8 @@ __all__ = [
 #: The env's action modes, in the order the pages show them (``moma_env.env.config.ACTION_MODES``).
 ACTION_MODES = ("switching", "velocity")
 
-#: Keywords of ``moma_env.env.factory.configuration_env`` that are not ``EnvConfig`` fields.
+#: Keywords of ``moma_env.env.factory.configuration_env`` that are not ``EnvConfig`` fields
+#: (those are ``env_config``'s).
 _CONSTRUCTOR_OPTIONS = {
     "render_mode": "`\"rgb_array\"` (the top-down view with truth, estimates, boards, goals, ropes and camera coverage, "
     "the first camera's image as an inset) or `\"human\"` (the same in a pygame window); None renders nothing.",
@@ -442,7 +443,7 @@ def configurations_index() -> str:
     weights, the camera and estimator options, the tasks."""
     from moma_env.camera import CameraConfig
     from moma_env.env.config import EnvConfig, RewardConfig
-    from moma_env.env.factory import configuration_env
+    from moma_env.env.factory import configuration_env, env_config
     from moma_env.estimator import EstimatorConfig, OutlierGateConfig
     import moma_env.tasks as tasks_module
     from moma_env.scenarios import SPECS
@@ -468,11 +469,12 @@ def configurations_index() -> str:
     out.append("## Environment options\n")
     out.append("Keywords of every constructor (`parallel_env`, `env`, `vector.make`, `gymnasium.make`), besides a "
                "configuration's fields.\n")
-    keywords = [p.name for p in inspect.signature(configuration_env).parameters.values() if p.kind is p.KEYWORD_ONLY]
+    keywords = [p.name for constructor in (env_config, configuration_env)
+                for p in inspect.signature(constructor).parameters.values() if p.kind is p.KEYWORD_ONLY]
     env_fields = {f.name for f in dataclasses.fields(EnvConfig)}
     undocumented = [k for k in keywords if k not in env_fields and k not in _CONSTRUCTOR_OPTIONS]
     if undocumented:
-        raise DocsError(f"configuration_env keyword {undocumented[0]!r} is neither an EnvConfig field nor described in training/docs_pages.py")
+        raise DocsError(f"env_config or configuration_env keyword {undocumented[0]!r} is neither an EnvConfig field nor described in training/docs_pages.py")
     out.append(options_table(EnvConfig, [k for k in keywords if k in env_fields]))
     parameters = inspect.signature(configuration_env).parameters
     for key in keywords:

@@ -35,8 +35,17 @@ __all__ = [
     "scenario_factory",
     "RandomScenarios",
     "checked_overrides",
+    "env_config",
+    "SETTABLE_ENV_OPTIONS",
     "versioned_constructors",
 ]
+
+#: The env options (:class:`EnvConfig` fields) an override may set beside the
+#: configuration's fields (:func:`checked_overrides`): all but the action mode and the
+#: episode length, which the commands take as options of their own.
+SETTABLE_ENV_OPTIONS = tuple(f.name for f in fields(EnvConfig) if f.name not in ("action_mode", "max_cycles"))
+#: Every env option :func:`configuration_env` hands to :func:`env_config`.
+_ENV_OPTIONS = tuple(f.name for f in fields(EnvConfig))
 
 
 def _spec(configuration: str) -> ScenarioSpec:
@@ -136,42 +145,36 @@ def scenario_factory(configuration: str, random_scenarios: bool = False, **overr
 
 
 def checked_overrides(name: str, overrides: Mapping[str, Any]) -> dict[str, Any]:
-    """``overrides`` (fields of the configuration's dataclass, e.g. ``{"leg_length": 1.5}``)
-    for configuration or task ``name``, checked: each a field of the configuration, and
-    the configuration, with the task's own fields, valid with them.
+    """``overrides`` for configuration or task ``name``, checked: each a field of the
+    configuration's dataclass (e.g. ``{"leg_length": 1.5}``) or one of
+    :data:`SETTABLE_ENV_OPTIONS` (e.g. ``{"tracking": {"fill": 0.5}}``), and the
+    configuration and the env's settings, with the task's own, valid with them.
 
     Raises:
-        ConfigError: naming the configuration's field (an unknown field, a bad value)
-            or ``configuration`` (an unknown name).
+        ConfigError: naming the configuration's field or the env option (an unknown
+            name, a bad value), or ``configuration`` (an unknown name).
     """
     configuration, options = task_options(name) if isinstance(name, str) and name in TASKS else (name, {})
     config_type = _spec(configuration).config_type
     known = [f.name for f in fields(config_type)]
     for key in overrides:
-        if key not in known:
-            raise ConfigError(f"{configuration}.{key}", f"no such field of the {configuration} configuration; known: {known}")
+        if key not in known and key not in SETTABLE_ENV_OPTIONS:
+            raise ConfigError(f"{configuration}.{key}", f"no such field of the {configuration} configuration, nor an env option; "
+                              f"known: {known}; env options: {list(SETTABLE_ENV_OPTIONS)}")
     own = {key: value for key, value in options.items() if key in known}
-    from_mapping(config_type, {**own, **overrides}, name=configuration)
+    from_mapping(config_type, {**own, **{k: v for k, v in overrides.items() if k in known}}, name=configuration)
+    settings = {key: value for key, value in {**options, **overrides}.items() if key in SETTABLE_ENV_OPTIONS}
+    if any(key in SETTABLE_ENV_OPTIONS for key in overrides):
+        env_config(**settings)
     return dict(overrides)
 
 
-def parallel_env(configuration: str, **options: Any) -> MomaParallelEnv:
-    """The PettingZoo parallel env of a configuration or of a task (:mod:`moma_env.tasks`,
-    whose options ``options`` override); the options are :func:`configuration_env`'s."""
-    if isinstance(configuration, str) and configuration in TASKS:
-        configuration, options = task_options(configuration, **options)
-    return configuration_env(configuration, **options)
-
-
-def configuration_env(
-    configuration: str,
+def env_config(
     *,
-    render_mode: str | None = None,
     max_cycles: int | None = None,
     action_mode: str = "switching",
     observer_agent: bool | None = None,
     rewards: RewardConfig | Mapping[str, float] | None = None,
-    random_scenarios: bool = False,
     camera_backend: str = "geometric",
     render: RenderConfig | Mapping[str, Any] | None = None,
     floor: FloorConfig | Mapping[str, Any] | None = None,
@@ -184,16 +187,13 @@ def configuration_env(
     switch_horizon_s: float = DEFAULT_SWITCH_HORIZON_S,
     team_action: str = "per_agent",
     tracking: TrackingControllerConfig | Mapping[str, Any] | None = None,
-    **overrides: Any,
-) -> MomaParallelEnv:
-    """The PettingZoo parallel env of ``configuration`` (see the module docstring).
+) -> EnvConfig:
+    """The :class:`EnvConfig` of these options, ``rewards``, ``render``, ``floor`` and
+    ``tracking`` given as mappings of their fields or as their dataclasses (``rewards``
+    and ``tracking`` None: their defaults).
 
-    ``camera_backend``, ``render``, ``floor``, ``observer_image``,
-    ``action_masks``, ``commit_legs``, ``leg_lengths``, ``pad_observations``, ``localiser``,
-    ``switch_horizon_s``, ``team_action`` and ``tracking`` are the
-    :class:`EnvConfig` fields of the same names
-    (``render``, ``floor`` and ``tracking`` may be mappings of their fields; ``tracking``
-    None: the controller's defaults).
+    Raises:
+        ConfigError: naming the bad field (``env.<name>``, ``tracking.<name>``, ...).
     """
     if rewards is None:
         rewards = RewardConfig()
@@ -207,7 +207,7 @@ def configuration_env(
         tracking = TrackingControllerConfig()
     elif isinstance(tracking, Mapping):
         tracking = from_mapping(TrackingControllerConfig, tracking, name="tracking")
-    config = EnvConfig(
+    return EnvConfig(
         action_mode=action_mode,
         observer_agent=observer_agent,
         max_cycles=max_cycles,
@@ -225,6 +225,39 @@ def configuration_env(
         team_action=team_action,
         tracking=tracking,
     )
+
+
+def parallel_env(configuration: str, **options: Any) -> MomaParallelEnv:
+    """The PettingZoo parallel env of a configuration or of a task (:mod:`moma_env.tasks`,
+    whose options ``options`` override); the options are :func:`configuration_env`'s."""
+    if isinstance(configuration, str) and configuration in TASKS:
+        configuration, options = task_options(configuration, **options)
+    return configuration_env(configuration, **options)
+
+
+def configuration_env(
+    configuration: str,
+    *,
+    render_mode: str | None = None,
+    random_scenarios: bool = False,
+    **options: Any,
+) -> MomaParallelEnv:
+    """The PettingZoo parallel env of ``configuration`` (see the module docstring).
+
+    Args:
+        configuration: a name of :data:`moma_env.scenarios.CONFIGURATIONS`.
+        render_mode: ``None``, ``"human"`` or ``"rgb_array"``.
+        random_scenarios: a new random layout at every reset (:class:`RandomScenarios`).
+        **options: the env's options, the :class:`EnvConfig` fields (``action_mode``,
+            ``max_cycles``, ``rewards``, ``camera_backend``, ``render``, ``floor``,
+            ``observer_image``, ``action_masks``, ``commit_legs``, ``leg_lengths``,
+            ``pad_observations``, ``localiser``, ``switch_horizon_s``, ``team_action``,
+            ``tracking``, ``observer_agent``: :func:`env_config`, where ``rewards``,
+            ``render``, ``floor`` and ``tracking`` may be mappings of their fields), and
+            any other keyword a field of the configuration's dataclass.
+    """
+    config = env_config(**{name: options.pop(name) for name in _ENV_OPTIONS if name in options})
+    overrides = options
     scenarios = scenario_factory(configuration, random_scenarios, **overrides)
     return MomaParallelEnv(
         scenarios,

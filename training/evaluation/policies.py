@@ -41,13 +41,16 @@ Specs understood by :func:`load_policy`:
 from __future__ import annotations
 
 import importlib
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
+
+from moma_env.config import ConfigError
 
 from training.policy_specs import BUILTIN_POLICIES, POLICY_ACTION_MODES, builtin_name, leg_spec
 
 __all__ = [
-    "Policy", "PolicyLoadError", "PolicyEnvError", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "builtin_name", "load_policy", "policy_label",
+    "Policy", "PolicyLoadError", "PolicyEnvError", "overrides_beside_policy", "BUILTIN_POLICIES", "POLICY_ACTION_MODES", "builtin_name", "load_policy", "policy_label",
 ]
 
 #: Built-in policies that are an ``agents.policies`` class made without arguments.
@@ -70,6 +73,22 @@ class Policy(Protocol):
     def reset(self, env: Any, seed: int | None = None) -> None: ...
 
     def act(self, observations: dict, infos: dict) -> dict: ...
+
+
+def overrides_beside_policy(spec: str, env_options: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """``overrides`` (configuration fields and env options) less the env options the policy
+    ``spec`` fixes (``env_options``, a trained policy's own), which an override may repeat
+    but not change.
+
+    Raises:
+        ConfigError: naming ``overrides.<name>`` where an override would change one.
+    """
+    kept = dict(overrides)
+    for name in overrides.keys() & env_options.keys():
+        if overrides[name] != env_options[name]:
+            raise ConfigError(f"overrides.{name}", f"the policy {spec!r} was trained with {name}={env_options[name]!r}")
+        del kept[name]
+    return kept
 
 
 def policy_label(spec: str) -> str:

@@ -17,9 +17,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from moma_env.config import ConfigError
 from training.evaluation.harness import evaluate
-from training.evaluation.policies import POLICY_ACTION_MODES, builtin_name, load_policy
+from training.evaluation.policies import POLICY_ACTION_MODES, builtin_name, load_policy, overrides_beside_policy
 from training.sweep.spec import Cell
 
 __all__ = ["run_cell", "run_cells", "CELL_KEYS"]
@@ -46,11 +45,7 @@ def run_cell(cell: Cell, options: Mapping[str, Any]) -> dict[str, Any]:
     policy = load_policy(cell.policy, cell.scenario, cell.seed, sample_actions=sample)
     env_options = dict(getattr(policy, "env_options", {}))  # a trained policy says which env it fits
     action_mode = env_options.pop("action_mode", None) or POLICY_ACTION_MODES.get(builtin or "", "switching")
-    overrides = dict(options.get("overrides", {}))
-    for name in overrides.keys() & env_options.keys():
-        if overrides[name] != env_options[name]:
-            raise ConfigError(f"overrides.{name}", f"the policy {cell.policy!r} was trained with {name}={env_options[name]!r}")
-        del overrides[name]
+    overrides = overrides_beside_policy(cell.policy, env_options, options.get("overrides", {}))
     result = evaluate(
         cell.scenario,
         policy,

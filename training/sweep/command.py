@@ -19,7 +19,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from training.cli_args import field_assignment, field_assignments, int_at_least
+from training.cli_args import SET_HELP, field_assignment, field_assignments, int_at_least
 
 __all__ = ["add_sweep_parser", "run_sweep_command", "BACKENDS"]
 
@@ -48,7 +48,7 @@ def add_sweep_parser(subparsers, add_subcommand: Callable[..., argparse.Argument
     sw.add_argument("--fixed", dest="random_scenarios", action="store_false", help="the configuration's default layout for every seed (default: a random layout per seed)")
     sw.add_argument("--max-cycles", type=int_at_least(1, "step count"), default=None, help="episode length limit in steps (default: the scenario's)")
     sw.add_argument("--set", dest="overrides", action="append", type=field_assignment, metavar="FIELD=VALUE", default=None,
-                    help="a field of the configuration's dataclass, for every layout (random ones keep the rig's settings: estimator, leg_length, dwell_s, goal tolerances, max_cycles), e.g. --set leg_length=1.5; the value is read as JSON; repeatable (default: none)")
+                    help=SET_HELP)
     sw.add_argument("--sample-actions", action="store_true",
                     help="trained policies sample their actions (seeded by the episode's seed); built-in policies are unchanged")
     sw.add_argument("--no-progress", dest="progress_bar", action="store_false", help="no progress bar (default: shown)")
