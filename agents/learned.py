@@ -67,6 +67,7 @@ from gymnasium import spaces
 
 from moma_env import ENV_VERSION
 from moma_env.env.centralised import CentralisedTeamEnv
+from agents.policy_mode import mode_actions
 from agents.ugv_policy import TrainedUgvPolicy
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.io import read_json_in
@@ -503,7 +504,9 @@ class LearnedPolicy(TrainedUgvPolicy):
         extra = {} if masks is None else {"action_masks": masks}
         with torch_threads(self.torch_threads):
             if self.deterministic:
-                actions, _ = self.model.predict(batch, deterministic=True, **extra)
+                actions = mode_actions(self.model.policy, batch, masks)  # predict's actions, bit for bit, where it knows the policy
+                if actions is None:
+                    actions, _ = self.model.predict(batch, deterministic=True, **extra)
                 return actions
             import torch
 
@@ -529,8 +532,11 @@ class LearnedPolicy(TrainedUgvPolicy):
         masks = None
         if self._masked:
             assert self._env is not None, "call reset(env) first"
-            every = self._env.action_masks()
-            masks = np.stack([every[a] for a in agents]).astype(bool)
+            if all("action_mask" in infos.get(a, ()) for a in agents):  # the env's masks of this state, in its infos
+                masks = np.stack([infos[a]["action_mask"] for a in agents]).astype(bool)
+            else:
+                every = self._env.action_masks()
+                masks = np.stack([every[a] for a in agents]).astype(bool)
         actions = self._predict(batch, masks)
         if self._discrete:
             return {a: int(actions[k]) for k, a in enumerate(agents)}
