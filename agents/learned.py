@@ -67,7 +67,7 @@ from gymnasium import spaces
 
 from moma_env import ENV_VERSION
 from moma_env.env.centralised import CentralisedTeamEnv
-from agents.policy_mode import mode_actions
+from agents.policy_mode import discrete_actions
 from agents.ugv_policy import TrainedUgvPolicy
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.io import read_json_in
@@ -504,7 +504,7 @@ class LearnedPolicy(TrainedUgvPolicy):
         extra = {} if masks is None else {"action_masks": masks}
         with torch_threads(self.torch_threads):
             if self.deterministic:
-                actions = mode_actions(self.model.policy, batch, masks)  # predict's actions, bit for bit, where it knows the policy
+                actions = discrete_actions(self.model.policy, batch, masks)  # predict's actions, bit for bit, where it knows the policy
                 if actions is None:
                     actions, _ = self.model.predict(batch, deterministic=True, **extra)
                 return actions
@@ -512,7 +512,9 @@ class LearnedPolicy(TrainedUgvPolicy):
 
             with torch.random.fork_rng(devices=[]):
                 torch.manual_seed(int(self._sampler.integers(2**63)))
-                actions, _ = self.model.predict(batch, deterministic=False, **extra)
+                actions = discrete_actions(self.model.policy, batch, masks, deterministic=False)
+                if actions is None:
+                    actions, _ = self.model.predict(batch, deterministic=False, **extra)
         return actions
 
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:

@@ -1,11 +1,11 @@
-"""The most likely discrete actions of a Stable-Baselines3 policy, computed as its
-``predict(..., deterministic=True)`` computes them, without that call's overhead.
+"""The discrete actions of a Stable-Baselines3 policy, the most likely or sampled,
+computed as its ``predict`` computes them, without that call's overhead.
 
 ``predict`` puts the network in evaluation mode (a walk over every module), converts
 and checks the observations, and builds two or three torch ``Categorical``
 distributions, each validating its arguments, to take the argmax of their
 probabilities: about 300 us a call on this project's 64x64 networks, several times the
-network's own arithmetic. :func:`mode_actions` runs the same torch operations on the
+network's own arithmetic. :func:`discrete_actions` runs the same torch operations on the
 same tensors in the same order, so it returns the same actions bit for bit
 (``tests/test_policy_mode.py`` holds it to ``predict``):
 
@@ -16,7 +16,8 @@ same tensors in the same order, so it returns the same actions bit for bit
   actions to -1e8 and normalises that;
 * the argmax of the softmax of the last logits (not of the logits themselves: the
   softmax can round two close logits to one probability, and the argmax then takes the
-  first).
+  first); or, sampled, torch's ``multinomial`` draw from those probabilities, one per
+  row, from torch's global generator as ``Categorical.sample`` draws (the caller seeds it).
 
 It knows Stable-Baselines3's ``ActorCriticPolicy`` (PPO, A2C) and sb3-contrib's
 ``MaskableActorCriticPolicy`` (MaskablePPO), exactly those classes, on ``Box``
@@ -30,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["mode_actions", "knows"]
+__all__ = ["discrete_actions", "knows"]
 
 #: The logit sb3-contrib gives a refused action (``MaskableCategorical.apply_masking``).
 REFUSED_LOGIT = -1e8
@@ -47,7 +48,7 @@ def _policy_classes() -> tuple[type, type | None]:
 
 
 def knows(policy: Any) -> bool:
-    """Whether :func:`mode_actions` computes ``policy``'s actions (else it returns None)."""
+    """Whether :func:`discrete_actions` computes ``policy``'s actions (else it returns None)."""
     from gymnasium import spaces
 
     plain, maskable = _policy_classes()
@@ -59,9 +60,10 @@ def knows(policy: Any) -> bool:
     )
 
 
-def mode_actions(policy: Any, observations: np.ndarray, masks: np.ndarray | None = None) -> np.ndarray | None:
-    """``policy.predict(observations, deterministic=True, [action_masks=masks])[0]``
-    bit for bit, or None for a policy it does not know (:func:`knows`).
+def discrete_actions(policy: Any, observations: np.ndarray, masks: np.ndarray | None = None, deterministic: bool = True) -> np.ndarray | None:
+    """``policy.predict(observations, deterministic=deterministic, [action_masks=masks])[0]``
+    bit for bit (sampled: with torch's global generator in the same state), or None for a
+    policy it does not know (:func:`knows`).
 
     Args:
         policy: a Stable-Baselines3 policy (``model.policy``).
@@ -69,6 +71,7 @@ def mode_actions(policy: Any, observations: np.ndarray, masks: np.ndarray | None
             normalised observations).
         masks: ``(N, n_actions)`` booleans of the allowed actions, or None; only for a
             maskable policy.
+        deterministic: the most likely actions, else a sample of each row.
 
     Raises:
         ValueError: masks for a policy that does not take them.
@@ -94,5 +97,6 @@ def mode_actions(policy: Any, observations: np.ndarray, masks: np.ndarray | None
                 allowed = th.as_tensor(masks, dtype=th.bool, device=logits.device).reshape(logits.shape)
                 logits = th.where(allowed, logits, th.tensor(REFUSED_LOGIT, dtype=logits.dtype, device=logits.device))
             logits = logits - logits.logsumexp(dim=-1, keepdim=True)
-        actions = th.argmax(th.softmax(logits, dim=-1), dim=1)
+        probabilities = th.softmax(logits, dim=-1)
+        actions = th.argmax(probabilities, dim=1) if deterministic else th.multinomial(probabilities, 1, True).T
     return actions.cpu().numpy().reshape(-1)

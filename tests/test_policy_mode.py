@@ -1,5 +1,5 @@
-"""agents.policy_mode: the most likely discrete actions of an SB3 policy, bit for bit those of
-its ``predict(..., deterministic=True)``, and None for the policies it does not know."""
+"""agents.policy_mode: the discrete actions of an SB3 policy, most likely or sampled, bit for
+bit those of its ``predict``, and None for the policies it does not know."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from gymnasium import spaces
 from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
-from agents.policy_mode import knows, mode_actions
+from agents.policy_mode import discrete_actions, knows
 from training.evaluation.policies import load_policy
 
 OBSERVATIONS = spaces.Box(-np.inf, np.inf, shape=(12,), dtype=np.float32)
@@ -45,7 +45,7 @@ def _predict(policy, observations, masks=None):
 def test_the_plain_policy_acts_as_predict(seed):
     policy = _policy(ActorCriticPolicy, seed=seed)
     for observations, _ in _batches(np.random.default_rng(seed), 12, 5):
-        fast = mode_actions(policy, observations)
+        fast = discrete_actions(policy, observations)
         reference = _predict(policy, observations)
         assert fast.dtype == reference.dtype and np.array_equal(fast, reference)
 
@@ -55,7 +55,7 @@ def test_the_maskable_policy_acts_as_predict_with_and_without_masks(seed):
     policy = _policy(MaskableActorCriticPolicy, seed=seed)
     for observations, masks in _batches(np.random.default_rng(seed), 12, 5):
         for given in (masks, None):
-            fast = mode_actions(policy, observations, given)
+            fast = discrete_actions(policy, observations, given)
             reference = _predict(policy, observations, given)
             assert fast.dtype == reference.dtype and np.array_equal(fast, reference)
 
@@ -65,28 +65,28 @@ def test_a_published_policy_acts_as_predict():
     policy.set_training_mode(False)
     n_features, n_actions = policy.observation_space.shape[0], int(policy.action_space.n)
     for observations, masks in _batches(np.random.default_rng(7), n_features, n_actions):
-        assert np.array_equal(mode_actions(policy, observations, masks), _predict(policy, observations, masks))
+        assert np.array_equal(discrete_actions(policy, observations, masks), _predict(policy, observations, masks))
 
 
 def test_it_leaves_to_predict_what_it_does_not_know():
     training = _policy(ActorCriticPolicy)
     training.set_training_mode(True)
-    assert not knows(training) and mode_actions(training, np.zeros((1, 12), np.float32)) is None
+    assert not knows(training) and discrete_actions(training, np.zeros((1, 12), np.float32)) is None
 
     class Custom(ActorCriticPolicy):
         pass
 
     assert not knows(_policy(Custom))
     continuous = _policy(ActorCriticPolicy, action_space=spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32))
-    assert not knows(continuous) and mode_actions(continuous, np.zeros((1, 12), np.float32)) is None
+    assert not knows(continuous) and discrete_actions(continuous, np.zeros((1, 12), np.float32)) is None
     with pytest.raises(ValueError, match="takes no action masks"):
-        mode_actions(_policy(ActorCriticPolicy), np.zeros((1, 12), np.float32), np.ones((1, 5), bool))
+        discrete_actions(_policy(ActorCriticPolicy), np.zeros((1, 12), np.float32), np.ones((1, 5), bool))
 
 
 @pytest.mark.parametrize("cls", [ActorCriticPolicy, MaskableActorCriticPolicy])
 def test_near_ties_are_broken_as_predict_breaks_them(cls):
     """Logits closer than the softmax's rounding: ``predict`` takes the first of two equal
-    probabilities, not the larger logit; so must :func:`mode_actions`."""
+    probabilities, not the larger logit; so must :func:`discrete_actions`."""
     policy = _policy(cls, n_actions=3)
     observations = np.zeros((1, 12), dtype=np.float32)
     differs = 0
@@ -98,6 +98,21 @@ def test_near_ties_are_broken_as_predict_breaks_them(cls):
                 policy.action_net.bias.copy_(torch.as_tensor(bias))
             for masks in ([None] if cls is ActorCriticPolicy else [None, np.array([[True, True, False]]), np.array([[True, True, True]])]):
                 reference = _predict(policy, observations, masks)
-                assert np.array_equal(mode_actions(policy, observations, masks), reference), (base, gap, masks)
+                assert np.array_equal(discrete_actions(policy, observations, masks), reference), (base, gap, masks)
                 differs += int(reference[0] != np.argmax(bias))
     assert differs > 0  # the rounding did pick the smaller logit somewhere: the case is exercised
+
+
+@pytest.mark.parametrize("cls", [ActorCriticPolicy, MaskableActorCriticPolicy])
+def test_sampled_actions_are_predicts_draws_from_the_same_generator_state(cls):
+    policy = _policy(cls, seed=3)
+    for k, (observations, masks) in enumerate(_batches(np.random.default_rng(5), 12, 5)):
+        given = masks if cls is MaskableActorCriticPolicy and k % 2 else None
+        torch.manual_seed(k)
+        fast = discrete_actions(policy, observations, given, deterministic=False)
+        after_fast = torch.random.get_rng_state()
+        torch.manual_seed(k)
+        extra = {} if given is None else {"action_masks": given}
+        reference = policy.predict(observations, deterministic=False, **extra)[0]
+        assert fast.dtype == reference.dtype and np.array_equal(fast, reference)
+        assert torch.equal(after_fast, torch.random.get_rng_state())  # the same draws consumed
