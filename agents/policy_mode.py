@@ -21,7 +21,8 @@ same tensors in the same order, so it returns the same actions bit for bit
 
 It knows Stable-Baselines3's ``ActorCriticPolicy`` (PPO, A2C) and sb3-contrib's
 ``MaskableActorCriticPolicy`` (MaskablePPO), exactly those classes, on ``Box``
-observations and a ``Discrete`` action space, in evaluation mode; for any other policy
+observations and a ``Discrete`` or ``MultiDiscrete`` action space (each action's logits
+apart, as SB3 splits them), in evaluation mode; for any other policy
 it returns None and the caller uses ``predict``.
 """
 
@@ -52,12 +53,18 @@ def knows(policy: Any) -> bool:
     from gymnasium import spaces
 
     plain, maskable = _policy_classes()
+    space = policy.action_space
     return (
         type(policy) in (plain, maskable)
-        and isinstance(policy.action_space, spaces.Discrete)
+        and (isinstance(space, spaces.Discrete) or (isinstance(space, spaces.MultiDiscrete) and space.nvec.ndim == 1))
         and isinstance(policy.observation_space, spaces.Box)
         and not policy.training
     )
+
+
+def _action_sizes(space: Any) -> list[int]:
+    """The choices of each action of a ``Discrete`` (one) or ``MultiDiscrete`` space."""
+    return [int(space.n)] if space.shape == () else [int(n) for n in space.nvec]
 
 
 def discrete_actions(policy: Any, observations: np.ndarray, masks: np.ndarray | None = None, deterministic: bool = True) -> np.ndarray | None:
@@ -69,9 +76,16 @@ def discrete_actions(policy: Any, observations: np.ndarray, masks: np.ndarray | 
         policy: a Stable-Baselines3 policy (``model.policy``).
         observations: a batch ``(N, *observation_shape)`` as the policy takes it (the
             normalised observations).
-        masks: ``(N, n_actions)`` booleans of the allowed actions, or None; only for a
+        masks: ``(N, n_actions)`` booleans of the allowed actions (of a
+            ``MultiDiscrete`` space, every action's side by side), or None; only for a
             maskable policy.
-        deterministic: the most likely actions, else a sample of each row.
+        deterministic: the most likely actions, else a sample of each row (of a
+            ``MultiDiscrete`` space, one action after the other, as sb3-contrib and
+            SB3 draw them).
+
+    Returns:
+        ``(N,)`` actions of a ``Discrete`` space, ``(N, len(nvec))`` of a
+        ``MultiDiscrete`` one, int64; or None.
 
     Raises:
         ValueError: masks for a policy that does not take them.
@@ -90,13 +104,20 @@ def discrete_actions(policy: Any, observations: np.ndarray, masks: np.ndarray | 
     with th.no_grad():
         tensor = th.as_tensor(batch, device=device)
         features = policy.pi_features_extractor(preprocess_obs(tensor, policy.observation_space, normalize_images=policy.normalize_images))
-        logits = policy.action_net(policy.mlp_extractor.forward_actor(features)).view(-1, int(policy.action_space.n))
-        logits = logits - logits.logsumexp(dim=-1, keepdim=True)
-        if masked_policy:
-            if masks is not None:
-                allowed = th.as_tensor(masks, dtype=th.bool, device=logits.device).reshape(logits.shape)
-                logits = th.where(allowed, logits, th.tensor(REFUSED_LOGIT, dtype=logits.dtype, device=logits.device))
-            logits = logits - logits.logsumexp(dim=-1, keepdim=True)
-        probabilities = th.softmax(logits, dim=-1)
-        actions = th.argmax(probabilities, dim=1) if deterministic else th.multinomial(probabilities, 1, True).T
-    return actions.cpu().numpy().reshape(-1)
+        sizes = _action_sizes(policy.action_space)
+        logits = policy.action_net(policy.mlp_extractor.forward_actor(features)).view(-1, sum(sizes))
+        allowed = [None] * len(sizes)
+        if masks is not None:
+            allowed = th.split(th.as_tensor(masks).reshape(-1, sum(sizes)), sizes, dim=1)
+        chosen = []
+        for part, mask in zip(th.split(logits, sizes, dim=1), allowed):
+            part = part - part.logsumexp(dim=-1, keepdim=True)
+            if masked_policy:
+                if mask is not None:
+                    mask = th.as_tensor(mask, dtype=th.bool, device=part.device).reshape(part.shape)
+                    part = th.where(mask, part, th.tensor(REFUSED_LOGIT, dtype=part.dtype, device=part.device))
+                part = part - part.logsumexp(dim=-1, keepdim=True)
+            probabilities = th.softmax(part, dim=-1)
+            chosen.append(th.argmax(probabilities, dim=1) if deterministic else th.multinomial(probabilities, 1, True).T.reshape(-1))
+        actions = chosen[0] if policy.action_space.shape == () else th.stack(chosen, dim=1)
+    return actions.cpu().numpy().reshape((-1, *policy.action_space.shape))

@@ -116,3 +116,32 @@ def test_sampled_actions_are_predicts_draws_from_the_same_generator_state(cls):
         reference = policy.predict(observations, deterministic=False, **extra)[0]
         assert fast.dtype == reference.dtype and np.array_equal(fast, reference)
         assert torch.equal(after_fast, torch.random.get_rng_state())  # the same draws consumed
+
+
+@pytest.mark.parametrize("cls", [ActorCriticPolicy, MaskableActorCriticPolicy])
+def test_multi_discrete_actions_are_predicts_most_likely_and_sampled(cls):
+    """A centralised team's action: one choice per robot, each from its own logits."""
+    space = spaces.MultiDiscrete([3, 4, 3, 2])
+    policy = _policy(cls, seed=4, action_space=space)
+    for k, (observations, masks) in enumerate(_batches(np.random.default_rng(9), 12, 12)):
+        given = masks if cls is MaskableActorCriticPolicy and k % 2 else None
+        for deterministic in (True, False):
+            torch.manual_seed(k)
+            fast = discrete_actions(policy, observations, given, deterministic=deterministic)
+            torch.manual_seed(k)
+            extra = {} if given is None else {"action_masks": given}
+            reference = policy.predict(observations, deterministic=deterministic, **extra)[0]
+            assert fast.shape == (6, 4) and fast.dtype == reference.dtype and np.array_equal(fast, reference)
+
+
+def test_a_published_team_policy_acts_as_predict():
+    policy = load_policy("top_observer_team4_bc", "top_observer_team4").model.policy
+    policy.set_training_mode(False)
+    assert knows(policy)
+    n_features, n_actions = policy.observation_space.shape[0], int(sum(policy.action_space.nvec))
+    for k, (observations, masks) in enumerate(_batches(np.random.default_rng(11), n_features, n_actions)):
+        for deterministic in (True, False):
+            torch.manual_seed(k)
+            fast = discrete_actions(policy, observations, masks, deterministic=deterministic)
+            torch.manual_seed(k)
+            assert np.array_equal(fast, policy.predict(observations, deterministic=deterministic, action_masks=masks)[0])
