@@ -526,9 +526,9 @@ class LearnedPolicy(TrainedUgvPolicy):
         return self._env.action_masks()
 
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
-        """The model's action of every agent in ``observations`` (``infos`` read only by a
-        one-start team action, for which robots move): the distribution's mode, or a
-        sample (see the class)."""
+        """The model's action of every agent in ``observations`` (``infos`` read only for
+        the action masks the env puts there and by a one-start team action, for which
+        robots move): the distribution's mode, or a sample (see the class)."""
         if not observations:
             return {}
         if self.route == "centralised":

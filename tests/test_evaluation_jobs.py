@@ -5,6 +5,7 @@ training too; and the boundary's errors."""
 from __future__ import annotations
 
 import json
+import multiprocessing
 import pickle
 import random
 
@@ -149,6 +150,7 @@ def test_training_evaluates_the_same_with_a_worker_pool(tmp_path):
                         for r in json.loads((out / "evaluations.json").read_text())["records"]])
     assert [r["num_timesteps"] for r in records[0]] == [64, 128]
     assert records[1] == records[0]
+    assert not multiprocessing.active_children()  # the run's evaluation workers ended with it
     with pytest.raises(SystemExit) as exit_:
         main(["train", "--scenario", "top_observer", "--timesteps", "0", "--eval-jobs", "0", "--out", str(tmp_path / "x")])
     assert exit_.value.code == 2

@@ -52,6 +52,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents.learned import ObservationScaling
+from agents.policy_mode import discrete_actions, knows
 from moma_env.vector import MomaVectorEnv
 from moma_env.vector.parent_watch import worker_pool
 from moma_env.vector.sharded import shard_sizes
@@ -551,11 +552,13 @@ class ModelRowPolicy:
         obs = observations if self.normalise is None else self.normalise(observations)
         policy = self.policy
         masked = isinstance(policy, MaskableActorCriticPolicy)
-        # What policy.predict(row, deterministic=True[, action_masks=mask]) does, without its
-        # per-call checks: one tensor of the rows, a forward pass per row (a view of it).
         policy.set_training_mode(False)
-        rows, _ = policy.obs_to_tensor(obs)
         actions = np.empty((len(obs), *policy.action_space.shape), dtype=np.int64)
+        if knows(policy):  # what policy.predict(row, deterministic=True[, action_masks=mask]) gives, without its checks
+            for i in range(len(obs)):
+                actions[i] = discrete_actions(policy, obs[i : i + 1], masks[i : i + 1] if masked else None)[0]
+            return actions
+        rows, _ = policy.obs_to_tensor(obs)  # another policy class (the team network): its own distribution per row
         with torch.no_grad():
             for i in range(len(obs)):
                 if masked:
