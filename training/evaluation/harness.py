@@ -18,13 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from moma_env.env.factory import parallel_env
 from moma_env.metrics import aggregate
 from moma_env.scenarios import CONFIGURATIONS
 from moma_env.tasks import TASKS
 from moma_env.config import ConfigError
 from moma_env.vector.parent_watch import worker_pool
-from training.evaluation.episode import EpisodeResult, FrameSink, robot_agents
+from training.evaluation.episode import EpisodeResult, FrameSink
 from training.evaluation.policies import Policy, load_policy, policy_label
 from training.evaluation.runner import EpisodeRange, ProgressCallback, run_episodes, run_episodes_split
 
