@@ -165,3 +165,15 @@ def test_the_evaluation_benchmark_prints_its_three_ways(capsys):
     rows = [line for line in table if line.startswith("| ") and not line.startswith("| evaluation")]
     assert [row.split(" | ")[0].lstrip("| ") for row in rows] == list(WAYS)
     assert rows[0].endswith("| 1.00x | 1.00x |")
+
+
+def test_a_policy_refusing_the_env_in_a_worker_fails_the_evaluation_as_in_one_process():
+    from training.evaluation.policies import PolicyEnvError
+
+    messages = []
+    for jobs in (1, 2):
+        with pytest.raises(PolicyEnvError) as refused:
+            evaluate("top_observer", "pipeline", 4, 0, jobs=jobs, max_cycles=10)
+        messages.append(str(refused.value))
+    assert messages[0] == messages[1] and "cannot act in this env" in messages[0]
+    assert not multiprocessing.active_children()  # the pool's workers ended with the failure
