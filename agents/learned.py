@@ -57,7 +57,7 @@ import io
 import os
 import pickle
 import re
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -517,14 +517,6 @@ class LearnedPolicy(TrainedUgvPolicy):
                     actions, _ = self.model.predict(batch, deterministic=False, **extra)
         return actions
 
-    def _env_masks(self, agents: Sequence[str], infos: Mapping[str, Mapping[str, Any]]) -> Mapping[str, np.ndarray]:
-        """The action masks of ``agents`` in the env's present state: those its infos carry
-        (``EnvConfig.action_masks``), else the env's ``action_masks()``, the same arrays."""
-        assert self._env is not None, "call reset(env) first"
-        if all("action_mask" in infos.get(a, ()) for a in agents):
-            return {a: infos[a]["action_mask"] for a in agents}
-        return self._env.action_masks()
-
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
         """The model's action of every agent in ``observations`` (``infos`` read only for
         the action masks the env puts there and by a one-start team action, for which
@@ -535,13 +527,14 @@ class LearnedPolicy(TrainedUgvPolicy):
             assert self._team is not None, "call reset(env) first"
             layout = self._team.layout
             team = layout.observation(observations)[None, :]
-            masks = layout.masks(self._env_masks(layout.agents, infos), infos)[None, :] if self._masked else None
+            masks = layout.masks(self._env_masks(self._env, layout.agents, infos), infos)[None, :] if self._masked else None
             return layout.agent_actions(self._predict(team, masks)[0], infos)
         agents = [a for a in self._agents if a in observations]
         batch = np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents])
         masks = None
         if self._masked:
-            every = self._env_masks(agents, infos)
+            assert self._env is not None, "call reset(env) first"
+            every = self._env_masks(self._env, agents, infos)
             masks = np.stack([every[a] for a in agents]).astype(bool)
         actions = self._predict(batch, masks)
         if self._discrete:

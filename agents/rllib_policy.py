@@ -117,7 +117,7 @@ class RllibPolicy(TrainedUgvPolicy):
             raise ValueError(f"the module expects observations of shape {expected}; this env gives {got}")
 
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
-        """The module's action of every agent in ``observations`` (infos unread)."""
+        """The module's action of every agent in ``observations`` (infos read for the action masks only)."""
         import torch
         from ray.rllib.core.columns import Columns
 
@@ -127,7 +127,7 @@ class RllibPolicy(TrainedUgvPolicy):
         agents = [a for a in self._agents if a in observations]
         obs = torch.as_tensor(np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents]))
         if self._masked:
-            every = self._env.action_masks()
+            every = self._env_masks(self._env, agents, infos)
             mask = torch.as_tensor(np.stack([every[a] for a in agents]).astype(np.float32))
             batch = {Columns.OBS: {"observations": obs, "action_mask": mask}}
         else:

@@ -187,14 +187,14 @@ class TorchRLPolicy(TrainedUgvPolicy):
         self._agents = agents
 
     def act(self, observations: Mapping[str, np.ndarray], infos: Mapping[str, Mapping[str, Any]]) -> dict[str, int]:
-        """Every agent's action among those its mask allows (infos unread)."""
+        """Every agent's action among those its mask allows (infos read for the masks only)."""
         import torch
 
         if not observations:
             return {}
         if self._env is None:
             raise RuntimeError("call reset(env) before act()")
-        masks = self._env.action_masks()
+        masks = self._env_masks(self._env, self._agents, infos)
         obs = torch.as_tensor(np.stack([np.asarray(observations[a], dtype=np.float32) for a in self._agents]))
         allowed = torch.as_tensor(np.stack([masks[a] for a in self._agents]).astype(bool))
         with torch_threads(self.torch_threads), torch.no_grad():

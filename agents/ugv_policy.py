@@ -9,6 +9,7 @@ from a numpy generator seeded by each episode's seed.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -41,6 +42,14 @@ class TrainedUgvPolicy:
         if self.team_action != "per_agent":
             options["team_action"] = self.team_action
         return options
+
+    @staticmethod
+    def _env_masks(env: MomaParallelEnv, agents: Sequence[str], infos: Mapping[str, Mapping[str, Any]]) -> Mapping[str, np.ndarray]:
+        """The action masks of ``agents`` in ``env``'s present state: those its infos carry
+        (``EnvConfig.action_masks``), else ``env.action_masks()``, the same arrays."""
+        if all("action_mask" in infos.get(a, ()) for a in agents):
+            return {a: infos[a]["action_mask"] for a in agents}
+        return env.action_masks()
 
     def _begin_episode(self, env: MomaParallelEnv, seed: int | None) -> None:
         """Seed the action sampler with ``seed`` (0 if None); refuse an env of another action
