@@ -163,9 +163,8 @@ def checked_overrides(name: str, overrides: Mapping[str, Any]) -> dict[str, Any]
                               f"known: {known}; env options: {list(SETTABLE_ENV_OPTIONS)}")
     own = {key: value for key, value in options.items() if key in known}
     from_mapping(config_type, {**own, **{k: v for k, v in overrides.items() if k in known}}, name=configuration)
-    settings = {key: value for key, value in {**options, **overrides}.items() if key in SETTABLE_ENV_OPTIONS}
-    if any(key in SETTABLE_ENV_OPTIONS for key in overrides):
-        env_config(**settings)
+    if any(key in SETTABLE_ENV_OPTIONS for key in overrides):  # the env's settings, the task's with these
+        env_config(**{key: value for key, value in {**options, **overrides}.items() if key in SETTABLE_ENV_OPTIONS})
     return dict(overrides)
 
 

@@ -202,7 +202,7 @@ def evaluate(
             it, in episode order; the episodes are the same.
         jobs: worker processes the episodes are split over
             (:mod:`training.evaluation.runner`; 1: every episode in this process). The
-            episodes are the same for any value; a policy object must pickle, and
+            episodes are the same for any value; the policy must pickle (every built-in one does), and
             ``frame_sink`` needs ``jobs=1``.
         executor: a process pool of ``jobs`` workers to run in (a training run's,
             kept between its evaluations) instead of one started for this call.
@@ -229,7 +229,7 @@ def evaluate(
     jobs = min(jobs, episodes)
     if isinstance(policy_spec, str):
         label = policy_label(policy_spec)
-        policy = load_policy(policy_spec, configuration, seed)  # PolicyLoadError here, not in a worker
+        policy = load_policy(policy_spec, configuration, seed)
     else:
         label = type(policy_spec).__name__
         policy = policy_spec
@@ -239,12 +239,11 @@ def evaluate(
         whole = run_episodes(configuration, policy, EpisodeRange(0, episodes), seed, env_options, frame_sink=frame_sink,
                              progress=progress, detection_logs=logs)
     else:
-        shipped = policy_spec if isinstance(policy_spec, str) else policy
         if executor is not None:
-            whole = run_episodes_split(executor, jobs, configuration, shipped, episodes, seed, env_options, progress=progress, detection_logs=logs)
+            whole = run_episodes_split(executor, jobs, configuration, policy, episodes, seed, env_options, progress=progress, detection_logs=logs)
         else:
             with worker_pool(jobs) as pool:
-                whole = run_episodes_split(pool, jobs, configuration, shipped, episodes, seed, env_options, progress=progress, detection_logs=logs)
+                whole = run_episodes_split(pool, jobs, configuration, policy, episodes, seed, env_options, progress=progress, detection_logs=logs)
     if logs:
         detection_logs.extend(whole.detection_logs)
     results, robots = list(whole.episodes), whole.robots

@@ -8,11 +8,10 @@ episode depends only on its seed and the policy (every policy is reseeded at eac
 episode's ``reset``), so both give the same episodes, bit for bit
 (``tests/test_evaluation_jobs.py``).
 
-What goes to a worker: the env's options, the policy (its spec string, loaded there
-as :func:`~training.evaluation.policies.load_policy` loads it here, or the policy
-object, pickled: a :class:`agents.learned.LearnedPolicy` pickles its model as
-Stable-Baselines3's saved zip) and a range; what comes back: the episodes and, when
-asked, their detection logs.
+What goes to a worker: the env's options, the policy object, pickled once for every
+range (every built-in policy pickles; a :class:`agents.learned.LearnedPolicy` pickles
+its model as Stable-Baselines3's saved zip), and a range; what comes back: the episodes
+and, when asked, their detection logs.
 """
 
 from __future__ import annotations
@@ -27,7 +26,7 @@ from moma_env.env.factory import parallel_env
 from moma_env.estimator import RecordingFactory
 from moma_env.estimator.registry import resolve_localiser
 from training.evaluation.episode import EpisodeResult, FrameSink, robot_agents, run_episode
-from training.evaluation.policies import Policy, load_policy
+from training.evaluation.policies import Policy
 
 __all__ = ["EpisodeRange", "RangeResult", "PolicyNotPortableError", "run_episodes", "run_episodes_split", "episode_ranges", "RANGES_PER_JOB"]
 
@@ -123,21 +122,18 @@ def run_episodes(
 
 
 def _run_range_in_worker(
-    configuration: str, policy: str | bytes, episodes: EpisodeRange, seed: int, env_options: Mapping[str, Any], detection_logs: bool
+    configuration: str, policy: bytes, episodes: EpisodeRange, seed: int, env_options: Mapping[str, Any], detection_logs: bool
 ) -> RangeResult:
-    """A worker's task: the policy loaded from its spec, or unpickled, then :func:`run_episodes`."""
-    loaded = load_policy(policy, configuration, seed) if isinstance(policy, str) else pickle.loads(policy)
-    return run_episodes(configuration, loaded, episodes, seed, env_options, detection_logs=detection_logs)
+    """A worker's task: the policy unpickled, then :func:`run_episodes`."""
+    return run_episodes(configuration, pickle.loads(policy), episodes, seed, env_options, detection_logs=detection_logs)
 
 
-def _portable(policy: str | Policy) -> str | bytes:
-    """The policy as a worker receives it: a spec string as it is, an object pickled.
+def _portable(policy: Policy) -> bytes:
+    """The policy as a worker receives it, pickled.
 
     Raises:
-        PolicyNotPortableError: the policy object does not pickle.
+        PolicyNotPortableError: the policy does not pickle.
     """
-    if isinstance(policy, str):
-        return policy
     try:
         return pickle.dumps(policy, protocol=pickle.HIGHEST_PROTOCOL)
     except Exception as err:  # pickling fails with TypeError, AttributeError, PicklingError, ...
@@ -149,7 +145,7 @@ def run_episodes_split(
     executor: Executor,
     jobs: int,
     configuration: str,
-    policy: str | Policy,
+    policy: Policy,
     episodes: int,
     seed: int,
     env_options: Mapping[str, Any],
@@ -165,14 +161,13 @@ def run_episodes_split(
         executor: a process pool (:func:`moma_env.vector.parent_watch.worker_pool`).
         jobs: its worker count (how finely to cut the evaluation).
         configuration, seed, env_options: see :func:`run_episodes`.
-        policy: a spec string (loaded in each worker with ``seed``) or a policy object
-            that pickles.
+        policy: a policy that pickles.
         episodes: how many (>= 1).
         progress: called in this process with every episode of a range as the range finishes.
         detection_logs: keep each episode's detection log.
 
     Raises:
-        PolicyNotPortableError: the policy object does not pickle.
+        PolicyNotPortableError: the policy does not pickle.
     """
     payload = _portable(policy)
     ranges = episode_ranges(episodes, jobs)
