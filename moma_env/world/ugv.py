@@ -25,6 +25,12 @@ __all__ = ["UGV_FRICTION", "UGVBody"]
 #: Coulomb friction coefficient between a robot and anything it touches.
 UGV_FRICTION = 0.3
 
+# pymunk's public property setters, called directly on the per-substep path: an
+# assignment ``body.velocity = v`` first passes through pymunk's pure-Python
+# ``__setattr__`` (a typing helper that only forwards to ``object.__setattr__``).
+_SET_VELOCITY = pymunk.Body.velocity.fset
+_SET_ANGULAR_VELOCITY = pymunk.Body.angular_velocity.fset
+
 
 def set_body_locked(body: pymunk.Body, joints: tuple, locked: bool, mass: float, moment: float) -> None:
     """Lock a body (kinematic, at rest, its friction joints out of the space) or release it
@@ -112,14 +118,20 @@ class UGVBody:
         body = self.body
         rate = body.angular_velocity
         step = self._max_yaw_step
-        next_rate = min(max(omega, rate - step), rate + step)
-        half_turn = 0.5 * next_rate * self._substep
-        angle = body.angle + rate * self._substep + half_turn
+        h = self._substep
+        # min(max(omega, rate - step), rate + step), without the builtins' calls.
+        low, high = rate - step, rate + step
+        next_rate = low if low > omega else omega
+        if high < next_rate:
+            next_rate = high
+        half_turn = 0.5 * next_rate * h
+        angle = body.angle + rate * h + half_turn
         # Chord of an arc = arc length * sin(half_turn) / half_turn.
         chord = math.sin(half_turn) / half_turn if half_turn != 0.0 else 1.0
         c, s = chord * math.cos(angle), chord * math.sin(angle)
-        self.control.velocity = (c * vx - s * vy, s * vx + c * vy)
-        self.control.angular_velocity = omega
+        control = self.control
+        _SET_VELOCITY(control, (c * vx - s * vy, s * vx + c * vy))
+        _SET_ANGULAR_VELOCITY(control, omega)
 
     def set_static(self, static: bool) -> None:
         """Lock the robot in place (kinematic, zero velocity) or release it (dynamic)."""

@@ -96,6 +96,8 @@ _DEDICATED_BITS = 30
 _SHARED_BIT = 1 << 31
 _ALL_MASKS = pymunk.ShapeFilter.ALL_MASKS()
 _NO_CONTACTS: frozenset[frozenset[str]] = frozenset()
+#: Most ``ignore`` name groups a world keeps the segment-query filter of (see World._segment_filter).
+_SEGMENT_FILTER_LIMIT = 1024
 #: Bytes of a planar pose (x, y, angle): an exact cache key.
 _PACK_POSE = struct.Struct("3d").pack
 
@@ -164,7 +166,7 @@ def _command(owner: str, value: object, size: int, layout: str) -> list[float]:
     if array.shape != (size,):
         raise ValueError(f"command for {owner!r} must be {layout} with shape ({size},), got shape {array.shape}")
     values = array.tolist()
-    if not all(math.isfinite(v) for v in values):
+    if not all(map(math.isfinite, values)):
         raise ValueError(f"command for {owner!r} must be finite, got {values}")
     return values
 
@@ -240,6 +242,8 @@ class World:
         self._uavs = tuple(UAVDynamics(uav, self.dt) for uav in config.uavs)
         # (kind, index or name) -> (packed planar pose, pose @ mount): see _mounted.
         self._mounted_cache: dict[tuple, tuple[bytes, np.ndarray]] = {}
+        # ignore (a tuple or frozenset of names) -> its segment-query filter: see _segment_filter.
+        self._segment_filters: dict[tuple | frozenset, tuple[pymunk.ShapeFilter, tuple[int, ...] | None]] = {}
         self._space: pymunk.Space | None = None
         # The calls that changed the world since its reset (see the module's notes on copies):
         # one op per entry, and the entries' numbers in order.
@@ -284,6 +288,7 @@ class World:
             for k, (sled, robot) in enumerate(zip(self.config.sleds, self._sled_robots))
         )
         self._shapes = tuple(body.shape for body in self._ugvs + self._sleds)
+        self._bodies = tuple(ugv.body for ugv in self._ugvs)
         for body in self._ugvs + self._sleds:
             names[body.shape] = body.config.name
         self._contacts: set[frozenset[str]] = set()
@@ -397,24 +402,24 @@ class World:
             else:
                 ugv.set_command(*value)
         self._contacts.clear()
-        moving = [ugv for ugv in ugvs if not ugv.static]
-        space, h = self._space, self._substep
+        drives = [ugv.drive for ugv in ugvs if not ugv.static]
+        space_step, h = self._space.step, self._substep
         if self._sleds:
             reeling = [sled for sled in self._sleds if not sled.static and sled.reel_rate != 0.0]
             paying = [sled for sled in self._sleds if sled.static and not sled.robot.static]
             for _ in range(self.config.substeps):
-                for ugv in moving:
-                    ugv.drive()
+                for drive in drives:
+                    drive()
                 for sled in reeling:
                     sled.reel(h)
-                space.step(h)
+                space_step(h)
                 for sled in paying:
                     sled.pay_out()
         else:
             for _ in range(self.config.substeps):
-                for ugv in moving:
-                    ugv.drive()
-                space.step(h)
+                for drive in drives:
+                    drive()
+                space_step(h)
         self._previous_rows = self._rows
         self._read_poses()
         if self._uavs:
@@ -429,11 +434,8 @@ class World:
     def _read_poses(self) -> None:
         """Read the robots' poses once per step, as tuples of floats: ``_rows``
         (x, y, unwrapped angle) and ``_planar`` (x, y, yaw in [-pi, pi))."""
-        rows = []
-        for ugv in self._ugvs:
-            body = ugv.body
-            x, y = body.position
-            rows.append((float(x), float(y), float(body.angle)))
+        # pymunk returns the coordinates and the angle as Python floats already.
+        rows = [(*body.position, body.angle) for body in self._bodies]
         self._rows = rows
         self._planar = [(x, y, wrap_angle(angle)) for x, y, angle in rows]
 
@@ -567,6 +569,29 @@ class World:
         """
         a = _point("p_from_xy", p_from_xy)
         b = _point("p_to_xy", p_to_xy)
+        shape_filter, shared = self._segment_filter(ignore)
+        if shared is None:
+            return self._space.segment_query_first(a, b, 0.0, shape_filter) is not None
+        ignored = {self._shapes[i] for i in shared}
+        hits = self._space.segment_query(a, b, 0.0, shape_filter)
+        return any(hit.shape not in ignored for hit in hits)
+
+    def _segment_filter(self, ignore: Iterable[str]) -> tuple[pymunk.ShapeFilter, tuple[int, ...] | None]:
+        """The shape filter of a segment query ignoring the devices named in ``ignore``, and
+        the indices of those devices if one of them shares the category bit (None if not).
+
+        A filter depends on the names only (and the configuration): one given as a
+        tuple or a frozenset of known names is kept for the world's lifetime, so that
+        the names are checked and the mask is built once (the camera's occlusion
+        queries repeat a few such tuples many times per step).
+        """
+        filters = self._segment_filters
+        try:
+            hit = filters.get(ignore)
+        except TypeError:  # an unhashable iterable (a list, a set): no cache
+            hit = None
+        if hit is not None:
+            return hit
         mask = _ALL_MASKS
         shared = False
         indices = [self._body_index(name) for name in ignore]
@@ -575,11 +600,10 @@ class World:
                 shared = True
             else:
                 mask &= ~_category(i)
-        if not shared:
-            return self._space.segment_query_first(a, b, 0.0, pymunk.ShapeFilter(mask=mask)) is not None
-        ignored = {self._shapes[i] for i in indices}
-        hits = self._space.segment_query(a, b, 0.0, pymunk.ShapeFilter(mask=mask))
-        return any(hit.shape not in ignored for hit in hits)
+        found = (pymunk.ShapeFilter(mask=mask), tuple(indices) if shared else None)
+        if type(ignore) in (tuple, frozenset) and len(filters) < _SEGMENT_FILTER_LIMIT:
+            filters[ignore] = found
+        return found
 
     @property
     def collisions_since_last_step(self) -> frozenset[frozenset[str]]:
