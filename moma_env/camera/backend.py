@@ -111,6 +111,24 @@ class BoardView:
             up.setflags(write=False)
             object.__setattr__(self, "up_m", up)
 
+    @classmethod
+    def trusted(cls, board_id: int, layout: BoardLayout, T_w_m: np.ndarray, up_m: np.ndarray | None = None) -> BoardView:
+        """A view made without the constructor's checks, for a caller whose arguments are
+        already in the form the constructor would store: ``board_id`` an ``int``, ``layout``
+        a :class:`BoardLayout`, ``T_w_m`` a finite float64 (4, 4) array (m; kept, not copied)
+        and ``up_m`` None or a finite float64 unit 3-vector that is read-only (kept, not
+        copied). The simulator makes its views this way (a view per board per frame, of
+        its own poses and of up vectors checked once by :func:`up_in_board`); anything else
+        goes through ``BoardView(...)``, which checks and converts.
+        """
+        view = object.__new__(cls)
+        set_field = object.__setattr__  # frozen: the constructor's own way of setting fields
+        set_field(view, "board_id", board_id)
+        set_field(view, "layout", layout)
+        set_field(view, "T_w_m", T_w_m)
+        set_field(view, "up_m", up_m)
+        return view
+
 
 @runtime_checkable
 class CameraBackend(Protocol):

@@ -527,7 +527,8 @@ class FrameGroup:
             # The same arithmetic on stacked frames (numpy's matmul gives the same bits per board).
             self.owner = owner = np.repeat(np.arange(n_frames), sizes)
             stack = np.array(poses)
-            relative = np.array([b.T_w_m[:3] for frame in boards for b in frame])
+            # Whole poses stacked, then their top rows copied out (cheaper than a slice per board).
+            relative = np.ascontiguousarray(np.array([b.T_w_m for frame in boards for b in frame])[:, :3])
             relative[:, :, 3] -= stack[owner, :3, 3]
             board_poses = np.matmul(stack[:, :3, :3].transpose(0, 2, 1)[owner], relative)
             present = [g for g in geos if g is not None]
@@ -552,11 +553,12 @@ class FrameGroup:
         self.any_visible = True
         first_board = self.first_board
         if occluded.count(None) < n_frames:
+            counts, marker_bounds = board_visible.tolist(), board_markers.tolist()
             for f, query in enumerate(occluded):
-                if query is None:
-                    continue
                 b0, b1 = first_board[f], first_board[f + 1]
-                m0, m1 = int(board_markers[b0]), int(board_markers[b1])
+                if query is None or not any(counts[b0:b1]):
+                    continue  # no query, or no visible marker to hide
+                m0, m1 = marker_bounds[b0], marker_bounds[b1]
                 apply_occlusion(visible[m0:m1], poses[f], centres[m0:m1], query)
                 board_visible[b0:b1] = np.add.reduceat(visible[m0:m1], board_markers[b0:b1] - m0, dtype=np.int64)
         self.visible_counts = board_visible
@@ -753,11 +755,10 @@ class FrameGroup:
 
 def board_up_rows(boards: Sequence[BoardView]) -> np.ndarray:
     """(K, 3) the boards' ``up_m``, NaN rows for boards without one."""
-    rows = np.full((len(boards), 3), np.nan)
-    for k, board in enumerate(boards):
-        if board.up_m is not None:
-            rows[k] = board.up_m
-    return rows
+    if not boards:
+        return np.full((0, 3), np.nan)
+    # One array call on the rows (a float64 3-vector per view), not a row assignment per board.
+    return np.array([_NO_UP if board.up_m is None else board.up_m for board in boards])
 
 
 def finite_or_none(cov: np.ndarray) -> np.ndarray | None:

@@ -111,22 +111,29 @@ class MotionRules:
         if not refs:
             return False
         located = self._located_cameras(refs, detections)
-        return all(self._localisable(mover, refs, located, detections) for mover in movers)
+        localisable = self._localisable
+        for mover in movers:
+            if not localisable(mover, refs, located, detections):
+                return False
+        return True
 
     def _located_cameras(self, refs: set[str], detections: Sequence[Detection]) -> set[str]:
-        located = {camera for camera, owner in self._camera_owner.items() if owner in refs}
+        board_owner, camera_owner = self._board_owner, self._camera_owner
+        located = {camera for camera, owner in camera_owner.items() if owner in refs}
         for d in detections:
-            owner = self._board_owner.get(d.board_id)
-            if owner in refs and owner != self._camera_owner.get(d.camera_id):
+            owner = board_owner.get(d.board_id)
+            if owner in refs and owner != camera_owner.get(d.camera_id):
                 located.add(d.camera_id)
         return located
 
     def _localisable(self, device: str, refs: set[str], located: set[str], detections: Sequence[Detection]) -> bool:
         own_cameras = self._cameras_of.get(device, ())
+        board_owner, camera_owner = self._board_owner, self._camera_owner
         for d in detections:
-            owner = self._board_owner.get(d.board_id)
-            if owner == device and d.camera_id in located and self._camera_owner.get(d.camera_id) != device:
+            owner = board_owner.get(d.board_id)
+            camera = d.camera_id
+            if owner == device and camera in located and camera_owner.get(camera) != device:
                 return True
-            if d.camera_id in own_cameras and owner in refs:
+            if camera in own_cameras and owner in refs:
                 return True
         return False

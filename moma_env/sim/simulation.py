@@ -74,9 +74,18 @@ class _LineOfSight:
 
     def __call__(self, p_from: np.ndarray, p_to: np.ndarray) -> bool:
         x, y = float(p_to[0]), float(p_to[1])
-        positions = self.simulation.device_positions
-        nearest = min(positions, key=lambda item: (item[1][0] - x) ** 2 + (item[1][1] - y) ** 2)[0]
-        return self.simulation.world.segment_blocked(p_from[:2], p_to[:2], ignore=(self.camera_owner, nearest))
+        simulation = self.simulation
+        # The nearest device by squared distance, the first of equal ones: min() over
+        # the positions with that key, in a plain loop (no key function call per device).
+        positions = iter(simulation.device_positions)
+        nearest, (px, py) = next(positions)
+        best = (px - x) ** 2 + (py - y) ** 2
+        for device, (px, py) in positions:
+            distance = (px - x) ** 2 + (py - y) ** 2
+            if distance < best:
+                nearest, best = device, distance
+        # The floor points as float pairs (the world reads x and y of each).
+        return simulation.world.segment_blocked((float(p_from[0]), float(p_from[1])), (x, y), ignore=(self.camera_owner, nearest))
 
 
 class Simulation:
@@ -133,7 +142,11 @@ class Simulation:
             boards.append((sled.name, len(wc.ugvs) + k, sled.board))
         self._boards = tuple(boards)
         self._board_owner = {board_id: device for device, board_id, _ in boards}
-        self._board_up = {d.name: up_in_board(d.board_mount) for d in (*wc.ugvs, *sleds)}  # world up in M, from the mounts
+        board_up = {d.name: up_in_board(d.board_mount) for d in (*wc.ugvs, *sleds)}  # world up in M, from the mounts
+        for up in board_up.values():
+            up.setflags(write=False)  # shared by every view of the board
+        #: Per board, what its views take besides the pose: (device, board id, layout, world up in M).
+        self._view_parts = tuple((device, board_id, layout, board_up[device]) for device, board_id, layout in boards)
         camera_owner: dict[str, str] = {}
         for ugv in wc.ugvs:
             for cam in ugv.cameras:
@@ -149,6 +162,8 @@ class Simulation:
         # The UAVs look down over everything.
         uav_cameras = {uav.camera_name for uav in wc.uavs}
         self._occlusions = {name: _LineOfSight(self, owner) for name, owner in camera_owner.items() if name not in uav_cameras}
+        #: Per camera, in the order of its requests: (name, backend, occlusion query or None).
+        self._camera_parts = tuple((name, camera, self._occlusions.get(name)) for name, camera in self._cameras.items())
         self.rules = MotionRules(self._board_owner, camera_owner, scenario.dwell_s) if rules else None
         self._localiser_factory = localiser
         self._planar_ugvs = bool(planar_ugvs)
@@ -243,10 +258,11 @@ class Simulation:
 
     def board_views(self) -> list[BoardView]:
         """The boards as the cameras are shown them now: true pose and the mount's up direction."""
-        return [
-            BoardView(board_id, layout, self.world.board_transform(device), self._board_up[device])
-            for device, board_id, layout in self._boards
-        ]
+        # Views of the world's own poses (new float 4x4 arrays) and of the up vectors checked at
+        # construction: made without the constructor's checks (a view per board per frame).
+        board_transform = self.world.board_transform
+        view = BoardView.trusted
+        return [view(board_id, layout, board_transform(device), up) for device, board_id, layout, up in self._view_parts]
 
     # ------------------------------------------------------------------ reset
     def reset(self, rng: np.random.Generator) -> Frame:
@@ -313,15 +329,16 @@ class Simulation:
         """Static devices as the rules see them, as of the localiser's last update (new sets):
         those whose pose others may rely on after a switch (frozen references and ready
         switch windows), and those still collecting their window."""
-        frame = self._require_started()
+        estimates = self._require_started().estimates
+        window_ready = self._localiser.window_ready
         ready: set[str] = set()
         settling: set[str] = set()
         for device in self._devices:
-            phase = frame.estimates[device].phase
+            phase = estimates[device].phase
             if phase is Phase.REFERENCE:
                 ready.add(device)
             elif phase is Phase.SETTLING:
-                (ready if self._localiser.window_ready(device) else settling).add(device)
+                (ready if window_ready(device) else settling).add(device)
         return ready, settling
 
     def check_mobile(
@@ -336,7 +353,7 @@ class Simulation:
         if self.rules is None:
             return None
         ready, settling = references if references is not None else self.reference_devices()
-        movers = self._mobile if mobile is None else set(mobile)
+        movers = self._mobile if mobile is None else mobile  # the rules read it into a new set
         return self.rules.check_mobile(device, frame.time, movers, ready, frame.detections, settling)
 
     def request(self, wants: Mapping[str, bool]) -> list[Switch]:
@@ -468,11 +485,8 @@ class Simulation:
             # Device positions for the occlusion queries, once per frame.
             self.device_positions = [(d, self.device_pose(d)[:2]) for d in self._devices]
         world = self.world
-        t = world.time
-        return tuple(
-            MeasureRequest(camera, world.camera_transform(name), views, t, self._rng, self._occlusions.get(name))
-            for name, camera in self._cameras.items()
-        )
+        camera_transform, t, rng = world.camera_transform, world.time, self._rng
+        return tuple([MeasureRequest(camera, camera_transform(name), views, t, rng, occluded) for name, camera, occluded in self._camera_parts])
 
     def _snapshot(self, earlier: Sequence[Switch] = ()) -> Frame:
         estimates = self._localiser.estimates()
@@ -485,8 +499,8 @@ class Simulation:
                 estimated[device] = None
                 errors[device] = math.nan
             else:
-                estimated[device] = se3_to_se2(T)
-                errors[device] = math.hypot(T[0, 3] - x, T[1, 3] - y)
+                pose = estimated[device] = se3_to_se2(T)  # x, y: T[0, 3], T[1, 3] as floats
+                errors[device] = math.hypot(pose[0] - x, pose[1] - y)
         world = self.world
         t = world.time
         switches = (*earlier, *self._switches)
