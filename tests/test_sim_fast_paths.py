@@ -20,10 +20,10 @@ def simulation(name):
     return Simulation(scenario, {c: make_camera(c, scenario.camera) for c in names})
 
 
-def assert_same_view(fast, reference):
+def assert_same_view(fast, reference, copied=False):
     assert type(fast) is BoardView
     assert type(fast.board_id) is int and fast.board_id == reference.board_id
-    assert fast.layout is reference.layout
+    assert fast.layout == reference.layout if copied else fast.layout is reference.layout
     assert fast.T_w_m.dtype == reference.T_w_m.dtype and fast.T_w_m.tobytes() == reference.T_w_m.tobytes()
     if reference.up_m is None:
         assert fast.up_m is None
@@ -127,3 +127,19 @@ def test_board_up_rows_equal_the_row_by_row_assignment():
         fast, reference = board_up_rows(boards), reference_board_up_rows(boards)
         assert fast.shape == reference.shape == (n, 3) and fast.dtype == reference.dtype
         assert fast.tobytes() == reference.tobytes()
+
+
+def test_copies_show_read_only_up_vectors_too():
+    """The board views share one up vector per board: read-only, in copies as well."""
+    import copy
+    import pickle
+
+    sim = simulation("caterpillar_sled")
+    sim.reset(np.random.default_rng(5))
+    for clone in (copy.deepcopy(sim), pickle.loads(pickle.dumps(sim))):
+        views, reference = clone.board_views(), sim.board_views()
+        assert len(views) == len(reference)
+        for view, original in zip(views, reference):
+            assert_same_view(view, original, copied=True)
+            with pytest.raises(ValueError):
+                view.up_m[0] = 1.0

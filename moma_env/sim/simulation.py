@@ -173,6 +173,13 @@ class Simulation:
         self._frame: Frame | None = None
         self._awaiting = None
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Restore a copy (:mod:`copy`, :mod:`pickle`), with the up vectors its board views
+        share read-only again (numpy's copies of arrays are writeable)."""
+        self.__dict__.update(state)
+        for *_, up in self._view_parts:
+            up.setflags(write=False)
+
     # ------------------------------------------------------------------ layout
     @property
     def devices(self) -> tuple[str, ...]:
