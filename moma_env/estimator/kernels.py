@@ -17,11 +17,20 @@ from moma_env.estimator.uncertainty import (
     compose_first_kernel,
     compose_jacobians_kernel,
     inverse_jacobian_kernel,
+    pack_operands_kernel,
     through_kernel,
     upright_jacobian_kernel,
 )
 
-__all__ = ["camera_from_reference_board", "body_from_mounted_frame", "body_from_board_seen", "sample_from_board_seen"]
+__all__ = [
+    "camera_from_reference_board",
+    "body_from_mounted_frame",
+    "body_from_board_seen",
+    "sample_from_board_seen",
+    "packed_sample_from_board_seen",
+    "packed_sample_from_mounted_frame",
+    "packed_camera_from_reference_board",
+]
 
 
 @numba.njit(cache=True)
@@ -61,6 +70,20 @@ def body_from_mounted_frame(T_w_x, T_b_x, T_x_b, planar, plane_z):
 
 
 @numba.njit(cache=True)
+def packed_sample_from_mounted_frame(T_w_x, T_b_x, T_x_b, planar, plane_z, Js, Q, P, has_P):
+    """:func:`body_from_mounted_frame`, then the sample's error from the measured frame's
+    (``Js``, ``Q``, ``P``, ``has_P``: :meth:`LinearError.operands
+    <moma_env.estimator.uncertainty.LinearError.operands>`) as :meth:`LinearError.transformed
+    <moma_env.estimator.uncertainty.LinearError.transformed>` gives it: one call, the same bits.
+    Returns ``(T_w_b, packed error, has_P')``, the error packed by
+    :func:`~moma_env.estimator.uncertainty.pack_operands_kernel`."""
+    sample, A = body_from_mounted_frame(T_w_x, T_b_x, T_x_b, planar, plane_z)
+    # No fresh noise: the noise operands are never read (A stands in for them).
+    Js_out, Q_out, P_out, has_P_out = through_kernel(Js, Q, P, has_P, True, A, A, A, False, A, False)
+    return sample, pack_operands_kernel(Js_out, Q_out, P_out), has_P_out
+
+
+@numba.njit(cache=True)
 def body_from_board_seen(T_w_c, T_c_m, T_b_m, T_m_b, planar, plane_z):
     """A robot's body pose from its board (mounted at ``T_b_m``, ``T_m_b`` its inverse) seen
     as ``T_c_m`` by a camera at ``T_w_c``. Returns ``(T_w_b, A_cam, A_meas)``: the pose and the
@@ -85,3 +108,23 @@ def sample_from_board_seen(
         Js, Q, P, has_P, True, A_cam, A_meas, covariance, has_covariance, persistent, has_persistent
     )
     return sample, Js_out, Q_out, P_out, has_P_out
+
+
+@numba.njit(cache=True)
+def packed_sample_from_board_seen(
+    T_w_c, T_c_m, T_b_m, T_m_b, planar, plane_z, Js, Q, P, has_P, covariance, has_covariance, persistent, has_persistent
+):
+    """:func:`sample_from_board_seen` returning ``(T_w_b, packed error, has_P')``, the error packed
+    by :func:`~moma_env.estimator.uncertainty.pack_operands_kernel` (two arrays to box, not four)."""
+    sample, Js_out, Q_out, P_out, has_P_out = sample_from_board_seen(
+        T_w_c, T_c_m, T_b_m, T_m_b, planar, plane_z, Js, Q, P, has_P, covariance, has_covariance, persistent, has_persistent
+    )
+    return sample, pack_operands_kernel(Js_out, Q_out, P_out), has_P_out
+
+
+@numba.njit(cache=True)
+def packed_camera_from_reference_board(T_w_m, board_J, T_c_m, covariance, has_covariance, persistent, has_persistent):
+    """:func:`camera_from_reference_board` returning ``(T_w_c, packed error)``: its ``J``, ``Q``
+    and ``P`` packed by :func:`~moma_env.estimator.uncertainty.pack_operands_kernel`."""
+    T_w_c, J, Q, P = camera_from_reference_board(T_w_m, board_J, T_c_m, covariance, has_covariance, persistent, has_persistent)
+    return T_w_c, pack_operands_kernel(J.reshape((1, 6, 6)), Q, P)

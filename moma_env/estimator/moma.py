@@ -24,7 +24,11 @@ from moma_env.estimator.errors import (
 from moma_env.estimator.fusion import information_fusion
 from moma_env.estimator.gate import OutlierGate
 from moma_env.estimator.results import Phase, RobotEstimate, Status, SwitchEvent
-from moma_env.estimator.kernels import body_from_mounted_frame, camera_from_reference_board, sample_from_board_seen
+from moma_env.estimator.kernels import (
+    packed_camera_from_reference_board,
+    packed_sample_from_board_seen,
+    packed_sample_from_mounted_frame,
+)
 from moma_env.estimator.uncertainty import (
     NO_MATRIX,
     LinearError,
@@ -523,12 +527,12 @@ class MomaEstimator:
                     # the zero Q: Q + 0.0 is the 0 + Q it gave (-0.0 entries turn +0.0 alike).
                     cov = d.covariance
                     persistent = None if cov is None else d.persistent_covariance  # a part of cov: none without it
-                    T_w_c, J, Q, P = camera_from_reference_board(
+                    T_w_c, packed = packed_camera_from_reference_board(
                         ref.board_world[d.board_id], ref.board_world_J[d.board_id], pose_array(d.T_c_m, "T_c_m"),
                         NO_MATRIX if cov is None else matrix6_array(cov), cov is not None,
                         NO_MATRIX if persistent is None else matrix6_array(persistent), persistent is not None,
                     )
-                    errors.append(LinearError.of_jacobian(ref.ref_key, J, Q, None if persistent is None else P))
+                    errors.append(LinearError.of_packed((ref.ref_key,), packed, persistent is not None))
                     located.append(T_w_c)
             if located:
                 if len(located) > 1 and self._information_fusion:
@@ -552,19 +556,21 @@ class MomaEstimator:
                     if operands is None:
                         keys, *operands = camera_error.operands()
                     planar = r.plane_z is not None
-                    sample, *parts = sample_from_board_seen(
+                    sample, packed, has_P = packed_sample_from_board_seen(
                         T_w_c, pose_array(d.T_c_m, "T_c_m"), r.board_mounts[d.board_id], r.board_inverses[d.board_id],
                         planar, r.plane_z if planar else 0.0, *operands, *noise_operands(d.covariance, d.persistent_covariance),
                     )
-                    samples.setdefault(r, []).append((sample, LinearError.of_operands(keys, *parts)))
+                    samples.setdefault(r, []).append((sample, LinearError.of_packed(keys, packed, has_P)))
         for camera_id, (T_w_c, camera_error) in camera_poses.items():
             r = camera_owner[camera_id]
             if r.phase is not _REFERENCE:
                 planar = r.plane_z is not None
-                sample, A = body_from_mounted_frame(
-                    T_w_c, r.camera_mounts[camera_id], r.camera_inverses[camera_id], planar, r.plane_z if planar else 0.0
+                keys, *operands = camera_error.operands()
+                sample, packed, has_P = packed_sample_from_mounted_frame(
+                    T_w_c, r.camera_mounts[camera_id], r.camera_inverses[camera_id], planar, r.plane_z if planar else 0.0,
+                    *operands,
                 )
-                samples.setdefault(r, []).append((sample, camera_error.transformed(A)))
+                samples.setdefault(r, []).append((sample, LinearError.of_packed(keys, packed, has_P)))
 
         measured: set[_Robot] = set()
         settle_delay = self._config.settle_delay_s
