@@ -96,12 +96,14 @@ class BoardTrackingController:
         if len(board_positions_c) == 0:
             return np.array([0.0, 0.0, 0.0, c.search_climb])
         # Plain floats: a handful of boards, where numpy calls would cost more than the arithmetic.
-        points = [(float(p[0]), float(p[1]), float(p[2])) for p in board_positions_c]
-        n = len(points)
-        cx = sum(p[0] for p in points) / n
-        cy = sum(p[1] for p in points) / n
-        cz = sum(p[2] for p in points) / n
-        spread = 2.0 * max(math.hypot(p[0] - cx, p[1] - cy) for p in points)
+        xs = [float(p[0]) for p in board_positions_c]
+        ys = [float(p[1]) for p in board_positions_c]
+        zs = [float(p[2]) for p in board_positions_c]
+        n = len(xs)
+        cx = sum(xs) / n
+        cy = sum(ys) / n
+        cz = sum(zs) / n
+        spread = 2.0 * max([math.hypot(x - cx, y - cy) for x, y in zip(xs, ys)])
         # Offset of the centroid from the optical axis, in the body frame.
         R = self._R_b_c_rows
         vx = c.gain * (R[0][0] * cx + R[0][1] * cy)

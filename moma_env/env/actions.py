@@ -80,6 +80,8 @@ def parse_discrete(agent: str, action: Any, space: spaces.Discrete) -> int:
     bools, floats, strings and everything else are refused.
     """
     value = action
+    if type(value) is int and 0 <= value < space.n:  # the common case, checked first
+        return value
     if isinstance(value, np.ndarray) and value.size == 1 and value.dtype.kind in "iu":
         value = value.reshape(()).item()
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, Integral) or not 0 <= int(value) < space.n:
@@ -223,6 +225,7 @@ class SwitchingActions(ActionMode):
         self._leg_progress: dict[str, tuple[float, float, float]] = {}  # robot -> (closest m, rad, when s)
         self._routes: dict[str, Route] = {}  # robot -> its route, if the scenario gives one
         self._route_s: dict[str, float] = {}  # robot -> arc length (m) of its last leg's start on its route
+        self._mask_templates: dict[str, dict] = {}  # UGV -> its masks by outcome (see _templates)
 
     def space(self, agent: str) -> spaces.Space:
         return spaces.Discrete(self.n_actions(agent))
@@ -374,34 +377,56 @@ class SwitchingActions(ActionMode):
         return changed
 
     def masks(self, agents: Iterable[str], simulation: Simulation) -> dict[str, np.ndarray]:
-        """:meth:`mask` of each agent, the localiser's reference set read once for all."""
+        """:meth:`mask` of each agent, the localiser's reference set and the mobile devices read once for all."""
         references = simulation.reference_devices()
-        return {agent: self.mask(agent, simulation, references) for agent in agents}
+        mobile = simulation.mobile
+        return {agent: self._mask(agent, simulation, references, mobile) for agent in agents}
 
     def mask(self, agent: str, simulation: Simulation, references: tuple[set[str], set[str]] | None = None) -> np.ndarray:
         """Which actions of UGV ``agent`` the rules would grant at the next step, if it
         were the only change requested (see ``MomaParallelEnv.action_mask``)."""
         if references is None:
             references = simulation.reference_devices()
-        mask = np.ones(self.n_actions(agent), dtype=np.int8)
+        return self._mask(agent, simulation, references, simulation.mobile)
+
+    def _mask(self, agent: str, simulation: Simulation, references: tuple[set[str], set[str]], mobile: frozenset[str]) -> np.ndarray:
+        """:meth:`mask` given the reference set and the devices mobile now; a new array (a copy of
+        the agent's template for the outcome, which is cheaper than building one)."""
+        templates = self._mask_templates.get(agent)
+        if templates is None:
+            templates = self._mask_templates[agent] = self._templates(agent)
         if agent in self.committed:
-            mask[:] = 0
-            mask[self.ADVANCE] = 1  # the leg runs to its end
-            return mask
-        mobile = simulation.mobile
+            return templates[None].copy()  # the leg runs to its end: advance only
         check = simulation.check_mobile
-        if agent not in mobile:
-            mask[self.ADVANCE : self.ADVANCE + self.n_advances] = check(agent, mobile, references) is None
+        advance = agent in mobile or check(agent, mobile, references) is None
+        reel = True
         sled = self.tows.get(agent)
         if sled is not None and sled not in mobile:
-            reel = self.reel
             if agent not in mobile:
-                mask[reel] = check(sled, mobile, references) is None
+                reel = check(sled, mobile, references) is None
             elif simulation.rules is None or simulation.rules.dwell_s <= 0.0:  # no dwell: the robot stops, then the sled is judged
-                mask[reel] = check(sled, mobile - {agent}, references) is None
+                reel = check(sled, mobile - {agent}, references) is None
             else:
-                mask[reel] = 0
-        return mask
+                reel = False
+        return templates[advance, reel].copy()
+
+    def _templates(self, agent: str) -> dict[tuple[bool, bool] | None, np.ndarray]:
+        """The masks of UGV ``agent``, int8 over its actions: ``(advance granted, reel granted)``
+        -> hold 1, every advance action and the reel (when it tows) as granted; ``None`` -> the
+        mask of a committed leg (advance only). Not to be handed out: :meth:`_mask` copies them."""
+        n = self.n_actions(agent)
+        out: dict[tuple[bool, bool] | None, np.ndarray] = {}
+        for advance in (False, True):
+            for reel in (False, True):
+                mask = np.ones(n, dtype=np.int8)
+                mask[self.ADVANCE : self.ADVANCE + self.n_advances] = advance
+                if agent in self.tows:
+                    mask[self.reel] = reel
+                out[advance, reel] = mask
+        committed = np.zeros(n, dtype=np.int8)
+        committed[self.ADVANCE] = 1
+        out[None] = committed
+        return out
 
 
 #: ``EnvConfig.action_mode`` -> its class.

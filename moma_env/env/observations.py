@@ -62,6 +62,8 @@ _POSITION_STD_SCALE_M = 0.1
 _HEADING_STD_SCALE_RAD = 0.1
 #: Status -> its one-hot, in STATUS_ORDER.
 _ONE_HOT = {status: tuple(1.0 if status is s else 0.0 for s in STATUS_ORDER) for status in Status}
+#: The x, y, yaw of a device without a usable estimate in :func:`device_table`.
+_NO_POSE = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -206,21 +208,34 @@ def device_table(
     status, declared state, staleness (age of the last fresh estimate / ``lost_after_s``
     (s), clipped to 1), standard deviations, and whether the frame's detections involve it."""
     seen: set[str] = set()
+    add = seen.add
     for d in frame.detections:
-        seen.add(board_device(d.board_id))
-        seen.add(camera_owner[d.camera_id])
+        add(board_device(d.board_id))
+        add(camera_owner[d.camera_id])
     t = frame.time
     mobile = frame.mobile
+    estimates, estimated = frame.estimates, frame.estimated
+    lost = Status.LOST
     values: list[float] = []
     for device in devices:
-        e = frame.estimates[device]
+        e = estimates[device]
         status = e.status
-        pose = None if status is Status.LOST else frame.estimated[device]
-        values += (0.0, 0.0, 0.0, 0.0) if pose is None else (*pose, 1.0)
-        values.append(0.0 if device in mobile else 1.0)
-        values += _ONE_HOT[status]
-        values.append(1.0 if e.last_fresh_time is None else min(1.0, (t - e.last_fresh_time) / lost_after_s))
-        values += (e.position_std_m, e.heading_std_rad, 1.0 if device in seen else 0.0)
+        pose = None if status is lost else estimated[device]
+        has_pose = 1.0
+        if pose is None:
+            pose, has_pose = _NO_POSE, 0.0
+        fresh = e.last_fresh_time
+        # One row: x, y, yaw, has_pose, static, the status one-hot, staleness, the deviations, seen.
+        values += (
+            *pose,
+            has_pose,
+            0.0 if device in mobile else 1.0,
+            *_ONE_HOT[status],
+            1.0 if fresh is None else min(1.0, (t - fresh) / lost_after_s),
+            e.position_std_m,
+            e.heading_std_rad,
+            1.0 if device in seen else 0.0,
+        )
     return np.array(values, dtype=np.float64).reshape(len(devices), len(DEVICE_COLUMNS))
 
 
@@ -395,6 +410,14 @@ class ObservationLayout:
             low, high = self._bounds[agent]
             self._low[u, : low.shape[0]] = low
             self._high[u, : high.shape[0]] = high
+        # Per call, only the timing scalars and the towing agents' ropes change: the kernel's
+        # input arrays are kept and those entries written in place (the kernel only reads them).
+        self._scalars = np.array((self._cx, self._cy, self._r, 0.0, self._switch_horizon, 0.0, self._dwell))
+        self._rope = np.zeros(len(self._ugv_agents))
+        #: (row, agent) of the UGVs with a rope feature (the kernel reads only their rope entries).
+        self._towing = tuple((u, a) for u, a in enumerate(self._ugv_agents) if a in self.tows)
+        #: (agent, row, its length or None for the full width) of every UGV's vector in the kernel's output.
+        self._views = tuple((a, u, None if size == width else int(size)) for u, (a, size) in enumerate(zip(self._ugv_agents, self._sizes)))
 
     # ------------------------------------------------------------------ helpers
     def _abs_pose(self, out: list[float], pose: tuple[float, float, float] | None) -> None:
@@ -426,20 +449,16 @@ class ObservationLayout:
             dwell_remaining: the rules' dwell remaining (s).
             ropes: towing agent -> its rope length / its maximum (none: 0).
         """
-        agents = self._ugv_agents
-        n = len(agents)
-        rope = np.zeros(n)
-        if ropes:
-            for u, agent in enumerate(agents):
-                value = ropes.get(agent)
-                if value is not None:
-                    rope[u] = value
-        scalars = np.array((self._cx, self._cy, self._r, since_switch, self._switch_horizon, dwell_remaining, self._dwell))
+        rope = self._rope
+        for u, agent in self._towing:
+            value = ropes.get(agent) if ropes else None
+            rope[u] = 0.0 if value is None else value
+        scalars = self._scalars
+        scalars[3] = since_switch
+        scalars[5] = dwell_remaining
         out = np.empty(self._low.shape, dtype=np.float32)
         _ugv_rows(table, self._rows, self._goals, rope, scalars, self._low, self._high, self._sizes, out)
-        sizes = self._sizes
-        width = out.shape[1]
-        return {a: out[u] if sizes[u] == width else out[u, : sizes[u]] for u, a in enumerate(agents)}
+        return {a: out[u] if size is None else out[u, :size] for a, u, size in self._views}
 
     def observer(
         self,

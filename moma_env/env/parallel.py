@@ -40,6 +40,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Generator, Mapping, Sequence
 from numbers import Integral
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -61,6 +62,9 @@ from moma_env.scenarios import Scenario
 from moma_env.sim import Frame, Simulation, measured
 
 __all__ = ["MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep"]
+
+#: Status -> its name in infos (``"localised"``, ...): read from a table, not from the enum's ``name`` each time.
+_STATUS_NAMES: Mapping[Status, str] = MappingProxyType({status: status.name.lower() for status in Status})
 
 ScenarioFactory = Callable[[np.random.Generator | None], Scenario]
 
@@ -180,6 +184,8 @@ class MomaParallelEnv(ParallelEnv):
         wc = scenario.world
         self._ugvs = wc.ugv_names
         self._tows = {s.robot: s.name for s in wc.sleds}
+        #: Towing robot -> (its sled, the sled's maximum rope length (m)), for the rope feature.
+        self._max_ropes = {robot: (sled, wc.sled(sled).max_rope) for robot, sled in self._tows.items()}
         self._towed_by: dict[str, str] = {}  # sled -> the robot towing it (the first, if several)
         for robot, sled in self._tows.items():
             self._towed_by.setdefault(sled, robot)
@@ -388,28 +394,30 @@ class MomaParallelEnv(ParallelEnv):
         return PendingStep(next(stages), stages)
 
     def _stages(self, actions: Mapping[str, Any]) -> Generator[tuple, Sequence[Any], tuple[dict, dict, dict, dict, dict]]:
-        if not self.agents:
+        agents = self.agents  # the step's agents (the list is replaced, not changed, when the episode ends)
+        if not agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         if not isinstance(actions, Mapping):
             raise TypeError(f"actions must be a mapping agent -> action, got {type(actions).__name__}")
         for agent in actions:
-            if agent not in self.agents:
+            if agent not in agents:
                 if agent in self.possible_agents:
                     raise ValueError(f"action for finished agent {agent!r}")
-                raise KeyError(f"action for unknown agent {agent!r}; agents are {self.agents}")
+                raise KeyError(f"action for unknown agent {agent!r}; agents are {agents}")
         mode = self._mode
         sim = self.simulation
         observers = self._observers
-        parsed = {a: mode.parse(a, actions.get(a), self._action_spaces[a]) for a in self.agents if a not in observers}
+        action_spaces = self._action_spaces
+        parse, get = mode.parse, actions.get
+        parsed = {a: parse(a, get(a), action_spaces[a]) for a in agents if a not in observers}
         observer_actions = {
-            a: [0.0] * 4 if actions.get(a) is None else parse_box(a, actions[a], self._action_spaces[a])
-            for a in self.agents
-            if a in observers
+            a: [0.0] * 4 if get(a) is None else parse_box(a, actions[a], action_spaces[a]) for a in agents if a in observers
         }
-        events: dict[str, list[str]] = {a: [] for a in self.agents}
+        events: dict[str, list[str]] = {a: [] for a in agents}
+        towed_by = self._towed_by
 
         def note(device: str, event: str) -> None:
-            agent = self._towed_by.get(device, device)
+            agent = towed_by.get(device, device)
             if agent in events:
                 events[agent].append(event)
 
@@ -441,9 +449,9 @@ class MomaParallelEnv(ParallelEnv):
         done = self._reward.done
         truncate = frame.steps >= self._max_cycles
         observations = self._observations(frame)
-        rewards = {a: reward.total for a in self.agents}
-        terminations = {a: done for a in self.agents}
-        truncations = {a: truncate and not done for a in self.agents}
+        rewards = dict.fromkeys(agents, reward.total)
+        terminations = dict.fromkeys(agents, done)
+        truncations = dict.fromkeys(agents, truncate and not done)
         infos = self._infos(frame, events, reward.terms, reward.collisions)
         if done or truncate:
             self.agents = []
@@ -457,13 +465,17 @@ class MomaParallelEnv(ParallelEnv):
         if not self._uavs:
             return None
         commands = {}
+        detections = None
         for uav in self._uavs:
             agent = self._observer_of.get(uav.name)
             a = None if agent is None else observer_actions.get(agent)
             if a is not None:
                 commands[uav.name] = np.array([a[0] * uav.max_speed, a[1] * uav.max_speed, a[2] * uav.max_yaw_rate, a[3] * uav.max_climb])
             else:
-                positions = [d.T_c_m[:3, 3].tolist() for d in self.simulation.frame.detections if d.camera_id == uav.camera_name]
+                if detections is None:
+                    detections = self.simulation.frame.detections
+                camera = uav.camera_name
+                positions = [d.T_c_m[:3, 3].tolist() for d in detections if d.camera_id == camera]
                 commands[uav.name] = self._trackers[uav.name].command(positions)
         return commands
 
@@ -476,9 +488,9 @@ class MomaParallelEnv(ParallelEnv):
         since = frame.time - frame.last_switch_time
         dwell_left = frame.dwell_remaining
         observers = self._observers
-        ropes = {agent: frame.ropes[sled] / self.scenario.world.sled(sled).max_rope for agent, sled in self._tows.items()}
-        ugv_obs = self.layout.ugvs(table, since, dwell_left, ropes)
-        obs = {agent: ugv_obs[agent] for agent in self.agents if agent not in observers}
+        frame_ropes = frame.ropes
+        ropes = {agent: frame_ropes[sled] / max_rope for agent, (sled, max_rope) in self._max_ropes.items()}
+        obs = self.layout.ugvs(table, since, dwell_left, ropes)  # in UGV order, as the agents are (a new dict)
         for agent, uav in observers.items():
             if agent in self.agents:
                 e = frame.estimates[uav.name]
@@ -496,54 +508,65 @@ class MomaParallelEnv(ParallelEnv):
                     obs[agent] = observer_observation(obs[agent], image, self.config.observer_image)
         return obs
 
-    def _info(self, frame: Frame, agent: str, events: list[str], terms: Mapping[str, float], collisions: int) -> dict:
-        uav = self._observers.get(agent)
-        if uav is not None:
-            s = frame.uavs[uav.name]
-            e = frame.estimates[uav.name]
-            if e.T_w_b is None:
-                err = None
-            else:
-                d = e.T_w_b[:3, 3] - np.array([s.x, s.y, s.z])
-                err = math.sqrt(d.dot(d))  # what np.linalg.norm computes for a vector
-            return {
-                "truth": (s.x, s.y, s.yaw, s.z),
-                "status": e.status.name.lower(),
-                "covariance": e.covariance,
-                "localisation_error": err,
-                "events": events,
-                "reward_terms": terms,
-            }
-        e = frame.estimates[agent]
-        info = {
-            "truth": frame.truth[agent],
-            "estimate": frame.estimated[agent],
+    def _observer_info(self, frame: Frame, uav: Any, events: list[str], terms: dict[str, float]) -> dict:
+        """The info of the observer agent flying ``uav`` (its UAV's configuration)."""
+        s = frame.uavs[uav.name]
+        e = frame.estimates[uav.name]
+        if e.T_w_b is None:
+            err = None
+        else:
+            d = e.T_w_b[:3, 3] - np.array([s.x, s.y, s.z])
+            err = math.sqrt(d.dot(d))  # what np.linalg.norm computes for a vector
+        return {
+            "truth": (s.x, s.y, s.yaw, s.z),
+            "status": _STATUS_NAMES[e.status],
             "covariance": e.covariance,
-            "localisation_error": frame.error(agent),
-            "status": e.status.name.lower(),
-            "static": agent not in frame.mobile,
+            "localisation_error": err,
             "events": events,
-            "refused": [ev.split(":", 2)[2] for ev in events if ev.startswith("refused:")],
-            "reached_goal": agent in self._reward.reached,
-            "collisions": collisions,
-            "switches_total": self._switches_total,
             "reward_terms": terms,
         }
-        sled = self._tows.get(agent)
-        if sled is not None:
-            info["sled_truth"] = frame.truth[sled]
-            info["sled_localisation_error"] = frame.error(sled)
-        return info
 
     def _infos(self, frame: Frame, events: Mapping[str, list[str]], terms: Mapping[str, float], collisions: int = 0) -> dict[str, dict]:
         """Every agent's info (``events`` by agent, none if left out; ``terms``: the step's
         weighted reward terms, none at reset), with the UGVs' action masks when
         ``EnvConfig.action_masks`` is on."""
-        infos = {a: self._info(frame, a, events.get(a, []), dict(terms), collisions) for a in self.agents}
+        observers = self._observers
+        # The frame's and the episode's values, read once for every agent.
+        truth, estimated, estimates = frame.truth, frame.estimated, frame.estimates
+        mobile = frame.mobile
+        reached = self._reward.reached
+        switches_total = self._switches_total
+        tows = self._tows
+        infos: dict[str, dict] = {}
+        for agent in self.agents:
+            agent_events = events.get(agent, [])
+            uav = observers.get(agent)
+            if uav is not None:
+                infos[agent] = self._observer_info(frame, uav, agent_events, dict(terms))
+                continue
+            e = estimates[agent]
+            info = infos[agent] = {
+                "truth": truth[agent],
+                "estimate": estimated[agent],
+                "covariance": e.covariance,
+                "localisation_error": frame.error(agent),
+                "status": _STATUS_NAMES[e.status],
+                "static": agent not in mobile,
+                "events": agent_events,
+                "refused": [ev.split(":", 2)[2] for ev in agent_events if ev.startswith("refused:")],
+                "reached_goal": agent in reached,
+                "collisions": collisions,
+                "switches_total": switches_total,
+                "reward_terms": dict(terms),
+            }
+            sled = tows.get(agent)
+            if sled is not None:
+                info["sled_truth"] = truth[sled]
+                info["sled_localisation_error"] = frame.error(sled)
         if self.config.action_masks:
             masks = self.action_masks()
             for agent in self.agents:
-                if agent not in self._observers:
+                if agent not in observers:
                     infos[agent]["action_mask"] = masks[agent]
         return infos
 

@@ -136,6 +136,7 @@ class TeamReward:
         self.ugvs = ugvs
         self.weights = weights
         self.reached: set[str] = set()
+        self._weighted: tuple | None = None  # (weights, their terms): see _weighted_terms
 
     def reset(self, frame: Frame) -> None:
         """Start an episode at ``frame``: nothing reached, distances and contacts as now."""
@@ -151,8 +152,9 @@ class TeamReward:
 
     def _goal_distances(self, frame: Frame) -> dict[str, float]:
         out = {}
+        truth = frame.truth
         for device, goal in self.scenario.goals.items():
-            x, y, _ = frame.truth[device]
+            x, y, _ = truth[device]
             out[device] = math.hypot(goal[0] - x, goal[1] - y)
         return out
 
@@ -160,13 +162,16 @@ class TeamReward:
         """The reward of the step that produced ``frame``, with its granted and refused requests."""
         w = self.weights
         dist = self._goal_distances(frame)
-        progress = sum(self._previous_distance[d] - dist[d] for d in dist)
+        previous = self._previous_distance
+        progress = sum([previous[d] - v for d, v in dist.items()])
         self._previous_distance = dist
         errors, n_lost = [], 0
+        frame_errors, estimates = frame.errors, frame.estimates
+        lost_error, lost = w.lost_error_m, Status.LOST
         for device in self.ugvs:
-            err = frame.errors[device]
-            errors.append(w.lost_error_m if math.isnan(err) else err)
-            if frame.estimates[device].status is Status.LOST:
+            err = frame_errors[device]
+            errors.append(lost_error if math.isnan(err) else err)
+            if estimates[device].status is lost:
                 n_lost += 1
         newly = []
         scenario = self.scenario
@@ -190,9 +195,17 @@ class TeamReward:
             newly_reached=len(newly),
             finished=bool(newly) and self.done,
         )
-        terms = {term.name: getattr(w, term.name) * term.value(inputs) for term in REWARD_TERMS}
+        terms = {name: weight * value(inputs) for name, weight, value in self._weighted_terms(w)}
         values = iter(terms.values())
         total = next(values)
         for value in values:  # left to right, as the terms are listed
             total = total + value
         return RewardStep(float(total), terms, tuple(newly), len(new_contacts))
+
+    def _weighted_terms(self, weights: RewardConfig) -> tuple[tuple[str, float, Callable[[RewardInputs], float]], ...]:
+        """``(name, weight, value function)`` of every term of :data:`REWARD_TERMS`, in order, for
+        ``weights``: read once per weights object (a frozen ``RewardConfig``), not every step."""
+        cached = self._weighted
+        if cached is None or cached[0] is not weights:
+            cached = self._weighted = (weights, tuple((term.name, getattr(weights, term.name), term.value) for term in REWARD_TERMS))
+        return cached[1]

@@ -215,20 +215,21 @@ class MomaVectorEnv:
 
     def _step(self, checked: Mapping[str, np.ndarray]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
         agents = self.possible_agents
-        n = self.num_envs
         obs_rows: list[dict] = []
-        rewards = {a: np.zeros(n, dtype=np.float64) for a in agents}
-        terminations = {a: np.zeros(n, dtype=bool) for a in agents}
-        truncations = {a: np.zeros(n, dtype=bool) for a in agents}
+        step_rewards: list[dict] = []
+        step_terminations: list[dict] = []
+        step_truncations: list[dict] = []
         infos: list[dict] = []
-        pending = [env.begin_step({a: checked[a][i] for a in agents}) for i, env in enumerate(self.envs)]
+        # Every agent's column of actions; a Discrete agent's as Python ints (one conversion
+        # for the batch, instead of a numpy scalar per copy: the same values to the copies).
+        columns = [(a, checked[a].tolist() if checked[a].ndim == 1 else checked[a]) for a in agents]
+        pending = [env.begin_step({a: column[i] for a, column in columns}) for i, env in enumerate(self.envs)]
         detections = self.measure([p.camera_requests for p in pending])
         for i, env in enumerate(self.envs):
             obs, rew, term, trunc, info = pending[i].finish(detections[i])
-            for a in agents:
-                rewards[a][i] = rew[a]
-                terminations[a][i] = term[a]
-                truncations[a][i] = trunc[a]
+            step_rewards.append(rew)
+            step_terminations.append(term)
+            step_truncations.append(trunc)
             if not env.agents:
                 final = {"final_observation": obs, "final_info": info, "final_state": env.state(), "final_time": env.frame.time}
                 if self._masks:
@@ -238,6 +239,9 @@ class MomaVectorEnv:
             obs_rows.append(obs)
             infos.append(info)
         observations = {a: _stack([row[a] for row in obs_rows]) for a in agents}
+        rewards = {a: np.array([r[a] for r in step_rewards], dtype=np.float64) for a in agents}
+        terminations = {a: np.array([t[a] for t in step_terminations], dtype=bool) for a in agents}
+        truncations = {a: np.array([t[a] for t in step_truncations], dtype=bool) for a in agents}
         return observations, rewards, terminations, truncations, tuple(infos)
 
     def sample_actions(self, rng: np.random.Generator) -> dict[str, np.ndarray]:
