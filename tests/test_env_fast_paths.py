@@ -266,3 +266,26 @@ def test_reward_weights_replaced_are_read():
     env._reward.weights = replace(weights, time=weights.time * 3.0 - 1.0)
     _, _, _, _, infos = env.step({a: 0 for a in env.agents if a.startswith("ugv")})
     assert infos["ugv_0"]["reward_terms"]["time"] == (weights.time * 3.0 - 1.0) * 1.0
+
+
+def test_batch_stacking_matches_np_stack():
+    from moma_env.vector.env import _stack
+
+    rng = np.random.default_rng(2)
+    for _ in range(200):
+        n = int(rng.integers(1, 40))
+        shape = tuple(int(k) for k in rng.integers(1, 6, size=rng.integers(1, 4)))
+        dtype = [np.float32, np.float64, np.int8, np.uint8, bool][rng.integers(5)]
+        rows = [rng.normal(size=shape).astype(dtype) for _ in range(n)]
+        if rng.random() < 0.3:  # rows of one array, as a copy's views of its kernel output are
+            rows = list(np.ascontiguousarray(rng.normal(size=(n, *shape)).astype(dtype)))
+        got, want = _stack(rows), np.stack(rows)
+        assert got.dtype == want.dtype and got.shape == want.shape and np.array_equal(got, want)
+        dicts = [{"vector": r, "image": r.astype(np.uint8)} for r in rows]
+        got_dict = _stack(dicts)
+        assert list(got_dict) == ["vector", "image"]
+        for key in got_dict:
+            want_key = np.stack([d[key] for d in dicts])
+            assert got_dict[key].dtype == want_key.dtype and np.array_equal(got_dict[key], want_key)
+    with pytest.raises(ValueError):
+        _stack([np.zeros(3), np.zeros(4)])

@@ -68,7 +68,7 @@ def masks_in_infos(infos: Sequence[Mapping[str, Any]], agents: Sequence[str]) ->
     if not ugvs or not infos:
         return None
     try:
-        return {a: np.stack([info[a]["action_mask"] for info in infos]) for a in ugvs}
+        return {a: _stacked([info[a]["action_mask"] for info in infos]) for a in ugvs}
     except KeyError:
         return None
 
@@ -123,10 +123,17 @@ class LatestMasks:
         return {agent: rows.copy() for agent, rows in masks.items()}
 
 
+def _stacked(arrays: list[np.ndarray]) -> np.ndarray:
+    """``np.stack(arrays)`` of equal-shaped arrays (a new array, shape ``(len(arrays), *shape)``),
+    made by ``np.array``, which stacks them alike without ``np.stack``'s Python-level work (a
+    third of its cost for a batch's rows); unequal shapes are a ValueError as with ``np.stack``."""
+    return np.array(arrays)
+
+
 def _stack(values: Sequence[Any]) -> Any:
     if isinstance(values[0], dict):
-        return {key: np.stack([v[key] for v in values]) for key in values[0]}
-    return np.stack(values)
+        return {key: _stacked([v[key] for v in values]) for key in values[0]}
+    return _stacked(values)
 
 
 class MomaVectorEnv:
@@ -257,7 +264,7 @@ class MomaVectorEnv:
         if latest is not None:
             return latest
         masks = [env.action_masks() for env in self.envs]
-        return {a: np.stack([m[a] for m in masks]) for a in masks[0]}
+        return {a: _stacked([m[a] for m in masks]) for a in masks[0]}
 
     def state(self) -> np.ndarray:
         """``(num_envs, state_dim)`` float32: each copy's ``state()``."""
