@@ -27,6 +27,9 @@ import numba
 import numpy as np
 
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+# The 4x4 identity se2_to_se3 copies and fills in (read-only: shared, never written).
+_SE3_IDENTITY = np.eye(4)
+_SE3_IDENTITY.setflags(write=False)
 
 __all__ = [
     "wrap_angle",
@@ -227,9 +230,18 @@ def rotation(T: np.ndarray) -> np.ndarray:
 def se2_to_se3(x: float, y: float, yaw: float, z: float = 0.0) -> np.ndarray:
     """Lift a planar pose (m, m, rad) to a 4x4 pose at height ``z`` (m)."""
     c, s = math.cos(yaw), math.sin(yaw)
-    return np.array(
-        [[c, -s, 0.0, x], [s, c, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]]
-    )
+    # A copy of the identity with its seven entries set: the float64 array that
+    # np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, z], [0, 0, 0, 1]]) makes, at
+    # half the cost (no nested-list shape discovery).
+    T = _SE3_IDENTITY.copy()
+    T[0, 0] = c
+    T[0, 1] = -s
+    T[0, 3] = x
+    T[1, 0] = s
+    T[1, 1] = c
+    T[1, 3] = y
+    T[2, 3] = z
+    return T
 
 
 def yaw_of(R_or_T: np.ndarray) -> float:
@@ -240,7 +252,10 @@ def yaw_of(R_or_T: np.ndarray) -> float:
 
 def se3_to_se2(T: np.ndarray) -> tuple[float, float, float]:
     """Project a 4x4 pose to the plane: ``(x, y, yaw)`` with yaw of the x axis."""
-    return float(T[0, 3]), float(T[1, 3]), yaw_of(T)
+    # The first two rows read as Python floats at once (the same doubles as T[i, j]):
+    # yaw_of's atan2(T[1, 0], T[0, 0]) without four numpy scalar reads.
+    row0, row1 = T[:2].tolist()
+    return float(row0[3]), float(row1[3]), math.atan2(row1[0], row0[0])
 
 
 def upright_body_from_mount(T_w_x: np.ndarray, T_b_x: np.ndarray, z: float = 0.0) -> np.ndarray:

@@ -172,6 +172,7 @@ class Simulation:
         self._localiser: Localiser | None = None
         self._frame: Frame | None = None
         self._awaiting = None
+        self._references: tuple[frozenset[str], frozenset[str]] | None = None
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Restore a copy (:mod:`copy`, :mod:`pickle`), with the up vectors its board views
@@ -249,7 +250,7 @@ class Simulation:
     @property
     def mobile(self) -> frozenset[str]:
         """The devices declared mobile now."""
-        return frozenset(self._mobile)
+        return self._mobile  # a frozenset, replaced at every switch
 
     def device_pose(self, device: str) -> Pose2D:
         """True planar pose ``(x, y, yaw)`` of a UGV or sled (m, rad)."""
@@ -289,7 +290,7 @@ class Simulation:
         if self.rules is not None:
             self.rules.reset()
         self._rng = rng
-        self._mobile: set[str] = set()
+        self._mobile: frozenset[str] = frozenset()
         self._last_switch_time = 0.0
         self._steps = 0
         self._switches: list[Switch] = []
@@ -337,16 +338,21 @@ class Simulation:
         those whose pose others may rely on after a switch (frozen references and ready
         switch windows), and those still collecting their window."""
         estimates = self._require_started().estimates
-        window_ready = self._localiser.window_ready
-        ready: set[str] = set()
-        settling: set[str] = set()
-        for device in self._devices:
-            phase = estimates[device].phase
-            if phase is Phase.REFERENCE:
-                ready.add(device)
-            elif phase is Phase.SETTLING:
-                (ready if window_ready(device) else settling).add(device)
-        return ready, settling
+        # Kept until the frame is replaced or a switch is made (the localiser changes only
+        # through this simulation's updates and switches); every call returns new sets.
+        cached = self._references
+        if cached is None:
+            window_ready = self._localiser.window_ready
+            ready: list[str] = []
+            settling: list[str] = []
+            for device in self._devices:
+                phase = estimates[device].phase
+                if phase is Phase.REFERENCE:
+                    ready.append(device)
+                elif phase is Phase.SETTLING:
+                    (ready if window_ready(device) else settling).append(device)
+            cached = self._references = (frozenset(ready), frozenset(settling))
+        return set(cached[0]), set(cached[1])
 
     def check_mobile(
         self, device: str, mobile: Iterable[str] | None = None, references: tuple[set[str], set[str]] | None = None
@@ -412,7 +418,8 @@ class Simulation:
     def _set_static(self, device: str, t: float) -> Switch:
         self.world.set_static(device, True)
         self._localiser.set_static(device, True, t)
-        self._mobile.discard(device)
+        self._mobile = self._mobile - {device}
+        self._references = None
         if device in self._is_sled:
             self.world.set_reel(device, 0.0)
         if self.rules is not None:
@@ -425,7 +432,8 @@ class Simulation:
     def _set_mobile(self, device: str, t: float) -> Switch:
         self.world.set_static(device, False)
         self._localiser.set_static(device, False, t)
-        self._mobile.add(device)
+        self._mobile = self._mobile | {device}
+        self._references = None
         self._last_switch_time = t
         switch = Switch(device, "mobile")
         self._switches.append(switch)
@@ -497,36 +505,41 @@ class Simulation:
 
     def _snapshot(self, earlier: Sequence[Switch] = ()) -> Frame:
         estimates = self._localiser.estimates()
-        truth = {d: self.device_pose(d) for d in self._devices}
+        self._references = None  # of the frame this one replaces
+        world = self.world
+        ugv_pose, sled_pose, is_sled = world.ugv_pose, world.sled_pose, self._is_sled
+        truth: dict[str, Pose2D] = {}
         estimated: dict[str, Pose2D | None] = {}
         errors: dict[str, float] = {}
-        for device, (x, y, _) in truth.items():
+        for device in self._devices:
+            # device_pose(device), with the world's methods read once
+            true_pose = truth[device] = sled_pose(device) if device in is_sled else ugv_pose(device)
             T = estimates[device].T_w_b
             if T is None:
                 estimated[device] = None
                 errors[device] = math.nan
             else:
                 pose = estimated[device] = se3_to_se2(T)  # x, y: T[0, 3], T[1, 3] as floats
-                errors[device] = math.hypot(pose[0] - x, pose[1] - y)
-        world = self.world
+                errors[device] = math.hypot(pose[0] - true_pose[0], pose[1] - true_pose[1])
         t = world.time
         switches = (*earlier, *self._switches)
         self._switches = []
+        # Positional, in the order of Frame's fields (a call with 14 keywords costs ~1 us more).
         return Frame(
-            time=t,
-            steps=self._steps,
-            truth=MappingProxyType(truth),
-            uavs=MappingProxyType(dict(zip(world.uav_names, world.uav_states))),
-            estimates=MappingProxyType(estimates),
-            estimated=MappingProxyType(estimated),
-            errors=MappingProxyType(errors),
-            detections=tuple(self._detections),
-            mobile=frozenset(self._mobile),
-            switches=switches,
-            contacts=world.collisions_since_last_step,
-            ropes=MappingProxyType({s: world.rope_length(s) for s in self._sleds}),
-            last_switch_time=self._last_switch_time,
-            dwell_remaining=self.rules.dwell_remaining(t) if self.rules is not None else 0.0,
+            t,  # time
+            self._steps,  # steps
+            MappingProxyType(truth),  # truth
+            MappingProxyType(dict(zip(world.uav_names, world.uav_states))),  # uavs
+            MappingProxyType(estimates),  # estimates
+            MappingProxyType(estimated),  # estimated
+            MappingProxyType(errors),  # errors
+            tuple(self._detections),  # detections
+            self._mobile,  # mobile
+            switches,  # switches
+            world.collisions_since_last_step,  # contacts
+            MappingProxyType({s: world.rope_length(s) for s in self._sleds}),  # ropes
+            self._last_switch_time,  # last_switch_time
+            self.rules.dwell_remaining(t) if self.rules is not None else 0.0,  # dwell_remaining
         )
 
 

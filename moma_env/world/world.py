@@ -240,8 +240,8 @@ class World:
         self._uav_names = config.uav_names
         self._uav_index = {name: k for k, name in enumerate(self._uav_names)}
         self._uavs = tuple(UAVDynamics(uav, self.dt) for uav in config.uavs)
-        # (kind, index or name) -> (packed planar pose, pose @ mount): see _mounted.
-        self._mounted_cache: dict[tuple, tuple[bytes, np.ndarray]] = {}
+        # board: body index (int), camera: its name (str) -> (packed planar pose, pose @ mount): see _mounted.
+        self._mounted_cache: dict[int | str, tuple[bytes, np.ndarray]] = {}
         # ignore (a tuple or frozenset of names) -> its segment-query filter: see _segment_filter.
         self._segment_filters: dict[tuple | frozenset, tuple[pymunk.ShapeFilter, tuple[int, ...] | None]] = {}
         self._space: pymunk.Space | None = None
@@ -534,28 +534,32 @@ class World:
         ``T_w_b @ T_b_m`` for a robot, ``T_w_s @ T_s_m`` for a sled.
         """
         i = self._body_index(name)
-        if i >= len(self._ugvs):
-            sled = self._sleds[i - len(self._ugvs)]
-            x, y = sled.body.position
-            return self._mounted(("board", i), (x, y, sled.body.angle), sled.config.board_mount)
+        n_ugvs = len(self._ugvs)
+        if i >= n_ugvs:
+            sled = self._sleds[i - n_ugvs]
+            body = sled.body
+            x, y = body.position
+            return self._mounted(i, (x, y, body.angle), sled.config.board_mount)
         mount = self._boards[i]
         if mount is None:
             return None
-        return self._mounted(("board", i), self._rows[i], mount)
+        return self._mounted(i, self._rows[i], mount)
 
-    def _mounted(self, key: tuple, pose: tuple[float, float, float], mount: np.ndarray) -> np.ndarray:
-        """``se2_to_se3(*pose) @ mount`` (a new array), for the fixed ``mount`` named by ``key``.
+    def _mounted(self, key: int | str, pose: tuple[float, float, float], mount: np.ndarray) -> np.ndarray:
+        """``se2_to_se3(*pose) @ mount`` (a new array), for the fixed ``mount`` named by ``key``
+        (a board: its body's index; a camera: its name).
 
         A static device keeps its pose, so the product of the last call per key is
         kept and copied while ``pose`` is bit for bit unchanged (compared packed, as
         ``==`` on floats would confuse 0.0 and -0.0).
         """
         packed = _PACK_POSE(*pose)
-        hit = self._mounted_cache.get(key)
+        cache = self._mounted_cache
+        hit = cache.get(key)
         if hit is not None and hit[0] == packed:
             return hit[1].copy()
         T = se2_to_se3(*pose) @ mount
-        self._mounted_cache[key] = (packed, T.copy())
+        cache[key] = (packed, T.copy())
         return T
 
     def segment_blocked(
@@ -699,7 +703,7 @@ class World:
             raise unknown_name("camera", camera_name, self._camera_names) from None
         if owner < 0:
             return self._uavs[-1 - owner].body_transform() @ T_b_c
-        return self._mounted(("camera", camera_name), self._rows[owner], T_b_c)
+        return self._mounted(camera_name, self._rows[owner], T_b_c)
 
     # -- UAV -------------------------------------------------------------------------------
 
