@@ -56,6 +56,7 @@ __all__ = [
     "through_kernel",
     "pack_operands_kernel",
     "covariance_kernel",
+    "covariance_one_kernel",
     "compose_first_kernel",
     "compose_jacobians_kernel",
     "inverse_jacobian_kernel",
@@ -285,6 +286,18 @@ def covariance_kernel(Js, blocks, Q):
     return (S + S.T) * 0.5
 
 
+@numba.njit(cache=True)
+def covariance_one_kernel(J, block, Q):
+    """:func:`covariance_kernel` of an error with one reference, taking its 6x6 Jacobian ``J``
+    and ``block = P[(s, s)]`` as they are (copied C-ordered here, as ``np.ascontiguousarray``
+    gives them to :func:`covariance_kernel`): ``Q + J @ block @ J.T``, symmetrised, the same bits.
+    One call without the Python wrapping of stacked operands (the usual case of the update)."""
+    Jc = np.ascontiguousarray(J)
+    S = Q.copy()
+    S = S + np.dot(np.dot(Jc, np.ascontiguousarray(block)), Jc.T)
+    return (S + S.T) * 0.5
+
+
 class LinearError:
     """The error of one estimate: ``e = sum_s J[s] @ e_s + n``, ``n ~ N(0, Q)`` (6-vectors).
 
@@ -365,7 +378,12 @@ class LinearError:
         """A new error from a compiled call's results packed by :func:`pack_operands_kernel`
         (its ``J``, ``Q`` and ``P`` are views of ``packed``, which it owns)."""
         k = len(keys)
-        return cls._of(dict(zip(keys, packed)), packed[k], packed[k + 1] if has_P else None)
+        error = cls.__new__(cls)
+        # One key (the usual case): the dict built directly, half the cost of dict(zip(...)).
+        error.J = {keys[0]: packed[0]} if k == 1 else dict(zip(keys, packed))
+        error.Q = packed[k]
+        error.P = packed[k + 1] if has_P else None
+        return error
 
     def plus_noise(
         self, A: np.ndarray, covariance: np.ndarray | None, persistent: np.ndarray | None = None
@@ -388,7 +406,7 @@ class LinearError:
         J = self.J
         if len(J) == 1:  # the usual case: one reference
             ((s, Js),) = J.items()
-            return covariance_kernel(np.ascontiguousarray(Js)[None], np.ascontiguousarray(P[(s, s)])[None], self.Q)
+            return covariance_one_kernel(Js, P[(s, s)], self.Q)
         if not J:
             return covariance_kernel(_NO_JACOBIANS, _NO_JACOBIANS, self.Q)
         keys = list(J)
