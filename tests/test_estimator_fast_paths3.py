@@ -80,3 +80,45 @@ def test_of_packed_builds_the_error_the_replaced_code_built(n_keys):
         assert same_bits(got.Q, want.Q) and np.shares_memory(got.Q, packed)
         assert (got.P is None) == (want.P is None)
         assert got.P is None or (same_bits(got.P, want.P) and np.shares_memory(got.P, packed))
+
+
+def random_check_inputs(rng: np.random.Generator):
+    """Poses and covariances on both sides of the fast checks' limits."""
+    from moma_env import geometry as g
+
+    for trial in range(300):
+        T = g.make_transform(g.rotvec_to_matrix(rng.normal(0.0, 2.0, 3)), rng.normal(0.0, 3.0, 3))
+        kind = trial % 6
+        if kind == 1:
+            T[rng.integers(0, 4), rng.integers(0, 4)] += rng.normal(0.0, 1e-6)  # near the tolerance
+        elif kind == 2:
+            T[rng.integers(0, 4), rng.integers(0, 4)] = (np.nan, np.inf, -np.inf)[trial % 3]
+        elif kind == 3:
+            T[:3, :3] = -T[:3, :3]  # determinant -1
+        elif kind == 4:
+            T[3] = (0.0, 0.0, rng.normal(0.0, 1e-6), 1.0)
+        L = rng.normal(0.0, 0.01, (6, 6))
+        cov = L @ L.T
+        ckind = (trial // 6) % 5
+        if ckind == 1:
+            cov[0, 1] += rng.normal(0.0, 1e-9)  # asymmetric near the limit
+        elif ckind == 2:
+            cov[2, 2] = -abs(cov[2, 2]) - 1e-12
+        elif ckind == 3:
+            cov[rng.integers(0, 6), rng.integers(0, 6)] = np.nan
+        yield T, cov
+
+
+def test_one_call_of_both_fast_checks_is_the_two_checks():
+    from moma_env.estimator import moma as moma_module
+
+    rng = np.random.default_rng(11)
+    seen = set()
+    for T, cov in random_check_inputs(rng):
+        failed = moma_module._failed_fast_checks_kernel(
+            T, cov, moma_module._CLEAR_ROTATION_TOLERANCE, moma_module._ROTATION_TOLERANCE
+        )
+        want = (0 if moma_module._clearly_rigid(T) else 1) + (0 if moma_module._clearly_valid_covariance(cov) else 2)
+        assert failed == want
+        seen.add(want)
+    assert seen == {0, 1, 2, 3}

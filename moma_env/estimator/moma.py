@@ -150,6 +150,17 @@ def _clearly_valid_covariance_kernel(cov: np.ndarray) -> bool:
     return True
 
 
+@numba.njit(cache=True)
+def _failed_fast_checks_kernel(T: np.ndarray, cov: np.ndarray, tol: float, last_row_tol: float) -> int:
+    """Both fast checks of a detection in one compiled call: bit 1 set when ``T`` (float64 4x4)
+    fails :func:`_clearly_rigid_kernel`, bit 2 when ``cov`` (float64 6x6) fails
+    :func:`_clearly_valid_covariance_kernel`; 0 when both pass."""
+    failed = 0 if _clearly_rigid_kernel(T, tol, last_row_tol) else 1
+    if not _clearly_valid_covariance_kernel(cov):
+        failed += 2
+    return failed
+
+
 def _check_covariance(d: Detection) -> None:
     """ValueError unless ``d.covariance`` is a finite symmetric 6x6 array with a non-negative diagonal."""
     if not is_covariance(d.covariance):
@@ -631,11 +642,24 @@ class MomaEstimator:
             board_id = d.board_id
             if board_id not in board_owner:
                 raise UnknownBoardError(board_id, board_owner)
-            if not _clearly_rigid(d.T_c_m):
-                _check_pose(d)
+            T_c_m = d.T_c_m
             cov = d.covariance
-            if cov is not None and not _clearly_valid_covariance(cov):
-                _check_covariance(d)
+            if (
+                type(T_c_m) is np.ndarray and T_c_m.shape == (4, 4) and T_c_m.dtype.char == "d"
+                and type(cov) is np.ndarray and cov.shape == (6, 6) and cov.dtype.char == "d"
+            ):
+                # The usual detection: both fast checks in one compiled call, the exact
+                # checks (pose first) for what they do not clearly pass.
+                failed = _failed_fast_checks_kernel(T_c_m, cov, _CLEAR_ROTATION_TOLERANCE, _ROTATION_TOLERANCE)
+                if failed & 1:
+                    _check_pose(d)
+                if failed & 2:
+                    _check_covariance(d)
+            else:
+                if not _clearly_rigid(T_c_m):
+                    _check_pose(d)
+                if cov is not None and not _clearly_valid_covariance(cov):
+                    _check_covariance(d)
             if d.persistent_covariance is not None:
                 _check_persistent(d)
             group = by_camera.get(camera_id)
