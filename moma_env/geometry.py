@@ -45,6 +45,7 @@ __all__ = [
     "translation",
     "rotation",
     "se2_to_se3",
+    "set_planar",
     "se3_to_se2",
     "yaw_of",
     "rotation_angle",
@@ -227,19 +228,26 @@ def rotation(T: np.ndarray) -> np.ndarray:
     return T[:3, :3].copy()
 
 
-def se2_to_se3(x: float, y: float, yaw: float, z: float = 0.0) -> np.ndarray:
-    """Lift a planar pose (m, m, rad) to a 4x4 pose at height ``z`` (m)."""
+def set_planar(T: np.ndarray, x: float, y: float, yaw: float) -> None:
+    """Write a planar pose (m, m, rad) into a 4x4 pose ``T`` in place: the rotation about z
+    in the upper-left 2x2 block and ``x``, ``y`` in the translation; the other entries are
+    left as they are (``T`` holds the identity there, or the height of its plane)."""
     c, s = math.cos(yaw), math.sin(yaw)
-    # A copy of the identity with its seven entries set: the float64 array that
-    # np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, z], [0, 0, 0, 1]]) makes, at
-    # half the cost (no nested-list shape discovery).
-    T = _SE3_IDENTITY.copy()
     T[0, 0] = c
     T[0, 1] = -s
     T[0, 3] = x
     T[1, 0] = s
     T[1, 1] = c
     T[1, 3] = y
+
+
+def se2_to_se3(x: float, y: float, yaw: float, z: float = 0.0) -> np.ndarray:
+    """Lift a planar pose (m, m, rad) to a 4x4 pose at height ``z`` (m)."""
+    # A copy of the identity with its seven entries set: the float64 array that
+    # np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, z], [0, 0, 0, 1]]) makes, at
+    # half the cost (no nested-list shape discovery).
+    T = _SE3_IDENTITY.copy()
+    set_planar(T, x, y, yaw)
     T[2, 3] = z
     return T
 

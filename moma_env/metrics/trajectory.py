@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from moma_env.geometry import set_planar
+
 __all__ = ["Trajectory", "TrajectoryRecorder"]
 
 _ROTATION_TOLERANCE = 1e-6
@@ -364,15 +366,9 @@ class TrajectoryRecorder:
                 got = f"shape {shape}" if shape is not None else f"a {type(pose).__name__}"
                 raise ValueError(f"pose must be a 4x4 matrix, an (x, y, yaw) triple or None, got {got}")
             x, y, yaw = pose
-            c, s = math.cos(yaw), math.sin(yaw)
             # unused slots hold the planar template (identity at planar_z):
             # only the six planar entries change
-            slot[0, 0] = c
-            slot[0, 1] = -s
-            slot[0, 3] = x
-            slot[1, 0] = s
-            slot[1, 1] = c
-            slot[1, 3] = y
+            set_planar(slot, x, y, yaw)
         self._times[n] = t
         self._last_time = t
         self._n = n + 1
