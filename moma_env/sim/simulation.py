@@ -506,14 +506,12 @@ class Simulation:
     def _snapshot(self, earlier: Sequence[Switch] = ()) -> Frame:
         estimates = self._localiser.estimates()
         self._references = None  # of the frame this one replaces
-        world = self.world
-        ugv_pose, sled_pose, is_sled = world.ugv_pose, world.sled_pose, self._is_sled
+        device_pose = self.device_pose
         truth: dict[str, Pose2D] = {}
         estimated: dict[str, Pose2D | None] = {}
         errors: dict[str, float] = {}
         for device in self._devices:
-            # device_pose(device), with the world's methods read once
-            true_pose = truth[device] = sled_pose(device) if device in is_sled else ugv_pose(device)
+            true_pose = truth[device] = device_pose(device)
             T = estimates[device].T_w_b
             if T is None:
                 estimated[device] = None
@@ -521,25 +519,25 @@ class Simulation:
             else:
                 pose = estimated[device] = se3_to_se2(T)  # x, y: T[0, 3], T[1, 3] as floats
                 errors[device] = math.hypot(pose[0] - true_pose[0], pose[1] - true_pose[1])
+        world = self.world
         t = world.time
         switches = (*earlier, *self._switches)
         self._switches = []
-        # Positional, in the order of Frame's fields (a call with 14 keywords costs ~1 us more).
         return Frame(
-            t,  # time
-            self._steps,  # steps
-            MappingProxyType(truth),  # truth
-            MappingProxyType(dict(zip(world.uav_names, world.uav_states))),  # uavs
-            MappingProxyType(estimates),  # estimates
-            MappingProxyType(estimated),  # estimated
-            MappingProxyType(errors),  # errors
-            tuple(self._detections),  # detections
-            self._mobile,  # mobile
-            switches,  # switches
-            world.collisions_since_last_step,  # contacts
-            MappingProxyType({s: world.rope_length(s) for s in self._sleds}),  # ropes
-            self._last_switch_time,  # last_switch_time
-            self.rules.dwell_remaining(t) if self.rules is not None else 0.0,  # dwell_remaining
+            time=t,
+            steps=self._steps,
+            truth=MappingProxyType(truth),
+            uavs=MappingProxyType(dict(zip(world.uav_names, world.uav_states))),
+            estimates=MappingProxyType(estimates),
+            estimated=MappingProxyType(estimated),
+            errors=MappingProxyType(errors),
+            detections=tuple(self._detections),
+            mobile=self._mobile,
+            switches=switches,
+            contacts=world.collisions_since_last_step,
+            ropes=MappingProxyType({s: world.rope_length(s) for s in self._sleds}),
+            last_switch_time=self._last_switch_time,
+            dwell_remaining=self.rules.dwell_remaining(t) if self.rules is not None else 0.0,
         )
 
 
