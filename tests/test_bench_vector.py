@@ -66,3 +66,23 @@ def test_the_targets_are_judged_on_the_best_ratio_of_their_rows():
     ]
     # without MPE2 (no ratios) only the cost of added UGVs is judged
     assert target_lines({**result, "ratios": {}}) == lines[-1:]
+
+
+def test_a_second_breakdown_of_the_same_batch_times_its_stages_again():
+    # The stage timers wrap each copy's objects once; a second measurement must not leave
+    # its stages at zero (every second counted as the rest) while the first's totals grow.
+    import numpy as np
+
+    from moma_env import vector
+    from training.bench_vector import stage_breakdown
+
+    envs = vector.make("top_observer", 2, action_mode="switching")
+    envs.reset(seed=0)
+    rng = np.random.default_rng(0)
+    batches = [envs.sample_actions(rng) for _ in range(4)]
+    first = stage_breakdown(envs, batches, 3)
+    second = stage_breakdown(envs, batches, 3)
+    for stages in (first, second):
+        assert stages["camera"] > 0 and stages["estimator"] > 0 and stages["world"] > 0
+        assert stages["camera"] + stages["estimator"] + stages["world"] + stages["gc"] <= stages["batch step"]
+    envs.close()

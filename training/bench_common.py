@@ -30,10 +30,13 @@ def resident_mb() -> float:
 
 def time_calls(owner: object, method: str, totals: dict[str, float], key: str) -> None:
     """Replace ``owner.method`` by a wrapper that adds the wall time (s) of each call to
-    ``totals[key]``. Only the instance ``owner`` is changed (nothing global is patched);
-    an instance already wrapped is left alone."""
+    ``totals[key]``. Only the instance ``owner`` is changed (nothing global is patched).
+    An instance already wrapped keeps its one wrapper, which from now on adds to
+    ``totals[key]`` (so a second measurement of the same objects is not lost in the first's
+    totals, and calls are never timed twice)."""
     inner: Callable = getattr(owner, method)
     if getattr(inner, "_timed", False):
+        inner._sink = (totals, key)  # type: ignore[attr-defined]
         return
 
     def wrapper(*args, **kwargs):
@@ -41,9 +44,11 @@ def time_calls(owner: object, method: str, totals: dict[str, float], key: str) -
         try:
             return inner(*args, **kwargs)
         finally:
-            totals[key] += time.perf_counter() - start
+            sink, name = wrapper._sink  # type: ignore[attr-defined]
+            sink[name] += time.perf_counter() - start
 
     wrapper._timed = True  # type: ignore[attr-defined]
+    wrapper._sink = (totals, key)  # type: ignore[attr-defined]
     setattr(owner, method, wrapper)
 
 
