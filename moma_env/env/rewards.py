@@ -195,11 +195,11 @@ class TeamReward:
             newly_reached=len(newly),
             finished=bool(newly) and self.done,
         )
-        terms = {name: weight * value(inputs) for name, weight, value in self._weighted_terms(w)}
-        values = iter(terms.values())
-        total = next(values)
-        for value in values:  # left to right, as the terms are listed
-            total = total + value
+        terms = {}
+        total = None
+        for name, weight, value in self._weighted_terms(w):
+            term = terms[name] = weight * value(inputs)
+            total = term if total is None else total + term  # left to right, as the terms are listed
         return RewardStep(float(total), terms, tuple(newly), len(new_contacts))
 
     def _weighted_terms(self, weights: RewardConfig) -> tuple[tuple[str, float, Callable[[RewardInputs], float]], ...]:

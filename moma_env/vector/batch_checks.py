@@ -70,39 +70,49 @@ def checked_actions(
     agent, the expected shape and dtype and, for a bad value, the first bad copy."""
     if not isinstance(actions, Mapping):
         raise TypeError(f"actions must be a mapping agent -> array of shape (num_envs, ...), got {type(actions).__name__}")
-    unknown = sorted(set(actions) - set(agents))
-    if unknown:
-        raise KeyError(f"actions for unknown agent(s) {unknown}; agents are {list(agents)}")
+    for key in actions:
+        if key not in agents:
+            unknown = sorted(set(actions) - set(agents))
+            raise KeyError(f"actions for unknown agent(s) {unknown}; agents are {list(agents)}")
     out = {}
     for agent in agents:
         space = action_space(agent)
         if agent not in actions:
             raise KeyError(f"no action for agent {agent!r}: every agent acts in every copy")
-        if isinstance(space, spaces.Discrete):
-            shape, what = (num_envs,), f"integers in [0, {space.n})"
-        else:
-            shape, what = (num_envs, *space.shape), "finite real numbers"
+        discrete = isinstance(space, spaces.Discrete)
+        shape = (num_envs,) if discrete else (num_envs, *space.shape)
         try:
             a = np.asarray(actions[agent])
         except Exception:  # noqa: BLE001 - whatever numpy refuses is refused below
             a = np.asarray(None)
-        expected = f"an array of shape {shape} of {what} (space {space})"
         if a.shape != shape:
-            raise ValueError(f"actions of {agent!r} must be {expected}, got shape {a.shape}")
-        if isinstance(space, spaces.Discrete):
-            if a.dtype.kind not in "iu":
-                raise ValueError(f"actions of {agent!r} must be {expected}, got dtype {a.dtype}")
-            bad = np.flatnonzero((a < 0) | (a >= space.n))
-            if bad.size:
-                raise ValueError(f"actions of {agent!r} must be {expected}; copy {int(bad[0])} has {a[bad[0]].item()!r}")
+            raise ValueError(f"actions of {agent!r} must be {_expected(space, shape)}, got shape {a.shape}")
+        kind = a.dtype.kind
+        if discrete:
+            if kind not in "iu":
+                raise ValueError(f"actions of {agent!r} must be {_expected(space, shape)}, got dtype {a.dtype}")
+            # The range checked on Python ints (a batch's row of a few integers: cheaper
+            # than numpy's comparisons); the first bad copy is found only for the error.
+            values = a.tolist()
+            if min(values) < 0 or max(values) >= int(space.n):
+                bad = np.flatnonzero((a < 0) | (a >= space.n))
+                raise ValueError(f"actions of {agent!r} must be {_expected(space, shape)}; copy {int(bad[0])} has {a[bad[0]].item()!r}")
         else:
-            if a.dtype.kind not in "iuf":
-                raise ValueError(f"actions of {agent!r} must be {expected}, got dtype {a.dtype}")
-            finite = np.isfinite(a).reshape(num_envs, -1).all(axis=1)
-            if not finite.all():
-                raise ValueError(f"actions of {agent!r} must be {expected}; copy {int(np.flatnonzero(~finite)[0])} is not finite")
+            if kind not in "iuf":
+                raise ValueError(f"actions of {agent!r} must be {_expected(space, shape)}, got dtype {a.dtype}")
+            # Integers are always finite; the bad copy is looked for only when one is not.
+            if kind == "f" and not np.isfinite(a).all():
+                finite = np.isfinite(a).reshape(num_envs, -1).all(axis=1)
+                raise ValueError(f"actions of {agent!r} must be {_expected(space, shape)}; copy {int(np.flatnonzero(~finite)[0])} is not finite")
         out[agent] = a
     return out
+
+
+def _expected(space: spaces.Space, shape: tuple[int, ...]) -> str:
+    """What :func:`checked_actions` expects of an agent's actions, for its errors (made only
+    for an error: a space's text costs more than the checks)."""
+    what = f"integers in [0, {space.n})" if isinstance(space, spaces.Discrete) else "finite real numbers"
+    return f"an array of shape {shape} of {what} (space {space})"
 
 
 def random_actions(

@@ -159,6 +159,9 @@ class MomaVectorEnv:
         self._started = False
         self._masks_in_infos = first.config.action_masks  # every UGV's infos carry its mask
         self._latest_masks = LatestMasks()
+        # One copy's action spaces, looked up by every step's checks (they are made once per
+        # env and stay the same objects across resets).
+        self._action_spaces = {a: first.action_space(a) for a in self.possible_agents}
         #: The batch measurement of a step: every copy's camera requests -> that copy's
         #: detections (:func:`measure_copies`); an instance attribute, so a benchmark can
         #: time it by wrapping it.
@@ -206,7 +209,7 @@ class MomaVectorEnv:
         """Step every copy with its row of ``actions``; a copy whose episode ends resets (``SAME_STEP``)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        return self.step_checked(checked_actions(actions, self.possible_agents, self.single_action_space, self.num_envs))
+        return self.step_checked(checked_actions(actions, self.possible_agents, self._action_spaces.__getitem__, self.num_envs))
 
     def step_checked(self, checked: Mapping[str, np.ndarray]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
         """:meth:`step` with actions that :func:`~moma_env.vector.batch_checks.checked_actions`
@@ -222,34 +225,39 @@ class MomaVectorEnv:
 
     def _step(self, checked: Mapping[str, np.ndarray]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
         agents = self.possible_agents
-        obs_rows: list[dict] = []
-        step_rewards: list[dict] = []
-        step_terminations: list[dict] = []
-        step_truncations: list[dict] = []
-        infos: list[dict] = []
+        envs = self.envs
         # Every agent's column of actions; a Discrete agent's as Python ints (one conversion
         # for the batch, instead of a numpy scalar per copy: the same values to the copies).
-        columns = [(a, checked[a].tolist() if checked[a].ndim == 1 else checked[a]) for a in agents]
-        pending = [env.begin_step({a: column[i] for a, column in columns}) for i, env in enumerate(self.envs)]
+        columns = []
+        for a in agents:
+            column = checked[a]
+            columns.append((a, column.tolist() if column.ndim == 1 else column))
+        pending = [env.begin_step({a: column[i] for a, column in columns}) for i, env in enumerate(envs)]
         detections = self.measure([p.camera_requests for p in pending])
-        for i, env in enumerate(self.envs):
-            obs, rew, term, trunc, info = pending[i].finish(detections[i])
-            step_rewards.append(rew)
-            step_terminations.append(term)
-            step_truncations.append(trunc)
+        # Each copy's (observations, rewards, terminations, truncations, infos).
+        results = []
+        for env, step, found in zip(envs, pending, detections, strict=True):
+            result = step.finish(found)
             if not env.agents:
+                obs, rew, term, trunc, info = result
                 final = {"final_observation": obs, "final_info": info, "final_state": env.state(), "final_time": env.frame.time}
                 if self._masks:
                     final["final_action_masks"] = env.action_masks()
                 obs, info = env.reset()
-                info = dict(info) | final
-            obs_rows.append(obs)
-            infos.append(info)
-        observations = {a: _stack([row[a] for row in obs_rows]) for a in agents}
-        rewards = {a: np.array([r[a] for r in step_rewards], dtype=np.float64) for a in agents}
-        terminations = {a: np.array([t[a] for t in step_terminations], dtype=bool) for a in agents}
-        truncations = {a: np.array([t[a] for t in step_truncations], dtype=bool) for a in agents}
-        return observations, rewards, terminations, truncations, tuple(infos)
+                result = (obs, rew, term, trunc, dict(info) | final)
+            results.append(result)
+        observations = {a: _stack([r[0][a] for r in results]) for a in agents}
+        # Rewards and flags: one (agents, num_envs) array each, an agent's row its (num_envs,) array.
+        rewards = np.array([[r[1][a] for r in results] for a in agents], dtype=np.float64)
+        terminations = np.array([[r[2][a] for r in results] for a in agents], dtype=bool)
+        truncations = np.array([[r[3][a] for r in results] for a in agents], dtype=bool)
+        return (
+            observations,
+            dict(zip(agents, rewards)),
+            dict(zip(agents, terminations)),
+            dict(zip(agents, truncations)),
+            tuple([r[4] for r in results]),
+        )
 
     def sample_actions(self, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """Uniform random actions of every agent for every copy, drawn from ``rng``
