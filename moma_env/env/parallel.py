@@ -412,7 +412,7 @@ class MomaParallelEnv(ParallelEnv):
         parsed = {a: parse(a, get(a), action_spaces[a]) for a in agents if a not in observers}
         observer_actions = {
             a: [0.0] * 4 if get(a) is None else parse_box(a, actions[a], action_spaces[a]) for a in agents if a in observers
-        }
+        } if observers else {}
         events: dict[str, list[str]] = {a: [] for a in agents}
         towed_by = self._towed_by
 
@@ -553,7 +553,7 @@ class MomaParallelEnv(ParallelEnv):
                 "status": _STATUS_NAMES[e.status],
                 "static": agent not in mobile,
                 "events": agent_events,
-                "refused": [ev.split(":", 2)[2] for ev in agent_events if ev.startswith("refused:")],
+                "refused": [ev.split(":", 2)[2] for ev in agent_events if ev.startswith("refused:")] if agent_events else [],
                 "reached_goal": agent in reached,
                 "collisions": collisions,
                 "switches_total": switches_total,
