@@ -518,7 +518,6 @@ class MomaEstimator:
         t = self._checked_time(time)
         by_camera = self._checked_detections(detections)
         camera_owner = self._camera_owner
-        board_owner = self._board_owner
         joint = self._joint
         self._time = t
 
@@ -531,59 +530,72 @@ class MomaEstimator:
             own = camera_owner[camera_id]
             located: list[np.ndarray] = []
             errors: list[LinearError] = []
-            for d in group:
-                ref = board_owner[d.board_id]
+            for board_id, ref, T_c_m, cov, has_cov, persistent, has_persistent in group:
                 if ref.phase is _REFERENCE and ref is not own:
                     # LinearError(J).plus_noise(J_meas @ inverse_jacobian(T_c_m), covariance), without
                     # the zero Q: Q + 0.0 is the 0 + Q it gave (-0.0 entries turn +0.0 alike).
-                    cov = d.covariance
-                    persistent = None if cov is None else d.persistent_covariance  # a part of cov: none without it
                     T_w_c, packed = packed_camera_from_reference_board(
-                        ref.board_world[d.board_id], ref.board_world_J[d.board_id], pose_array(d.T_c_m, "T_c_m"),
-                        NO_MATRIX if cov is None else matrix6_array(cov), cov is not None,
-                        NO_MATRIX if persistent is None else matrix6_array(persistent), persistent is not None,
+                        ref.board_world[board_id], ref.board_world_J[board_id], T_c_m, cov, has_cov, persistent, has_persistent
                     )
-                    errors.append(LinearError.of_packed((ref.ref_key,), packed, persistent is not None))
+                    errors.append(LinearError.of_packed((ref.ref_key,), packed, has_persistent))
                     located.append(T_w_c)
             if located:
-                if len(located) > 1 and self._information_fusion:
+                if len(located) == 1:
+                    camera_poses[camera_id] = (located[0], errors[0])
+                elif self._information_fusion:
                     camera_poses[camera_id] = information_fusion(located, errors, joint)
                 else:
-                    camera_poses[camera_id] = (located[0] if len(located) == 1 else mean_pose(located), LinearError.mean(errors))
+                    camera_poses[camera_id] = (mean_pose(located), LinearError.mean(errors))
 
         # 2. Samples of the non-reference robots: boards seen by located cameras,
-        #    and robots carrying a located camera.
+        #    and robots carrying a located camera. A located camera's error operands
+        #    are taken once, for both kinds of samples.
         samples: dict[_Robot, list[tuple[np.ndarray, LinearError]]] = {}
+        camera_operands: dict[str, list] = {}
         for camera_id, group in by_camera.items():
             located_camera = camera_poses.get(camera_id)
             if located_camera is None:
                 continue
-            T_w_c, camera_error = located_camera
+            T_w_c = located_camera[0]
             own = camera_owner[camera_id]
             operands = None
-            for d in group:
-                r = board_owner[d.board_id]
+            for board_id, r, T_c_m, cov, has_cov, persistent, has_persistent in group:
                 if r.phase is not _REFERENCE and r is not own:
                     if operands is None:
-                        keys, *operands = camera_error.operands()
-                    planar = r.plane_z is not None
-                    sample, packed, has_P = packed_sample_from_board_seen(
-                        T_w_c, pose_array(d.T_c_m, "T_c_m"), r.board_mounts[d.board_id], r.board_inverses[d.board_id],
-                        planar, r.plane_z if planar else 0.0, *operands, *noise_operands(d.covariance, d.persistent_covariance),
+                        operands = camera_operands[camera_id] = located_camera[1].operands()
+                    keys, Js, Q, P, has_P = operands
+                    plane_z = r.plane_z
+                    sample, packed, has_P_out = packed_sample_from_board_seen(
+                        T_w_c, T_c_m, r.board_mounts[board_id], r.board_inverses[board_id],
+                        plane_z is not None, 0.0 if plane_z is None else plane_z,
+                        Js, Q, P, has_P, cov, has_cov, persistent, has_persistent,
                     )
-                    samples.setdefault(r, []).append((sample, LinearError.of_packed(keys, packed, has_P)))
+                    pair = (sample, LinearError.of_packed(keys, packed, has_P_out))
+                    pairs = samples.get(r)
+                    if pairs is None:
+                        samples[r] = [pair]
+                    else:
+                        pairs.append(pair)
         for camera_id, (T_w_c, camera_error) in camera_poses.items():
             r = camera_owner[camera_id]
             if r.phase is not _REFERENCE:
-                planar = r.plane_z is not None
-                keys, *operands = camera_error.operands()
-                sample, packed, has_P = packed_sample_from_mounted_frame(
-                    T_w_c, r.camera_mounts[camera_id], r.camera_inverses[camera_id], planar, r.plane_z if planar else 0.0,
-                    *operands,
+                operands = camera_operands.get(camera_id)
+                if operands is None:
+                    operands = camera_error.operands()
+                keys, Js, Q, P, has_P = operands
+                plane_z = r.plane_z
+                sample, packed, has_P_out = packed_sample_from_mounted_frame(
+                    T_w_c, r.camera_mounts[camera_id], r.camera_inverses[camera_id],
+                    plane_z is not None, 0.0 if plane_z is None else plane_z, Js, Q, P, has_P,
                 )
-                samples.setdefault(r, []).append((sample, LinearError.of_packed(keys, packed, has_P)))
+                pair = (sample, LinearError.of_packed(keys, packed, has_P_out))
+                pairs = samples.get(r)
+                if pairs is None:
+                    samples[r] = [pair]
+                else:
+                    pairs.append(pair)
 
-        measured: set[_Robot] = set()
+        measured: list[_Robot] = []
         settle_delay = self._config.settle_delay_s
         for r, pairs in samples.items():
             if len(pairs) == 1:
@@ -593,12 +605,14 @@ class MomaEstimator:
             else:
                 T = mean_pose([pose for pose, _ in pairs])
                 error = LinearError.mean([e for _, e in pairs])
-            if r.gate is not None and not r.gate.accept(T, t):
+            gate = r.gate
+            if gate is not None and not gate.accept(T, t):
                 continue
-            if r.phase is _MOBILE:
+            phase = r.phase
+            if phase is _MOBILE:
                 r.pose = T
                 r.covariance = error.covariance(joint)
-                measured.add(r)
+                measured.append(r)
             elif t - r.static_since >= settle_delay:  # SETTLING
                 window = r.window
                 window.append(T, error)
@@ -610,7 +624,8 @@ class MomaEstimator:
         # 3. Status.
         lost_after = self._config.lost_after_s
         for r in self._robots.values():
-            if r in measured or r.phase is _REFERENCE or (r.phase is _SETTLING and len(r.window) > 0):
+            phase = r.phase
+            if phase is _REFERENCE or (phase is _SETTLING and len(r.window) > 0) or r in measured:
                 self._mark_fresh(r, t)
             elif r.last_fresh_time is None:
                 r.status = Status.LOST
@@ -624,26 +639,34 @@ class MomaEstimator:
         self._camera_poses = camera_poses
 
     # ---------------------------------------------------------------- helpers
-    def _checked_detections(self, detections: Iterable[Detection]) -> dict[str, list[Detection]]:
-        """The detections grouped by camera, after every check of :meth:`update`."""
+    def _checked_detections(self, detections: Iterable[Detection]) -> dict[str, list[tuple]]:
+        """The detections grouped by camera, after every check of :meth:`update`.
+
+        Each detection comes as what the compiled steps take of it: ``(board_id, the
+        board's robot, T_c_m, covariance, has covariance, persistent covariance, has
+        persistent covariance)``, the arrays C-ordered float64 (:func:`pose_array`,
+        :func:`noise_operands`: zero stand-ins where absent).
+        """
         if type(detections) is not list and (
             detections is None or isinstance(detections, (str, bytes, Detection)) or not isinstance(detections, Iterable)
         ):
             raise TypeError(f"detections must be an iterable of Detection, got {type(detections).__name__}")
         camera_owner = self._camera_owner
         board_owner = self._board_owner
-        by_camera: dict[str, list[Detection]] = {}
+        by_camera: dict[str, list[tuple]] = {}
         for i, d in enumerate(detections):
-            if not isinstance(d, Detection):
+            if type(d) is not Detection and not isinstance(d, Detection):
                 raise TypeError(f"detections[{i}] must be a Detection, got {type(d).__name__}")
             camera_id = d.camera_id
             if camera_id not in camera_owner:
                 raise UnknownCameraError(camera_id, camera_owner)
             board_id = d.board_id
-            if board_id not in board_owner:
+            r = board_owner.get(board_id)
+            if r is None:
                 raise UnknownBoardError(board_id, board_owner)
             T_c_m = d.T_c_m
             cov = d.covariance
+            persistent = d.persistent_covariance
             if (
                 type(T_c_m) is np.ndarray and T_c_m.shape == (4, 4) and T_c_m.dtype.char == "d"
                 and type(cov) is np.ndarray and cov.shape == (6, 6) and cov.dtype.char == "d"
@@ -660,18 +683,19 @@ class MomaEstimator:
                     _check_pose(d)
                 if cov is not None and not _clearly_valid_covariance(cov):
                     _check_covariance(d)
-            if d.persistent_covariance is not None:
+            if persistent is not None:
                 _check_persistent(d)
+            entry = (board_id, r, pose_array(T_c_m, "T_c_m"), *noise_operands(cov, persistent))
             group = by_camera.get(camera_id)
             if group is None:
-                by_camera[camera_id] = [d]
+                by_camera[camera_id] = [entry]
             else:
                 for other in group:
-                    if other.board_id == board_id:
+                    if other[0] == board_id:
                         raise ValueError(
                             f"{_what(d)}: the board is detected twice in one frame by the same camera"
                         )
-                group.append(d)
+                group.append(entry)
         return by_camera
 
     def _robot(self, name: str) -> _Robot:
