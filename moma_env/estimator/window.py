@@ -62,6 +62,25 @@ def inlier_mask_kernel(rotations: np.ndarray, xyz: np.ndarray, k: float, floor_m
 
 
 @numba.njit(cache=True)
+def store_sample_kernel(T: np.ndarray, rotations: np.ndarray, xyz: np.ndarray, n: int) -> bool:
+    """Row ``n`` of ``rotations`` (the rotation block of the float64 4x4 ``T``, row by row)
+    and of ``xyz`` (its translation, m), in one call; whether ``T`` is finite, decided as
+    Python's ``math.isfinite(sum(row0) + sum(row1) + sum(row2) + sum(row3))`` of its rows
+    (each row summed left to right from 0, then the four sums left to right)."""
+    for r in range(3):
+        for c in range(3):
+            rotations[n, 3 * r + c] = T[r, c]
+        xyz[n, r] = T[r, 3]
+    total = 0.0
+    for r in range(4):
+        row = 0.0
+        for c in range(4):
+            row += T[r, c]
+        total = row if r == 0 else total + row
+    return math.isfinite(total)
+
+
+@numba.njit(cache=True)
 def _window_sums(
     rotations: np.ndarray, xyz: np.ndarray, inliers: np.ndarray, count: int, summed: np.ndarray, n_summed: int,
     R_sum: np.ndarray, t_sum: np.ndarray,
@@ -224,14 +243,11 @@ class SwitchWindow:
         if n >= self.capacity:
             raise ValueError(f"switch window already holds {self.capacity} samples")
         T = T.copy() if type(T) is np.ndarray and T.dtype.char == "d" and T.shape == (4, 4) else np.array(T, dtype=float)
-        rows = T.tolist()
-        r0, r1, r2 = rows[0], rows[1], rows[2]
-        self._rotations[n] = (r0[0], r0[1], r0[2], r1[0], r1[1], r1[2], r2[0], r2[1], r2[2])
-        t = (r0[3], r1[3], r2[3])
-        if not math.isfinite(sum(r0) + sum(r1) + sum(r2) + sum(rows[3])):
+        if T.shape != (4, 4):
+            raise ValueError(f"a window sample must be a 4x4 pose, got shape {T.shape}")
+        if not store_sample_kernel(T, self._rotations, self._xyz, n):
             self._finite = False
         self._poses.append(T)
-        self._xyz[n] = t
         self._payloads.append(payload)
         self._inliers = None
         self._mean = None
