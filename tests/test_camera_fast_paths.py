@@ -362,3 +362,120 @@ def test_a_failed_planar_lm_solve_drops_only_its_board(monkeypatch):
     for d, r in zip(dets, (reference[0], reference[2])):
         np.testing.assert_array_equal(d.T_c_m, r.T_c_m)
         assert d.reprojection_error_px == pytest.approx(r.reprojection_error_px, rel=1e-12)
+
+
+# ---------------------------------------------------------------- one-frame fast paths
+
+
+def test_covariance_finite_is_the_test_of_a_numpy_sum():
+    """covariance_finite replaced ``cov.reshape(K, 36).sum(axis=1)`` and ``math.isfinite`` of
+    each sum (finite_or_none's test): the same answer, also where a sum of finite entries
+    overflows in numpy's summation order, or not."""
+    from moma_env.camera.geometric import finite_or_none
+    from moma_env.camera.kernels import covariance_finite
+
+    rng = np.random.default_rng(11)
+    n_overflow = 0
+    for trial in range(3000):
+        k = int(rng.integers(1, 6))
+        scale = 10.0 ** rng.integers(-8, 9, size=(k, 6, 6))
+        cov = rng.normal(size=(k, 6, 6)) * scale
+        if trial % 3 == 0:  # entries near the largest float: whether a sum overflows depends on the order
+            huge = rng.random((k, 6, 6)) < 0.4
+            cov[huge] = rng.choice([-1.0, 1.0], size=int(huge.sum())) * rng.uniform(0.3, 1.0, int(huge.sum())) * 1.7e308
+        if trial % 7 == 0:
+            cov.flat[rng.integers(cov.size)] = rng.choice([np.nan, np.inf, -np.inf])
+        with np.errstate(over="ignore", invalid="ignore"):
+            reference = [math.isfinite(s) for s in cov.reshape(k, 36).sum(axis=1).tolist()]
+            singles = [finite_or_none(c) is not None for c in cov]
+        finite = np.empty(k, dtype=bool)
+        covariance_finite(cov, finite)
+        assert finite.tolist() == reference == singles
+        n_overflow += sum(not r for r in reference) if trial % 3 == 0 else 0
+    assert n_overflow > 100  # the overflow cases were exercised
+
+
+def test_a_frame_seeing_every_marker_uses_the_geometry_tables():
+    """A single frame that sees every marker of every board takes its corner rows, board
+    starts and camera rows from its board-set geometry instead of selecting the visible
+    markers: the same arrays as the selection they replace."""
+    from moma_env.camera.geometric import FrameGroup
+    from moma_env.camera.kernels import project_markers
+
+    cam = GeometricCamera("uav", CameraConfig(noise_px=0.0, max_range_m=4.0))
+    rng = np.random.default_rng(5)
+    layouts = [board_for_robot(1), BoardLayout(marker_ids=(20,), rows=1, cols=1, marker_size=0.2), board_for_robot(2)]
+    checked = 0
+    for _ in range(40):
+        T_w_c = uav_camera(*rng.uniform(-0.1, 0.1, 2), rng.uniform(-3, 3), rng.uniform(1.8, 2.4))
+        boards = [
+            floor_board(i, lay, *rng.uniform(-0.4, 0.4, 2), rng.uniform(-3, 3)) for i, lay in enumerate(layouts)
+        ]
+        group = FrameGroup([cam], [T_w_c], [boards], [0.0], [np.random.default_rng(0)], [None])
+        # The selection of the general path (any visibility), computed here as it was.
+        geo = cam._geometry(boards)
+        relative = np.array([b.T_w_m[:3] for b in boards])
+        relative[:, :, 3] -= T_w_c[:3, 3]
+        poses = np.matmul(T_w_c[:3, :3].T, relative)
+        n_markers = geo.corners_m.shape[0]
+        uv, visible = np.empty((n_markers, 4, 2)), np.empty(n_markers, dtype=bool)
+        centres, board_visible = np.empty((n_markers, 3)), np.empty(len(boards), dtype=np.int64)
+        project_markers(
+            poses, geo.board_markers, geo.corners_m, cam._parameter_rows, np.zeros(len(boards), dtype=np.int64),
+            uv, visible, centres, board_visible,
+        )
+        assert group.all_seen == bool(visible.all())
+        np.testing.assert_array_equal(group.px, uv[visible].reshape(-1, 2))
+        np.testing.assert_array_equal(group.obj, geo.corners_m[visible].reshape(-1, 3))
+        if not group.all_seen:
+            continue
+        checked += 1
+        seen = [g for g in range(len(boards)) if board_visible[g]]
+        bounds = [0]
+        for g in seen:
+            bounds.append(bounds[-1] + 4 * board_visible[g])
+        assert geo.boards == seen and geo.corner_bounds == bounds
+        np.testing.assert_array_equal(geo.corner_starts, bounds)
+        np.testing.assert_array_equal(geo.board_zeros, np.zeros(len(seen), dtype=np.int64))
+        assert group.px.flags.c_contiguous and group.obj.flags.c_contiguous and group.obj.flags.writeable
+    assert checked > 5
+
+
+def test_a_request_without_boards_measures_nothing():
+    """measure_batch of a single geometric frame with no boards: no detections, as measure."""
+    from moma_env.camera import MeasureRequest, measure_batch
+
+    cam = GeometricCamera("uav", CameraConfig(noise_px=0.5))
+    T_w_c = uav_camera(0.0, 0.0, 0.0, 1.8)
+    assert measure_batch([MeasureRequest(cam, T_w_c, [], 1.0, np.random.default_rng(0))]) == [[]]
+    assert cam.measure(T_w_c, [], 1.0, np.random.default_rng(0)) == []
+
+
+def test_board_offsets_equal_the_numpy_code_they_replace():
+    """board_offsets replaced a stack of top rows and an in-place subtraction of the camera
+    positions (one frame and a batch of frames): the same bits."""
+    from moma_env.camera.kernels import board_offsets
+
+    rng = np.random.default_rng(8)
+    for _ in range(500):
+        n_frames = int(rng.integers(1, 5))
+        sizes = rng.integers(1, 4, size=n_frames)
+        cameras = [
+            make_transform(rotvec_to_matrix(rng.normal(size=3)), rng.normal(size=3) * 10.0 ** rng.integers(-2, 3))
+            for _ in range(n_frames)
+        ]
+        boards = [
+            make_transform(rotvec_to_matrix(rng.normal(size=3)), rng.normal(size=3) * 10.0 ** rng.integers(-2, 3))
+            for _ in range(int(sizes.sum()))
+        ]
+        owner = np.repeat(np.arange(n_frames), sizes)
+        stack = np.array(cameras)
+        reference = np.ascontiguousarray(np.array(boards)[:, :3])
+        reference[:, :, 3] -= stack[owner, :3, 3]
+        np.testing.assert_array_equal(board_offsets(np.array(boards), stack, owner), reference)
+        # One frame: the camera's own 4x4 as a stack of one.
+        first = boards[: sizes[0]]
+        single = np.array([T[:3] for T in first])
+        single[:, :, 3] -= cameras[0][:3, 3]
+        out = board_offsets(np.array(first), cameras[0][None], np.zeros(len(first), dtype=np.int64))
+        np.testing.assert_array_equal(out, single)

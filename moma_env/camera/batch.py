@@ -77,37 +77,47 @@ def measure_batch(requests: Sequence[MeasureRequest]) -> list[list[Detection]]:
         One list of detections per request, in request order.
     """
     requests = list(requests)
-    frames: dict[tuple, list[int]] = {}
-    checked: list[tuple[np.ndarray, float] | None] = []
+    n_requests = len(requests)
+    # Per solver (batch_key): the group's requests, then its frames' arguments.
+    frames: dict[tuple, tuple[list, ...]] = {}
     for i, request in enumerate(requests):
         if not isinstance(request, MeasureRequest):
             raise TypeError(f"requests[{i}] must be a MeasureRequest, got {type(request).__name__}")
         camera = request.camera
         if isinstance(camera, GeometricCamera):
             try:
-                checked.append(check_frame(request.T_w_c, request.time, request.rng))
+                T_w_c, time = check_frame(request.T_w_c, request.time, request.rng)
             except (TypeError, ValueError) as error:
                 raise type(error)(f"requests[{i}]: {error}") from None
-            frames.setdefault(camera.batch_key, []).append(i)
-        else:
-            checked.append(None)
+            group = frames.get(camera.batch_key)
+            if group is None:
+                frames[camera.batch_key] = ([i], [camera], [T_w_c], [request.boards], [time], [request.rng], [request.occluded])
+            else:
+                members, cameras, poses, boards, times, rngs, occluded = group
+                members.append(i)
+                cameras.append(camera)
+                poses.append(T_w_c)
+                boards.append(request.boards)
+                times.append(time)
+                rngs.append(request.rng)
+                occluded.append(request.occluded)
+    if len(frames) == 1:
+        members, *arguments = next(iter(frames.values()))
+        if len(members) == n_requests:  # every request in one group (a vector env's step): no reordering
+            group = FrameGroup(*arguments)
+            for f in range(n_requests):
+                group.draw(f)
+            return group.solve()
     groups = []
-    group_of: dict[int, tuple[FrameGroup, int]] = {}
-    for members in frames.values():
-        group = FrameGroup(
-            [requests[i].camera for i in members],  # type: ignore[misc]
-            [checked[i][0] for i in members],  # type: ignore[index]
-            [requests[i].boards for i in members],
-            [checked[i][1] for i in members],  # type: ignore[index]
-            [requests[i].rng for i in members],
-            [requests[i].occluded for i in members],
-        )
+    group_of: list[tuple[FrameGroup, int] | None] = [None] * n_requests
+    for members, *arguments in frames.values():
+        group = FrameGroup(*arguments)
         groups.append((group, members))
         for f, i in enumerate(members):
             group_of[i] = (group, f)
     results: list[list[Detection]] = [[] for _ in requests]
     for i, request in enumerate(requests):
-        place = group_of.get(i)
+        place = group_of[i]
         if place is None:
             results[i] = request.camera.measure(request.T_w_c, request.boards, request.time, request.rng, request.occluded)
         else:

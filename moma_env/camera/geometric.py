@@ -69,7 +69,15 @@ from moma_env.camera.backend import BoardView, OcclusionQuery, as_pose
 from moma_env.camera.board_shift import board_shift_for
 from moma_env.camera.config import CameraConfig
 from moma_env.camera.pinhole import PinholeCamera
-from moma_env.camera.kernels import camera_parameters, project_markers, solve_boards, solve_settings, undistort_points
+from moma_env.camera.kernels import (
+    board_offsets,
+    camera_parameters,
+    covariance_finite,
+    project_markers,
+    solve_boards,
+    solve_settings,
+    undistort_points,
+)
 from moma_env.camera.visibility import apply_occlusion
 from moma_env.estimator.detection import Detection
 from moma_env.geometry import rotvec_to_matrix
@@ -113,9 +121,26 @@ class _BoardSetGeometry:
         board_markers: (B + 1,) int64: board ``b`` owns markers
             ``board_markers[b]:board_markers[b + 1]``.
         corners_m: (M, 4, 3) marker corners in their board frames M (m), ArUco order.
+
+    The kernel inputs of a frame of one camera that sees every marker of every board
+    (the usual frame of a single env), made once here instead of per frame:
+
+    Attributes:
+        boards: ``list(range(B))``, every board index (read only).
+        board_zeros: (B,) int64 zeros: every board's row in a one-camera table.
+        corner_rows: (4 M, 3) the corners of ``corners_m`` as rows.
+        corner_starts: (B + 1,) int64 ``4 * board_markers``: board ``b``'s rows of ``corner_rows``.
+        corner_bounds: the same as a list of ints.
+
+    ``board_zeros``, ``corner_rows`` and ``corner_starts`` are never written but left
+    writable: the kernels are compiled for writable arrays (a read-only one is another
+    type to numba, so another compilation).
     """
 
-    __slots__ = ("layouts", "counts", "marker_counts", "board_markers", "corners_m")
+    __slots__ = (
+        "layouts", "counts", "marker_counts", "board_markers", "corners_m", "boards", "board_zeros", "corner_rows",
+        "corner_starts", "corner_bounds",
+    )
 
     def __init__(self, layouts: tuple[BoardLayout, ...]) -> None:
         parts = []
@@ -132,6 +157,11 @@ class _BoardSetGeometry:
         self.corners_m = np.ascontiguousarray(np.concatenate(parts), dtype=np.float64)
         for array in (self.marker_counts, self.board_markers, self.corners_m):
             array.setflags(write=False)
+        self.boards = list(range(len(layouts)))
+        self.board_zeros = np.zeros(len(layouts), dtype=np.int64)
+        self.corner_rows = self.corners_m.reshape(-1, 3).copy()
+        self.corner_starts = 4 * self.board_markers
+        self.corner_bounds = self.corner_starts.tolist()
 
 
 class GeometricCamera:
@@ -489,7 +519,7 @@ class FrameGroup:
     __slots__ = (
         "cameras", "poses", "boards", "times", "rngs", "geos", "first_board", "any_visible", "board_visible",
         "board_markers", "visible", "rows", "px", "obj", "noise", "up_c", "owner", "visible_counts", "parameters",
-        "settings",
+        "settings", "all_seen",
     )
 
     def __init__(
@@ -506,8 +536,11 @@ class FrameGroup:
         self.any_visible = False
         self.owner: np.ndarray | None = None
         if n_frames == 1:
-            self.geos = geos = [cameras[0]._geometry(boards[0])]
             self.first_board = [0, len(boards[0])]
+            if not boards[0]:
+                self.geos = [None]
+                return
+            self.geos = geos = [cameras[0]._geometry(boards[0])]
         else:
             self.geos = geos = [cam._geometry(b) if b else None for cam, b in zip(cameras, boards)]
             sizes = [len(b) for b in boards]
@@ -519,17 +552,14 @@ class FrameGroup:
         if n_frames == 1:
             T_w_c, geo = poses[0], geos[0]
             # Board poses in C, top three rows of T_c_m = inv(T_w_c) @ T_w_m: (B, 3, 4).
-            relative = np.array([b.T_w_m[:3] for b in boards[0]])
-            relative[:, :, 3] -= T_w_c[:3, 3]
+            relative = board_offsets(np.array([b.T_w_m for b in boards[0]]), T_w_c[None], geo.board_zeros)
             board_poses = np.matmul(T_w_c[:3, :3].T, relative)
             corners, board_markers = geo.corners_m, geo.board_markers
         else:
             # The same arithmetic on stacked frames (numpy's matmul gives the same bits per board).
             self.owner = owner = np.repeat(np.arange(n_frames), sizes)
             stack = np.array(poses)
-            # Whole poses stacked, then their top rows copied out (cheaper than a slice per board).
-            relative = np.ascontiguousarray(np.array([b.T_w_m for frame in boards for b in frame])[:, :3])
-            relative[:, :, 3] -= stack[owner, :3, 3]
+            relative = board_offsets(np.array([b.T_w_m for frame in boards for b in frame]), stack, owner)
             board_poses = np.matmul(stack[:, :3, :3].transpose(0, 2, 1)[owner], relative)
             present = [g for g in geos if g is not None]
             corners = np.concatenate([g.corners_m for g in present])
@@ -542,7 +572,7 @@ class FrameGroup:
         board_visible = np.empty(n_boards, dtype=np.int64)
         if n_frames == 1:
             self.parameters, self.settings = cameras[0]._parameter_rows, cameras[0]._settings_rows
-            board_camera = np.zeros(n_boards, dtype=np.int64)
+            board_camera = geo.board_zeros
         else:
             # Per frame: its camera's kernel inputs (row f of each table).
             self.parameters = np.array([camera._parameters for camera in cameras])
@@ -565,17 +595,25 @@ class FrameGroup:
         self.board_visible = counts = board_visible.tolist()
         self.board_markers = board_markers
         self.visible = visible
+        n_visible = sum(counts)
+        # Every marker of every board seen (each board has at least one marker): the
+        # measured corners are all corners, no selection (one frame: see _solve_wave).
+        self.all_seen = n_visible == n_markers
         # Corner rows of each frame in the stacked measurements, frame after frame.
         if n_frames == 1:
-            self.rows = [0, 4 * sum(counts)]
+            self.rows = [0, 4 * n_visible]
         else:
             rows = [0]
             for f in range(n_frames):
                 rows.append(rows[-1] + 4 * sum(counts[first_board[f] : first_board[f + 1]]))
             self.rows = rows
         # Measured corners of the visible markers, board after board: (n, 2) pixels.
-        self.px = uv[visible].reshape(-1, 2)
-        self.obj = corners[visible].reshape(-1, 3)
+        if self.all_seen:
+            self.px = uv.reshape(-1, 2)
+            self.obj = geo.corner_rows if n_frames == 1 else corners.reshape(-1, 3)
+        else:
+            self.px = uv[visible].reshape(-1, 2)
+            self.obj = corners[visible].reshape(-1, 3)
         self.noise: np.ndarray | None = None
         self.up_c: list[np.ndarray | None] = [None] * n_frames
 
@@ -650,7 +688,12 @@ class FrameGroup:
         whole = len(frames) == len(cameras)
         # Seen boards, frame after frame: global board index, frame, board index in the frame
         # (parallel lists of ints: few container objects for the garbage collector to track).
-        if self.owner is None:  # one frame
+        if self.owner is None and self.all_seen:  # one frame that sees every marker: the geometry's tables
+            geo = self.geos[0]
+            seen_g = seen_b = geo.boards
+            seen_f = [0] * len(seen_g)
+            board_camera, starts, bounds = geo.board_zeros, geo.corner_starts, geo.corner_bounds
+        elif self.owner is None:  # one frame
             seen_g = [g for g in range(first_board[1]) if board_visible[g]]
             seen_f = [0] * len(seen_g)
             seen_b = seen_g
@@ -682,7 +725,10 @@ class FrameGroup:
         else:
             index = np.concatenate([np.arange(rows[f], rows[f + 1]) for f in frames])
             obj, px = self.obj[index], self.px[index]
-        up_m = board_up_rows([all_boards[f][b] for f, b in zip(seen_f, seen_b)])
+        if len(frames) == 1 and len(seen_g) == len(all_boards[frames[0]]):
+            up_m = board_up_rows(all_boards[frames[0]])  # every board of the frame seen
+        else:
+            up_m = board_up_rows([all_boards[f][b] for f, b in zip(seen_f, seen_b)])
         up_c = np.empty((n_seen, 3))
         if len(frames) == 1:
             up_c[:] = self.up_c[frames[0]]
@@ -690,7 +736,7 @@ class FrameGroup:
             up_c[:] = np.array([self.up_c[f] if self.up_c[f] is not None else _NO_UP for f in range(len(cameras))])[index_f]
         T = np.zeros((n_seen, 4, 4))
         status = np.zeros(n_seen, dtype=np.int8)
-        any_warm = cameras[frames[0]]._warm_start or any(cameras[f]._warm_start for f in frames)
+        any_warm = cameras[frames[0]]._warm_start if len(frames) == 1 else any([cameras[f]._warm_start for f in frames])
         if any_warm:
             memories = {f: cameras[f]._warm_memory(times[f]) for f in frames}
             for k in range(n_seen):
@@ -703,7 +749,9 @@ class FrameGroup:
             obj, px, starts, up_m, up_c, status, T, self.parameters, self.settings, board_camera
         )
         rms_list = rms.tolist()
-        cov_sums = cov.reshape(n_seen, 36).sum(axis=1).tolist()  # finite only if the covariance is (see finite_or_none)
+        finite = np.empty(n_seen, dtype=bool)
+        covariance_finite(cov, finite)  # finite_or_none's test of every covariance in one call
+        cov_finite = finite.tolist()
         status_list = status.tolist() if any_warm else None
         kept = T.copy() if any_warm else T  # the poses the cameras remember (views of one copy)
         visible, board_markers = self.visible, self.board_markers
@@ -744,7 +792,7 @@ class FrameGroup:
                     detections.append(
                         Detection(
                             cam.camera_id, board_id, T_f[j + k_f], px_f[bounds[j] - row0 : bounds[j + 1] - row0], ids,
-                            time, rms_b, cov_f[j + k_f] if math.isfinite(cov_sums[j]) else None,
+                            time, rms_b, cov_f[j + k_f] if cov_finite[j] else None,
                         )
                     )
                     if status_list is not None:

@@ -37,7 +37,9 @@ __all__ = [
     "SOLVED_FULL",
     "SOLVED_WARM",
     "WARM_REJECTED",
+    "board_offsets",
     "camera_parameters",
+    "covariance_finite",
     "pixel_weights",
     "project_boards",
     "project_markers",
@@ -77,6 +79,32 @@ def camera_parameters(camera: PinholeCamera) -> np.ndarray:
     p[_FOLD_R2] = camera.fold_r2
     p.setflags(write=False)
     return p
+
+
+@numba.njit(cache=True)
+def board_offsets(T_w_m: np.ndarray, T_w_c: np.ndarray, board_camera: np.ndarray) -> np.ndarray:
+    """The boards' poses in W relative to their cameras' positions, the right factor of
+    the top rows of ``T_c_m = inv(T_w_c) @ T_w_m``, which are ``R_w_c^T @ [R_w_m | p_w_m - p_w_c]``.
+
+    Args:
+        T_w_m: (B, 4, 4) board poses in W (m).
+        T_w_c: (F, 4, 4) camera poses in W (m).
+        board_camera: (B,) int64 index in ``T_w_c`` of each board's camera.
+
+    Returns:
+        (B, 3, 4) ``[R_w_m | p_w_m - p_w_c]`` of each board (m): its top three rows with its
+        camera's position subtracted from the translation column.
+    """
+    n = T_w_m.shape[0]
+    out = np.empty((n, 3, 4))
+    for b in range(n):
+        f = board_camera[b]
+        for i in range(3):
+            out[b, i, 0] = T_w_m[b, i, 0]
+            out[b, i, 1] = T_w_m[b, i, 1]
+            out[b, i, 2] = T_w_m[b, i, 2]
+            out[b, i, 3] = T_w_m[b, i, 3] - T_w_c[f, i, 3]
+    return out
 
 
 @numba.njit(cache=True)
@@ -602,3 +630,51 @@ def solve_boards(
         elif spd_inverse(info, cov[b]):
             cov[b] *= sigma * sigma
         rms[b] = np.sqrt(reprojection_sq(T[b], obj[first:end], px[first:end], p) / (end - first))
+
+
+@numba.njit(cache=True)
+def _numpy_sum(a: np.ndarray) -> float:
+    """``a.sum()`` of a contiguous 1-D float64 array of at most 128 entries, bit for bit
+    numpy's: its pairwise summation, which for such a length keeps eight running sums
+    (entries ``j``, ``j + 8``, ...), adds them as a tree and then the remaining entries
+    one by one, and starts the reduction from its identity ``0.0``."""
+    n = a.shape[0]
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[i]
+        return 0.0 + res
+    r0 = a[0]
+    r1 = a[1]
+    r2 = a[2]
+    r3 = a[3]
+    r4 = a[4]
+    r5 = a[5]
+    r6 = a[6]
+    r7 = a[7]
+    i = 8
+    while i < n - n % 8:
+        r0 += a[i]
+        r1 += a[i + 1]
+        r2 += a[i + 2]
+        r3 += a[i + 3]
+        r4 += a[i + 4]
+        r5 += a[i + 5]
+        r6 += a[i + 6]
+        r7 += a[i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[i]
+        i += 1
+    return 0.0 + res
+
+
+@numba.njit(cache=True)
+def covariance_finite(cov: np.ndarray, finite: np.ndarray) -> None:
+    """Whether each covariance is finite, by the test of
+    :func:`~moma_env.camera.geometric.finite_or_none`: ``finite[k] = isfinite(cov[k].sum())``
+    with numpy's summation order (a sum of finite entries that overflows counts as not
+    finite), for ``cov`` (K, 6, 6) C-contiguous float64 and ``finite`` (K,) bool output."""
+    for k in range(cov.shape[0]):
+        finite[k] = np.isfinite(_numpy_sum(cov[k].ravel()))
