@@ -122,12 +122,19 @@ class BoardView:
         goes through ``BoardView(...)``, which checks and converts.
         """
         view = object.__new__(cls)
-        set_field = object.__setattr__  # frozen: the constructor's own way of setting fields
-        set_field(view, "board_id", board_id)
-        set_field(view, "layout", layout)
-        set_field(view, "T_w_m", T_w_m)
-        set_field(view, "up_m", up_m)
+        # Frozen: set through the slots' own setters (what object.__setattr__ does, cheaper).
+        _set_board_id(view, board_id)
+        _set_layout(view, layout)
+        _set_T_w_m(view, T_w_m)
+        _set_up_m(view, up_m)
         return view
+
+
+#: The setters of BoardView's slots, for BoardView.trusted.
+_set_board_id = BoardView.board_id.__set__
+_set_layout = BoardView.layout.__set__
+_set_T_w_m = BoardView.T_w_m.__set__
+_set_up_m = BoardView.up_m.__set__
 
 
 @runtime_checkable

@@ -134,6 +134,8 @@ class Simulation:
         self._sleds = tuple(s.name for s in sleds)
         self._devices = self._ugvs + self._sleds
         self._is_sled = frozenset(self._sleds)
+        #: Per device, in order: (name, the world's planar pose getter of its kind), for device_pose's per-step reads.
+        self._pose_readers = tuple((d, self.world.sled_pose if d in self._is_sled else self.world.ugv_pose) for d in self._devices)
         boards: list[tuple[str, int, Any]] = []
         for index, ugv in enumerate(wc.ugvs):
             if ugv.board is not None:
@@ -498,7 +500,7 @@ class Simulation:
         views = self.board_views()
         if self._occlusions:
             # Device positions for the occlusion queries, once per frame.
-            self.device_positions = [(d, self.device_pose(d)[:2]) for d in self._devices]
+            self.device_positions = [(d, pose_of(d)[:2]) for d, pose_of in self._pose_readers]
         world = self.world
         camera_transform, t, rng = world.camera_transform, world.time, self._rng
         return tuple([MeasureRequest(camera, camera_transform(name), views, t, rng, occluded) for name, camera, occluded in self._camera_parts])
@@ -506,12 +508,11 @@ class Simulation:
     def _snapshot(self, earlier: Sequence[Switch] = ()) -> Frame:
         estimates = self._localiser.estimates()
         self._references = None  # of the frame this one replaces
-        device_pose = self.device_pose
         truth: dict[str, Pose2D] = {}
         estimated: dict[str, Pose2D | None] = {}
         errors: dict[str, float] = {}
-        for device in self._devices:
-            true_pose = truth[device] = device_pose(device)
+        for device, pose_of in self._pose_readers:  # device_pose of each device
+            true_pose = truth[device] = pose_of(device)
             T = estimates[device].T_w_b
             if T is None:
                 estimated[device] = None
