@@ -570,12 +570,7 @@ class MomaEstimator:
                         plane_z is not None, 0.0 if plane_z is None else plane_z,
                         Js, Q, P, has_P, cov, has_cov, persistent, has_persistent,
                     )
-                    pair = (sample, LinearError.of_packed(keys, packed, has_P_out))
-                    pairs = samples.get(r)
-                    if pairs is None:
-                        samples[r] = [pair]
-                    else:
-                        pairs.append(pair)
+                    samples.setdefault(r, []).append((sample, LinearError.of_packed(keys, packed, has_P_out)))
         for camera_id, (T_w_c, camera_error) in camera_poses.items():
             r = camera_owner[camera_id]
             if r.phase is not _REFERENCE:
@@ -588,12 +583,7 @@ class MomaEstimator:
                     T_w_c, r.camera_mounts[camera_id], r.camera_inverses[camera_id],
                     plane_z is not None, 0.0 if plane_z is None else plane_z, Js, Q, P, has_P,
                 )
-                pair = (sample, LinearError.of_packed(keys, packed, has_P_out))
-                pairs = samples.get(r)
-                if pairs is None:
-                    samples[r] = [pair]
-                else:
-                    pairs.append(pair)
+                samples.setdefault(r, []).append((sample, LinearError.of_packed(keys, packed, has_P_out)))
 
         measured: list[_Robot] = []
         settle_delay = self._config.settle_delay_s

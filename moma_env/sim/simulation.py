@@ -134,8 +134,10 @@ class Simulation:
         self._sleds = tuple(s.name for s in sleds)
         self._devices = self._ugvs + self._sleds
         self._is_sled = frozenset(self._sleds)
-        #: Per device, in order: (name, the world's planar pose getter of its kind), for device_pose's per-step reads.
+        #: Per device, in order: (name, the world's planar pose getter of its kind): the one
+        #: UGV/sled dispatch of device_pose, chosen once (the per-step reads call the getters).
         self._pose_readers = tuple((d, self.world.sled_pose if d in self._is_sled else self.world.ugv_pose) for d in self._devices)
+        self._pose_reader = dict(self._pose_readers)
         boards: list[tuple[str, int, Any]] = []
         for index, ugv in enumerate(wc.ugvs):
             if ugv.board is not None:
@@ -256,9 +258,7 @@ class Simulation:
 
     def device_pose(self, device: str) -> Pose2D:
         """True planar pose ``(x, y, yaw)`` of a UGV or sled (m, rad)."""
-        if device in self._is_sled:
-            return self.world.sled_pose(device)
-        return self.world.ugv_pose(device)
+        return self._pose_reader.get(device, self.world.ugv_pose)(device)  # an unknown name: the world's error
 
     def device_transform(self, device: str) -> np.ndarray:
         """True 4x4 ``T_w_b`` of a UGV or sled (m)."""
