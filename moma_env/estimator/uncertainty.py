@@ -431,11 +431,8 @@ class RunningErrorMean:
     while the inliers only gain samples at the end, the sums of their
     Jacobians and noise covariances are carried over and only the new errors
     are added, in the same order as :meth:`LinearError.mean` adds them, so the
-    result is the same to the bit. The sums after each summed error are kept,
-    so when the list changes elsewhere (an inlier turned outlier) the sums
-    restart from those of the longest common first part, not from zero: the
-    same additions in the same order. Errors are recognised by identity and
-    treated as read-only, as everywhere.
+    result is the same to the bit. Any other change starts the sums afresh.
+    Errors are recognised by identity and treated as read-only, as everywhere.
 
     Args:
         window: the errors are samples of one switch window: their persistent
@@ -446,7 +443,7 @@ class RunningErrorMean:
             Without persistent parts both give :meth:`LinearError.mean`.
     """
 
-    __slots__ = ("_errors", "_sums", "_mean", "_window")
+    __slots__ = ("_errors", "_J", "_Q", "_P", "_mean", "_window")
 
     def __init__(self, window: bool = False) -> None:
         self._window = window
@@ -455,9 +452,9 @@ class RunningErrorMean:
     def clear(self) -> None:
         """Forget the sums."""
         self._errors: list[LinearError] = []
-        # _sums[i]: (J sums by reference, Q sum, P sum or None) of _errors[: i + 1]; never
-        # changed in place once stored (each addition makes new arrays).
-        self._sums: list[tuple[dict, np.ndarray, np.ndarray | None]] = []
+        self._J: dict[str, np.ndarray] = {}
+        self._Q = np.zeros((6, 6))
+        self._P: np.ndarray | None = None
         self._mean: LinearError | None = None
 
     def mean(self, errors: Sequence[LinearError]) -> LinearError:
@@ -465,33 +462,32 @@ class RunningErrorMean:
         summed = self._errors
         m = len(summed)
         n = len(errors)
-        # How many of the summed errors ``errors`` begins with (by identity: a LinearError
-        # compares equal only to itself); all of them in one list comparison, the usual case.
-        if m <= n and (m == 0 or summed == (errors[:m] if type(errors) is list else list(errors[:m]))):
-            if m == n and self._mean is not None:
-                return self._mean
-            kept = m
-        else:
-            kept = 0
-            while kept < m and kept < n and summed[kept] is errors[kept]:
-                kept += 1
-            del summed[kept:]
-            del self._sums[kept:]
-        sums = self._sums
-        if kept:
-            J, Q, P = sums[kept - 1]
-        else:
-            J, Q, P = {}, np.zeros((6, 6)), None
-        for k in range(kept, n):
+        # Whether the summed errors are not the first of ``errors``, in one list comparison:
+        # by identity here (a LinearError compares equal only to itself).
+        fresh = m > n or (m > 0 and summed != list(errors[:m]))
+        if fresh:
+            self.clear()
+            summed = self._errors
+            m = 0
+        elif m == n and self._mean is not None:
+            return self._mean
+        J = self._J
+        Q = self._Q
+        for k in range(m, n):
             e = errors[k]
-            J = dict(J)
             for s, Js in e.J.items():
-                J[s] = J[s] + Js if s in J else Js.copy()
-            Q = Q + e.Q
+                if s in J:
+                    J[s] += Js
+                else:
+                    J[s] = Js.copy()
+            Q += e.Q
             if e.P is not None:
-                P = e.P.copy() if P is None else P + e.P
+                if self._P is None:
+                    self._P = e.P.copy()
+                else:
+                    self._P += e.P
             summed.append(e)
-            sums.append((J, Q, P))
+        P = self._P
         if n == 1:
             mean = errors[0]
         elif P is None:
