@@ -750,7 +750,7 @@ class FrameGroup:
         )
         rms_list = rms.tolist()
         finite = np.empty(n_seen, dtype=bool)
-        covariance_finite(cov, finite)  # finite_or_none's test of every covariance in one call
+        covariance_finite(cov, finite)  # finite_or_none's test, every covariance in one call
         cov_finite = finite.tolist()
         status_list = status.tolist() if any_warm else None
         kept = T.copy() if any_warm else T  # the poses the cameras remember (views of one copy)
@@ -810,8 +810,11 @@ def board_up_rows(boards: Sequence[BoardView]) -> np.ndarray:
 
 
 def finite_or_none(cov: np.ndarray) -> np.ndarray | None:
-    """The covariance ``cov`` (not copied) if it is finite, else None (a singular solve)."""
-    return cov if math.isfinite(float(cov.sum())) else None
+    """The covariance ``cov`` (6x6 float64, not copied) if every entry is finite, else None
+    (a singular solve): the test of :func:`~moma_env.camera.kernels.covariance_finite`."""
+    finite = np.empty(1, dtype=bool)
+    covariance_finite(cov.reshape(1, 6, 6), finite)
+    return cov if finite[0] else None
 
 
 def _finite(rvec: np.ndarray, tvec: np.ndarray) -> bool:

@@ -633,48 +633,13 @@ def solve_boards(
 
 
 @numba.njit(cache=True)
-def _numpy_sum(a: np.ndarray) -> float:
-    """``a.sum()`` of a contiguous 1-D float64 array of at most 128 entries, bit for bit
-    numpy's: its pairwise summation, which for such a length keeps eight running sums
-    (entries ``j``, ``j + 8``, ...), adds them as a tree and then the remaining entries
-    one by one, and starts the reduction from its identity ``0.0``."""
-    n = a.shape[0]
-    if n < 8:
-        res = 0.0
-        for i in range(n):
-            res += a[i]
-        return 0.0 + res
-    r0 = a[0]
-    r1 = a[1]
-    r2 = a[2]
-    r3 = a[3]
-    r4 = a[4]
-    r5 = a[5]
-    r6 = a[6]
-    r7 = a[7]
-    i = 8
-    while i < n - n % 8:
-        r0 += a[i]
-        r1 += a[i + 1]
-        r2 += a[i + 2]
-        r3 += a[i + 3]
-        r4 += a[i + 4]
-        r5 += a[i + 5]
-        r6 += a[i + 6]
-        r7 += a[i + 7]
-        i += 8
-    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < n:
-        res += a[i]
-        i += 1
-    return 0.0 + res
-
-
-@numba.njit(cache=True)
 def covariance_finite(cov: np.ndarray, finite: np.ndarray) -> None:
-    """Whether each covariance is finite, by the test of
-    :func:`~moma_env.camera.geometric.finite_or_none`: ``finite[k] = isfinite(cov[k].sum())``
-    with numpy's summation order (a sum of finite entries that overflows counts as not
-    finite), for ``cov`` (K, 6, 6) C-contiguous float64 and ``finite`` (K,) bool output."""
+    """Whether each covariance has only finite entries: ``finite[k]`` for ``cov[k]``, ``cov``
+    (K, 6, 6) float64 and ``finite`` (K,) bool output (a singular solve gives NaN)."""
     for k in range(cov.shape[0]):
-        finite[k] = np.isfinite(_numpy_sum(cov[k].ravel()))
+        ok = True
+        for i in range(6):
+            for j in range(6):
+                if not np.isfinite(cov[k, i, j]):
+                    ok = False
+        finite[k] = ok
