@@ -95,10 +95,16 @@ def _normalising(points: np.ndarray) -> tuple[float, float, float]:
 def _matmul3(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """``A @ B`` of two 3x3 matrices, written out (numba's ``@`` calls BLAS: ~1 us each)."""
     C = np.empty((3, 3))
+    _matmul3_into(A, B, C)
+    return C
+
+
+@numba.njit(cache=True)
+def _matmul3_into(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> None:
+    """``C = A @ B`` of 3x3 matrices (``C`` neither ``A`` nor ``B``)."""
     for i in range(3):
         for j in range(3):
             C[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
-    return C
 
 
 @numba.njit(cache=True)
@@ -109,6 +115,16 @@ def _solve_spd(A: np.ndarray, b: np.ndarray) -> bool:
     6x6 and 8x8 systems this is ten times cheaper than a LAPACK call. False if
     ``A`` is not positive definite to working precision.
     """
+    if not _cholesky(A):
+        return False
+    _cholesky_solve(A, b)
+    return True
+
+
+@numba.njit(cache=True)
+def _cholesky(A: np.ndarray) -> bool:
+    """``A`` (n x n, symmetric positive definite) overwritten by its Cholesky factor ``L``
+    (lower triangle; ``A = L L^T``); False if ``A`` is not positive definite to working precision."""
     n = A.shape[0]
     for j in range(n):
         d = A[j, j]
@@ -123,17 +139,23 @@ def _solve_spd(A: np.ndarray, b: np.ndarray) -> bool:
             for k in range(j):
                 s -= A[i, k] * A[j, k]
             A[i, j] = s / d
+    return True
+
+
+@numba.njit(cache=True)
+def _cholesky_solve(L: np.ndarray, b: np.ndarray) -> None:
+    """Solve ``L L^T x = b`` in place (``b`` becomes ``x``), ``L`` the factor of :func:`_cholesky`."""
+    n = L.shape[0]
     for i in range(n):
         s = b[i]
         for k in range(i):
-            s -= A[i, k] * b[k]
-        b[i] = s / A[i, i]
+            s -= L[i, k] * b[k]
+        b[i] = s / L[i, i]
     for i in range(n - 1, -1, -1):
         s = b[i]
         for k in range(i + 1, n):
-            s -= A[k, i] * b[k]
-        b[i] = s / A[i, i]
-    return True
+            s -= L[k, i] * b[k]
+        b[i] = s / L[i, i]
 
 
 @numba.njit(cache=True)
@@ -257,21 +279,36 @@ def _cost_and_normal_equations(
     pose predicts in C and the one the camera knows (see :func:`prior_vector`).
     Parameters: rotation increment ``w`` (left, ``R <- exp([w]x) R``) then translation.
     """
-    jtj[:, :] = 0.0
-    jtr[:] = 0.0
+    # The sums of J^T J (upper triangle) and J^T r in locals, so that they stay in
+    # registers over the corners (stored into the arrays once at the end): each is
+    # accumulated corner by corner in the same order as ``jtj[a, b] += ...`` would.
+    h00 = h01 = h02 = h03 = h04 = h05 = 0.0
+    h11 = h12 = h13 = h14 = h15 = 0.0
+    h22 = h23 = h24 = h25 = 0.0
+    h33 = h34 = h35 = 0.0
+    h44 = h45 = 0.0
+    h55 = 0.0
+    g0 = g1 = g2 = g3 = g4 = g5 = 0.0
     cost = 0.0
-    ju = np.empty(6)
-    jv = np.empty(6)
+    R00 = R[0, 0]
+    R01 = R[0, 1]
+    R10 = R[1, 0]
+    R11 = R[1, 1]
+    R20 = R[2, 0]
+    R21 = R[2, 1]
+    t0 = t[0]
+    t1 = t[1]
+    t2 = t[2]
     for i in range(obj.shape[0]):
         X = obj[i, 0]
         Y = obj[i, 1]
         # q = R @ [X, Y, 0]; p = q + t.
-        q0 = R[0, 0] * X + R[0, 1] * Y
-        q1 = R[1, 0] * X + R[1, 1] * Y
-        q2 = R[2, 0] * X + R[2, 1] * Y
-        iz = 1.0 / (q2 + t[2])
-        u = (q0 + t[0]) * iz
-        v = (q1 + t[1]) * iz
+        q0 = R00 * X + R01 * Y
+        q1 = R10 * X + R11 * Y
+        q2 = R20 * X + R21 * Y
+        iz = 1.0 / (q2 + t2)
+        u = (q0 + t0) * iz
+        v = (q1 + t1) * iz
         du = u - img[i, 0]
         dv = v - img[i, 1]
         w0 = W[i, 0]
@@ -284,28 +321,85 @@ def _cost_and_normal_equations(
         # d(u, v)/dp = [[iz, 0, -u iz], [0, iz, -v iz]]; dp/dw = -[q]x; dp/dt = I.
         a2 = -u * iz
         b2 = -v * iz
-        # -[q]x = [[0, q2, -q1], [-q2, 0, q0], [q1, -q0, 0]]
-        ju[0] = a2 * q1
-        ju[1] = iz * q2 - a2 * q0
-        ju[2] = -iz * q1
-        ju[3] = iz
-        ju[4] = 0.0
-        ju[5] = a2
-        jv[0] = -iz * q2 + b2 * q1
-        jv[1] = -b2 * q0
-        jv[2] = iz * q0
-        jv[3] = 0.0
-        jv[4] = iz
-        jv[5] = b2
-        for a in range(6):
-            ja = ju[a]
-            jb = jv[a]
-            ju[a] = w0 * ja + w1 * jb
-            jv[a] = w2 * ja + w3 * jb
-        for a in range(6):
-            jtr[a] += ju[a] * ru + jv[a] * rv
-            for b in range(a, 6):
-                jtj[a, b] += ju[a] * ju[b] + jv[a] * jv[b]
+        # -[q]x = [[0, q2, -q1], [-q2, 0, q0], [q1, -q0, 0]]; then weighted by W_i.
+        ja0 = a2 * q1
+        ja1 = iz * q2 - a2 * q0
+        ja2 = -iz * q1
+        ja3 = iz
+        ja4 = 0.0
+        ja5 = a2
+        jb0 = -iz * q2 + b2 * q1
+        jb1 = -b2 * q0
+        jb2 = iz * q0
+        jb3 = 0.0
+        jb4 = iz
+        jb5 = b2
+        u0 = w0 * ja0 + w1 * jb0
+        u1 = w0 * ja1 + w1 * jb1
+        u2 = w0 * ja2 + w1 * jb2
+        u3 = w0 * ja3 + w1 * jb3
+        u4 = w0 * ja4 + w1 * jb4
+        u5 = w0 * ja5 + w1 * jb5
+        v0 = w2 * ja0 + w3 * jb0
+        v1 = w2 * ja1 + w3 * jb1
+        v2 = w2 * ja2 + w3 * jb2
+        v3 = w2 * ja3 + w3 * jb3
+        v4 = w2 * ja4 + w3 * jb4
+        v5 = w2 * ja5 + w3 * jb5
+        g0 += u0 * ru + v0 * rv
+        g1 += u1 * ru + v1 * rv
+        g2 += u2 * ru + v2 * rv
+        g3 += u3 * ru + v3 * rv
+        g4 += u4 * ru + v4 * rv
+        g5 += u5 * ru + v5 * rv
+        h00 += u0 * u0 + v0 * v0
+        h01 += u0 * u1 + v0 * v1
+        h02 += u0 * u2 + v0 * v2
+        h03 += u0 * u3 + v0 * v3
+        h04 += u0 * u4 + v0 * v4
+        h05 += u0 * u5 + v0 * v5
+        h11 += u1 * u1 + v1 * v1
+        h12 += u1 * u2 + v1 * v2
+        h13 += u1 * u3 + v1 * v3
+        h14 += u1 * u4 + v1 * v4
+        h15 += u1 * u5 + v1 * v5
+        h22 += u2 * u2 + v2 * v2
+        h23 += u2 * u3 + v2 * v3
+        h24 += u2 * u4 + v2 * v4
+        h25 += u2 * u5 + v2 * v5
+        h33 += u3 * u3 + v3 * v3
+        h34 += u3 * u4 + v3 * v4
+        h35 += u3 * u5 + v3 * v5
+        h44 += u4 * u4 + v4 * v4
+        h45 += u4 * u5 + v4 * v5
+        h55 += u5 * u5 + v5 * v5
+    jtr[0] = g0
+    jtr[1] = g1
+    jtr[2] = g2
+    jtr[3] = g3
+    jtr[4] = g4
+    jtr[5] = g5
+    jtj[0, 0] = h00
+    jtj[0, 1] = h01
+    jtj[0, 2] = h02
+    jtj[0, 3] = h03
+    jtj[0, 4] = h04
+    jtj[0, 5] = h05
+    jtj[1, 1] = h11
+    jtj[1, 2] = h12
+    jtj[1, 3] = h13
+    jtj[1, 4] = h14
+    jtj[1, 5] = h15
+    jtj[2, 2] = h22
+    jtj[2, 3] = h23
+    jtj[2, 4] = h24
+    jtj[2, 5] = h25
+    jtj[3, 3] = h33
+    jtj[3, 4] = h34
+    jtj[3, 5] = h35
+    jtj[4, 4] = h44
+    jtj[4, 5] = h45
+    jtj[5, 5] = h55
     lam = prior[0]
     if lam > 0.0:
         # u = R up_m; g = up_c x u; dg/dw = (up_c . u) I - u up_c^T; dg/dt = 0.
@@ -344,6 +438,14 @@ def prior_vector(weight: float, up_m: np.ndarray, up_c: np.ndarray) -> np.ndarra
 @numba.njit(cache=True)
 def _rotation_exp(w0: float, w1: float, w2: float) -> np.ndarray:
     """Rotation matrix ``exp([w]x)`` (Rodrigues' formula)."""
+    R = np.empty((3, 3))
+    _rotation_exp_into(w0, w1, w2, R)
+    return R
+
+
+@numba.njit(cache=True)
+def _rotation_exp_into(w0: float, w1: float, w2: float, R: np.ndarray) -> None:
+    """``R`` (3x3) = ``exp([w]x)`` (Rodrigues' formula)."""
     theta2 = w0 * w0 + w1 * w1 + w2 * w2
     theta = np.sqrt(theta2)
     if theta < 1e-8:
@@ -353,7 +455,6 @@ def _rotation_exp(w0: float, w1: float, w2: float) -> np.ndarray:
         a = np.sin(theta) / theta
         b = (1.0 - np.cos(theta)) / theta2
     # I + a [w]x + b [w]x^2, with [w]x^2 = w w^T - |w|^2 I.
-    R = np.empty((3, 3))
     R[0, 0] = 1.0 - b * (w1 * w1 + w2 * w2)
     R[1, 1] = 1.0 - b * (w0 * w0 + w2 * w2)
     R[2, 2] = 1.0 - b * (w0 * w0 + w1 * w1)
@@ -363,7 +464,6 @@ def _rotation_exp(w0: float, w1: float, w2: float) -> np.ndarray:
     R[2, 0] = b * w0 * w2 - a * w1
     R[1, 2] = b * w1 * w2 - a * w0
     R[2, 1] = b * w1 * w2 + a * w0
-    return R
 
 
 @numba.njit(cache=True)
@@ -382,6 +482,8 @@ def _refine(
     A = np.empty((6, 6))
     step = np.empty(6)
     t_new = np.empty(3)
+    E = np.empty((3, 3))
+    R_new = np.empty((3, 3))
     cost = _cost_and_normal_equations(R, t, obj, img, W, prior, jtj, jtr)
     damping = 0.0  # Gauss-Newton until a step fails
     for iteration in range(_MAX_ITERATIONS):
@@ -396,7 +498,8 @@ def _refine(
             if damping > 1e8:
                 break
             continue
-        R_new = _matmul3(_rotation_exp(step[0], step[1], step[2]), R)
+        _rotation_exp_into(step[0], step[1], step[2], E)
+        _matmul3_into(E, R, R_new)
         t_new[0] = t[0] + step[3]
         t_new[1] = t[1] + step[4]
         t_new[2] = t[2] + step[5]
@@ -622,15 +725,15 @@ def refine_warm_start(T: np.ndarray, obj: np.ndarray, img: np.ndarray, W: np.nda
 def spd_inverse(A: np.ndarray, out: np.ndarray) -> bool:
     """Inverse of the symmetric positive definite 6x6 ``A`` into ``out``; False (``out`` NaN) if not SPD."""
     n = A.shape[0]
+    L = A.copy()
+    if not _cholesky(L):
+        out[:, :] = np.nan
+        return False
     col = np.empty(n)
-    L = np.empty((n, n))
-    for j in range(n):
-        L[:, :] = A
+    for j in range(n):  # column j of the inverse: the solve for the unit vector e_j
         for i in range(n):
             col[i] = 1.0 if i == j else 0.0
-        if not _solve_spd(L, col):
-            out[:, :] = np.nan
-            return False
+        _cholesky_solve(L, col)
         for i in range(n):
             out[i, j] = col[i]
     for i in range(n):  # exact symmetry
