@@ -30,11 +30,13 @@ import numpy as np
 from moma_env.camera.backend import BoardView, CameraBackend, OcclusionQuery
 from moma_env.camera.geometric import GeometricCamera, FrameGroup, check_frame
 from moma_env.estimator.detection import Detection
+from moma_env.records import slot_setter_init
 
 __all__ = ["MeasureRequest", "measure_batch"]
 
 
-@dataclass(frozen=True, slots=True)
+@slot_setter_init
+@dataclass(frozen=True, slots=True, init=False)
 class MeasureRequest:
     """One frame to measure: the arguments of ``camera.measure``.
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from moma_env.env.config import RewardConfig
 from moma_env.estimator import Status
 from moma_env.geometry import wrap_angle
+from moma_env.records import slot_setter_init
 from moma_env.scenarios import Scenario
 from moma_env.sim import Frame
 
@@ -108,7 +109,8 @@ REWARD_TERMS: tuple[RewardTerm, ...] = (
 )
 
 
-@dataclass(frozen=True, slots=True)
+@slot_setter_init
+@dataclass(frozen=True, slots=True, init=False)
 class RewardStep:
     """One step's reward: the total, each weighted term, and what happened."""
 

@@ -10,9 +10,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from moma_env.records import slot_setter_init
+
 __all__ = ["Detection", "frame_fusion_covariance"]
 
 
+@slot_setter_init
 @dataclass(frozen=True, eq=False, slots=True, init=False)
 class Detection:
     """A board detected in one image.
@@ -52,47 +55,10 @@ class Detection:
     covariance: np.ndarray | None = None
     persistent_covariance: np.ndarray | None = None
 
-    def __init__(
-        self,
-        camera_id: str,
-        board_id: int,
-        T_c_m: np.ndarray,
-        corners_px: np.ndarray,
-        marker_ids: tuple[int, ...],
-        time: float,
-        reprojection_error_px: float = float("nan"),
-        covariance: np.ndarray | None = None,
-        persistent_covariance: np.ndarray | None = None,
-    ) -> None:
-        # The __init__ a frozen dataclass generates sets each field through
-        # object.__setattr__; the slots' own setters do the same at half the cost
-        # (a camera makes a detection per board it sees in every frame).
-        _set_camera_id(self, camera_id)
-        _set_board_id(self, board_id)
-        _set_T_c_m(self, T_c_m)
-        _set_corners_px(self, corners_px)
-        _set_marker_ids(self, marker_ids)
-        _set_time(self, time)
-        _set_reprojection_error_px(self, reprojection_error_px)
-        _set_covariance(self, covariance)
-        _set_persistent_covariance(self, persistent_covariance)
-
     @property
     def n_markers(self) -> int:
         """Number of markers that contributed to the pose."""
         return len(self.marker_ids)
-
-
-#: The setters of Detection's slots, for its __init__.
-_set_camera_id = Detection.camera_id.__set__
-_set_board_id = Detection.board_id.__set__
-_set_T_c_m = Detection.T_c_m.__set__
-_set_corners_px = Detection.corners_px.__set__
-_set_marker_ids = Detection.marker_ids.__set__
-_set_time = Detection.time.__set__
-_set_reprojection_error_px = Detection.reprojection_error_px.__set__
-_set_covariance = Detection.covariance.__set__
-_set_persistent_covariance = Detection.persistent_covariance.__set__
 
 
 def frame_fusion_covariance(d: Detection, k: int) -> np.ndarray | None:

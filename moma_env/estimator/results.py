@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from moma_env.records import slot_setter_init
+
 __all__ = ["Phase", "Status", "RobotEstimate", "SwitchEvent", "EVENT_KINDS"]
 
 
@@ -43,6 +45,7 @@ class Status(enum.Enum):
 EVENT_KINDS = ("static", "mobile", "frozen", "lost", "relocalised")
 
 
+@slot_setter_init
 @dataclass(frozen=True, eq=False, slots=True, init=False)
 class RobotEstimate:
     """A snapshot of one robot's estimate.
@@ -75,27 +78,6 @@ class RobotEstimate:
     n_window: int
     covariance: np.ndarray | None = None
 
-    def __init__(
-        self,
-        name: str,
-        T_w_b: np.ndarray | None,
-        status: Status,
-        phase: Phase,
-        last_fresh_time: float | None,
-        n_window: int,
-        covariance: np.ndarray | None = None,
-    ) -> None:
-        # The __init__ a frozen dataclass generates sets each field through
-        # object.__setattr__; the slots' own setters do the same at half the cost
-        # (the estimator builds a snapshot of every robot at every step).
-        _set_name(self, name)
-        _set_T_w_b(self, T_w_b)
-        _set_status(self, status)
-        _set_phase(self, phase)
-        _set_last_fresh_time(self, last_fresh_time)
-        _set_n_window(self, n_window)
-        _set_covariance(self, covariance)
-
     @property
     def position_std_m(self) -> float:
         """Root of the trace of the position covariance (m): the RMS distance of the
@@ -113,16 +95,6 @@ class RobotEstimate:
         if cov is None:
             return math.nan
         return math.sqrt(max(0.0, float(cov[5, 5])))
-
-
-#: The setters of RobotEstimate's slots, for its __init__.
-_set_name = RobotEstimate.name.__set__
-_set_T_w_b = RobotEstimate.T_w_b.__set__
-_set_status = RobotEstimate.status.__set__
-_set_phase = RobotEstimate.phase.__set__
-_set_last_fresh_time = RobotEstimate.last_fresh_time.__set__
-_set_n_window = RobotEstimate.n_window.__set__
-_set_covariance = RobotEstimate.covariance.__set__
 
 
 @dataclass(frozen=True, slots=True)

@@ -19,6 +19,7 @@ from dataclasses import dataclass, fields
 from types import MappingProxyType
 
 from moma_env.estimator import Detection, RobotEstimate, Status
+from moma_env.records import slot_setter_init
 from moma_env.world import UAVState
 
 __all__ = ["Frame", "Switch", "Pose2D"]
@@ -42,6 +43,7 @@ class Switch:
     reason: str | None = None
 
 
+@slot_setter_init
 @dataclass(frozen=True, eq=False, slots=True, init=False)
 class Frame:
     """The simulation after a ``reset`` or a ``step``.
@@ -84,41 +86,6 @@ class Frame:
     last_switch_time: float
     dwell_remaining: float
 
-    def __init__(
-        self,
-        time: float,
-        steps: int,
-        truth: Mapping[str, Pose2D],
-        uavs: Mapping[str, UAVState],
-        estimates: Mapping[str, RobotEstimate],
-        estimated: Mapping[str, Pose2D | None],
-        errors: Mapping[str, float],
-        detections: tuple[Detection, ...],
-        mobile: frozenset[str],
-        switches: tuple[Switch, ...],
-        contacts: frozenset[frozenset[str]],
-        ropes: Mapping[str, float],
-        last_switch_time: float,
-        dwell_remaining: float,
-    ) -> None:
-        # The __init__ a frozen dataclass generates sets each field through
-        # object.__setattr__; the slots' own setters do the same at half the cost
-        # (the simulation makes a frame at every step).
-        _set_time(self, time)
-        _set_steps(self, steps)
-        _set_truth(self, truth)
-        _set_uavs(self, uavs)
-        _set_estimates(self, estimates)
-        _set_estimated(self, estimated)
-        _set_errors(self, errors)
-        _set_detections(self, detections)
-        _set_mobile(self, mobile)
-        _set_switches(self, switches)
-        _set_contacts(self, contacts)
-        _set_ropes(self, ropes)
-        _set_last_switch_time(self, last_switch_time)
-        _set_dwell_remaining(self, dwell_remaining)
-
     def __getstate__(self) -> dict:
         # Read-only views cannot be pickled: store their dicts, and rewrap them on load.
         values = {f.name: getattr(self, f.name) for f in fields(self)}
@@ -149,18 +116,3 @@ class Frame:
         return None if math.isnan(value) else value
 
 
-#: The setters of Frame's slots, for its __init__.
-_set_time = Frame.time.__set__
-_set_steps = Frame.steps.__set__
-_set_truth = Frame.truth.__set__
-_set_uavs = Frame.uavs.__set__
-_set_estimates = Frame.estimates.__set__
-_set_estimated = Frame.estimated.__set__
-_set_errors = Frame.errors.__set__
-_set_detections = Frame.detections.__set__
-_set_mobile = Frame.mobile.__set__
-_set_switches = Frame.switches.__set__
-_set_contacts = Frame.contacts.__set__
-_set_ropes = Frame.ropes.__set__
-_set_last_switch_time = Frame.last_switch_time.__set__
-_set_dwell_remaining = Frame.dwell_remaining.__set__

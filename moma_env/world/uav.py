@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from moma_env.records import slot_setter_init
 from moma_env.world.config import UAVConfig
 
 __all__ = ["GRAVITY", "UAVState", "UAVDynamics", "uav_body_transform"]
@@ -40,7 +41,8 @@ __all__ = ["GRAVITY", "UAVState", "UAVDynamics", "uav_body_transform"]
 GRAVITY = 9.81
 
 
-@dataclass(frozen=True, slots=True)
+@slot_setter_init
+@dataclass(frozen=True, slots=True, init=False)
 class UAVState:
     """Snapshot of the observer's state.
 
