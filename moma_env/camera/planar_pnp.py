@@ -258,6 +258,17 @@ def _pose_from_homography(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @numba.njit(cache=True)
+def _weighted_row(
+    a: float, b: float,
+    p0: float, p1: float, p2: float, p3: float, p4: float, p5: float,
+    q0: float, q1: float, q2: float, q3: float, q4: float, q5: float,
+) -> tuple[float, float, float, float, float, float]:
+    """``a p + b q`` of two 6-vectors given as scalars (a row of ``W_i`` times the
+    Jacobian's two rows), as six scalars: compiled inline, they stay in registers."""
+    return a * p0 + b * q0, a * p1 + b * q1, a * p2 + b * q2, a * p3 + b * q3, a * p4 + b * q4, a * p5 + b * q5
+
+
+@numba.njit(cache=True)
 def _cost_and_normal_equations(
     R: np.ndarray,
     t: np.ndarray,
@@ -335,18 +346,8 @@ def _cost_and_normal_equations(
         pv3 = 0.0
         pv4 = iz
         pv5 = b2
-        ju0 = w0 * pu0 + w1 * pv0
-        ju1 = w0 * pu1 + w1 * pv1
-        ju2 = w0 * pu2 + w1 * pv2
-        ju3 = w0 * pu3 + w1 * pv3
-        ju4 = w0 * pu4 + w1 * pv4
-        ju5 = w0 * pu5 + w1 * pv5
-        jv0 = w2 * pu0 + w3 * pv0
-        jv1 = w2 * pu1 + w3 * pv1
-        jv2 = w2 * pu2 + w3 * pv2
-        jv3 = w2 * pu3 + w3 * pv3
-        jv4 = w2 * pu4 + w3 * pv4
-        jv5 = w2 * pu5 + w3 * pv5
+        ju0, ju1, ju2, ju3, ju4, ju5 = _weighted_row(w0, w1, pu0, pu1, pu2, pu3, pu4, pu5, pv0, pv1, pv2, pv3, pv4, pv5)
+        jv0, jv1, jv2, jv3, jv4, jv5 = _weighted_row(w2, w3, pu0, pu1, pu2, pu3, pu4, pu5, pv0, pv1, pv2, pv3, pv4, pv5)
         g0 += ju0 * ru + jv0 * rv
         g1 += ju1 * ru + jv1 * rv
         g2 += ju2 * ru + jv2 * rv
