@@ -52,7 +52,26 @@ def top_observer(config: EstimatorConfig | None = None, *, b_static: bool = Fals
 
 
 # --------------------------------------------------------------------------- package hygiene
-def test_estimator_imports_only_stdlib_numpy_geometry_and_config():
+#: The package's base modules the estimator may import.
+BASE_MODULES = ("moma_env.geometry", "moma_env.config", "moma_env.records")
+
+
+def test_the_records_module_imports_only_the_standard_library():
+    path = pathlib.Path(__file__).resolve().parents[1] / "moma_env" / "records.py"
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            names = [node.module or ""]
+        else:
+            continue
+        for name in names:
+            assert name.split(".")[0] in {"__future__", "dataclasses", "typing"}, name
+
+
+def test_estimator_imports_only_stdlib_numpy_and_the_base_modules():
+    """numpy, the standard library, and of the package only its base modules (geometry,
+    config, records), none of which imports the simulator."""
     allowed_roots = {"numpy", "moma_env"}
     package = pathlib.Path(__file__).resolve().parents[1] / "moma_env" / "estimator"
     for path in package.glob("*.py"):
@@ -66,7 +85,7 @@ def test_estimator_imports_only_stdlib_numpy_geometry_and_config():
             for name in names:
                 root = name.split(".")[0]
                 if root in allowed_roots:
-                    assert name in {"numpy", "moma_env.geometry", "moma_env.config"} or name.startswith("moma_env.estimator"), (
+                    assert name in {"numpy", *BASE_MODULES} or name.startswith("moma_env.estimator"), (
                         path.name,
                         name,
                     )

@@ -1,6 +1,7 @@
 """The MOMA estimator (paper section II): robots localise each other in turns.
 
-It imports nothing but the standard library, numpy and :mod:`moma_env.geometry`,
+It imports nothing but the standard library, numpy, numba and the package's base
+modules (:mod:`moma_env.geometry`, :mod:`moma_env.config`, :mod:`moma_env.records`),
 so it runs as well on a real camera's detections as on the simulator's.
 
 Entities and frames
