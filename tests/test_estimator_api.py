@@ -56,17 +56,21 @@ def top_observer(config: EstimatorConfig | None = None, *, b_static: bool = Fals
 BASE_MODULES = ("moma_env.geometry", "moma_env.config", "moma_env.records")
 
 
-def test_the_records_module_imports_only_the_standard_library():
-    path = pathlib.Path(__file__).resolve().parents[1] / "moma_env" / "records.py"
+def imported_names(path: pathlib.Path) -> list[str]:
+    """Every module name ``path`` imports (``import a.b``: ``a.b``; ``from a.b import c``: ``a.b``)."""
+    names: list[str] = []
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
+            names.extend(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
-            names = [node.module or ""]
-        else:
-            continue
-        for name in names:
-            assert name.split(".")[0] in {"__future__", "dataclasses", "typing"}, name
+            names.append(node.module or "")
+    return names
+
+
+def test_the_records_module_imports_only_the_standard_library():
+    path = pathlib.Path(__file__).resolve().parents[1] / "moma_env" / "records.py"
+    for name in imported_names(path):
+        assert name.split(".")[0] in {"__future__", "dataclasses", "typing"}, name
 
 
 def test_estimator_imports_only_stdlib_numpy_and_the_base_modules():
@@ -75,25 +79,18 @@ def test_estimator_imports_only_stdlib_numpy_and_the_base_modules():
     allowed_roots = {"numpy", "moma_env"}
     package = pathlib.Path(__file__).resolve().parents[1] / "moma_env" / "estimator"
     for path in package.glob("*.py"):
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                names = [node.module or ""]
+        for name in imported_names(path):
+            root = name.split(".")[0]
+            if root in allowed_roots:
+                assert name in {"numpy", *BASE_MODULES} or name.startswith("moma_env.estimator"), (
+                    path.name,
+                    name,
+                )
+            elif path.name == "graph.py" and root == "gtsam":
+                continue  # the pose graph's optional dependency (the ``graph`` extra), nothing else may use it
             else:
-                continue
-            for name in names:
-                root = name.split(".")[0]
-                if root in allowed_roots:
-                    assert name in {"numpy", *BASE_MODULES} or name.startswith("moma_env.estimator"), (
-                        path.name,
-                        name,
-                    )
-                elif path.name == "graph.py" and root == "gtsam":
-                    continue  # the pose graph's optional dependency (the ``graph`` extra), nothing else may use it
-                else:
-                    # numba: the compiled kernels (a core dependency, as numpy); json and os: the detection log's file
-                    assert root in {"__future__", "math", "enum", "dataclasses", "collections", "typing", "numba", "json", "os"}, (path.name, name)
+                # numba: the compiled kernels (a core dependency, as numpy); json and os: the detection log's file
+                assert root in {"__future__", "math", "enum", "dataclasses", "collections", "typing", "numba", "json", "os"}, (path.name, name)
 
 
 # --------------------------------------------------------------------------- configuration
