@@ -81,16 +81,16 @@ def test_robot_estimate_is_still_a_frozen_record():
         RobotEstimate("a", T, Status.LOST, Phase.MOBILE, None)  # type: ignore[call-arg]
 
 
-def reference_mean(errors: list[LinearError], window: bool) -> LinearError:
+def reference_mean(errors: list[LinearError]) -> LinearError:
     """The plain mean: a running mean that has summed nothing yet, so adds every error afresh."""
-    return RunningErrorMean(window=window).mean(list(errors))
+    return RunningErrorMean().mean(list(errors))
 
 
 @pytest.mark.parametrize("seed", range(6))
 def test_the_running_mean_gives_the_plain_means_bits_through_any_changes(seed):
     rng = np.random.default_rng(seed)
-    for window in (False, True):
-        running = RunningErrorMean(window=window)
+    for _ in range(2):
+        running = RunningErrorMean()
         pool = [
             LinearError(
                 {s: rng.normal(size=(6, 6)) for s in range(3) if rng.random() < 0.6},
@@ -112,7 +112,7 @@ def test_the_running_mean_gives_the_plain_means_bits_through_any_changes(seed):
                 errors.append(pool[int(rng.integers(len(pool)))])
             if not errors:
                 continue
-            got, want = running.mean(errors), reference_mean(errors, window)
+            got, want = running.mean(errors), reference_mean(errors)
             assert list(got.J) == list(want.J)
             assert all(same_bits(got.J[s], want.J[s]) for s in got.J)
             assert same_bits(got.Q, want.Q)

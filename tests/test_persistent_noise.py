@@ -15,7 +15,8 @@ from scipy.stats import chi2
 from moma_env import geometry as g
 from moma_env.estimator import Detection, EstimatorConfig, MomaEstimator
 from moma_env.estimator.detection import frame_fusion_covariance
-from moma_env.estimator.uncertainty import LinearError, RunningErrorMean, apply_error, pose_error, window_mean_noise
+from moma_env.estimator.uncertainty import LinearError, apply_error, pose_error, window_mean_noise
+from moma_env.estimator.window import SettlingWindow
 
 BOARD = np.eye(4)
 CAMERA = g.make_transform(g.R_BODY_CAM_DOWN, [0.0, 0.0, 0.0])
@@ -37,23 +38,29 @@ def test_window_mean_noise_without_persistence_is_todays_mean_to_the_bit() -> No
     np.testing.assert_allclose(window_mean_noise(n * Q1, n * P1, n), P1 + (Q1 - P1) / n, rtol=1e-12)
 
 
-def test_running_window_mean_without_persistent_parts_equals_the_plain_mean() -> None:
+def window_mean_error(errors: list[LinearError], joint: dict | None = None) -> LinearError:
+    """The mean error a settling window of equal poses gives its samples' ``errors``."""
+    window = SettlingWindow(len(errors), joint=joint)
+    for e in errors:
+        window.add(np.eye(4), e)
+    return window.mean_error()
+
+
+def test_window_mean_without_persistent_parts_equals_the_plain_mean() -> None:
     rng = np.random.default_rng(1)
     errors = [LinearError({0: rng.normal(size=(6, 6))}, _random_spd(rng)) for _ in range(9)]
     plain = LinearError.mean(errors)
-    running = RunningErrorMean(window=True)
-    for k in range(1, 10):
-        mean = running.mean(errors[:k])
+    mean = window_mean_error(errors, {(0, 0): _random_spd(rng)})
     assert mean.P is None
     assert np.array_equal(mean.Q, plain.Q)
     assert np.array_equal(mean.J[0], plain.J[0])
 
 
-def test_running_window_mean_with_persistent_parts() -> None:
+def test_window_mean_with_persistent_parts() -> None:
     rng = np.random.default_rng(2)
     Q, P = _random_spd(rng), 0.5 * np.eye(6)
     errors = [LinearError({}, Q, P) for _ in range(4)]
-    window = RunningErrorMean(window=True).mean(errors)
+    window = window_mean_error(errors)
     np.testing.assert_allclose(window.Q, P + (Q - P) / 4, rtol=1e-12)
     np.testing.assert_allclose(window.P, P, rtol=1e-12)
     independent = LinearError.mean(errors)  # different boards of one frame: their persistent parts independent

@@ -32,12 +32,11 @@ from moma_env.estimator.kernels import (
 from moma_env.estimator.uncertainty import (
     NO_MATRIX,
     LinearError,
-    RunningErrorMean,
     compose_jacobian_first,
     matrix6_array,
     noise_operands,
 )
-from moma_env.estimator.window import SwitchWindow
+from moma_env.estimator.window import SettlingWindow
 from moma_env.geometry import invert, mean_pose, pose_array
 
 __all__ = ["MomaEstimator"]
@@ -203,7 +202,6 @@ class _Robot:
         "plane_z",
         "covariance",
         "ref_key",
-        "window_error",
     )
 
     def __init__(
@@ -211,7 +209,7 @@ class _Robot:
         name: str,
         board_mounts: dict[int, np.ndarray],
         camera_mounts: dict[str, np.ndarray],
-        window: SwitchWindow,
+        window: SettlingWindow,
         gate: OutlierGate | None,
         plane_z: float | None,
     ):
@@ -226,7 +224,7 @@ class _Robot:
         self.status = Status.LOST
         self.last_fresh_time: float | None = None
         self.lost_logged = False
-        self.window = window  # samples with their LinearError payloads
+        self.window = window  # samples with their errors
         self.n_frozen = 0
         self.static_since = 0.0
         self.gate = gate
@@ -235,7 +233,6 @@ class _Robot:
         self.camera_world: dict[str, tuple[np.ndarray, LinearError]] = {}  # camera_id -> T_w_c and its error
         self.covariance: np.ndarray | None = None  # 6x6 of the reported pose (uncertainty module's convention)
         self.ref_key: int | None = None  # key of the frozen pose's error in the joint covariance, REFERENCE only
-        self.window_error = RunningErrorMean(window=True)  # mean error of the window's inliers
 
 
 class MomaEstimator:
@@ -427,7 +424,7 @@ class MomaEstimator:
         cfg = self._config
         gate = OutlierGate(cfg.gate) if cfg.gate is not None and cfg.gate.enabled else None
         plane_z = (0.0 if pose is None else float(pose[2, 3])) if planar else None
-        window = SwitchWindow(cfg.window, cfg.window_outlier_k, cfg.window_floor_m, cfg.window_floor_rad)
+        window = SettlingWindow(cfg.window, cfg.window_outlier_k, cfg.window_floor_m, cfg.window_floor_rad, self._joint)
         r = _Robot(name, board_mounts, camera_mounts, window, gate, plane_z)
         r.pose = pose
         if pose is not None:
@@ -471,7 +468,6 @@ class MomaEstimator:
             if r.phase is _MOBILE:
                 r.phase = _SETTLING
                 r.window.clear()
-                r.window_error.clear()
                 r.static_since = t
                 self._events.append(SwitchEvent(t, name, "static", 0))
             return
@@ -492,7 +488,6 @@ class MomaEstimator:
                 r.gate.reset(seed=r.pose, time=t)
         r.phase = _MOBILE
         r.window.clear()
-        r.window_error.clear()
         r.n_frozen = 0
         self._forget_unused_keys()
         if pose_valid_now:
@@ -605,9 +600,7 @@ class MomaEstimator:
                 measured.append(r)
             elif t - r.static_since >= settle_delay:  # SETTLING
                 window = r.window
-                window.append(T, error)
-                r.pose = window.mean()
-                r.covariance = r.window_error.mean(window.payloads(window.inliers())).covariance(joint)
+                r.pose, r.covariance = window.add(T, error)
                 if window.full:
                     self._freeze_window(r, t)
 
@@ -710,7 +703,7 @@ class MomaEstimator:
         window = r.window
         index = window.inliers()
         r.pose = window.mean()
-        self._freeze(r, t, r.window_error.mean(window.payloads(index)), len(index))
+        self._freeze(r, t, window.mean_error(), len(index))
 
     def _freeze(self, r: _Robot, t: float, error: LinearError, n_samples: int, *, log: bool = True) -> None:
         """Make a robot a reference at its current pose, whose error is ``error``.
@@ -735,7 +728,6 @@ class MomaEstimator:
         r.covariance = own
         r.n_frozen = n_samples
         r.window.clear()
-        r.window_error.clear()
         r.board_world = {}
         r.board_world_J = {}
         for board_id, T_b_m in r.board_mounts.items():
@@ -759,8 +751,7 @@ class MomaEstimator:
             if r.phase is _REFERENCE:
                 used.add(r.ref_key)  # type: ignore[arg-type]
             elif r.phase is _SETTLING:
-                for error in r.window.payloads():
-                    used.update(error.references())
+                used.update(r.window.references())
         for _, error in self._camera_poses.values():
             used.update(error.references())
         joint = self._joint

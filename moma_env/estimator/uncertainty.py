@@ -427,26 +427,17 @@ class LinearError:
 class RunningErrorMean:
     """:meth:`LinearError.mean` of a list of errors that mostly grows at its end.
 
-    A switch window asks for the mean error of its inliers at every update;
-    while the inliers only gain samples at the end, the sums of their
-    Jacobians and noise covariances are carried over and only the new errors
-    are added, in the same order as :meth:`LinearError.mean` adds them, so the
-    result is the same to the bit. Any other change starts the sums afresh.
-    Errors are recognised by identity and treated as read-only, as everywhere.
-
-    Args:
-        window: the errors are samples of one switch window: their persistent
-            parts (``LinearError.P``) are the same draw, so the mean's fresh
-            noise is :func:`window_mean_noise` and its persistent part
-            ``sum_i P_i / n``. False (default): the errors' fresh noises are
-            independent, persistent parts included (``sum_i P_i / n^2``).
-            Without persistent parts both give :meth:`LinearError.mean`.
+    While the list only gains errors at the end, the sums of their Jacobians and noise
+    covariances are carried over and only the new errors are added, in the same order
+    as :meth:`LinearError.mean` adds them, so the result is the same to the bit. Any
+    other change starts the sums afresh. Errors are recognised by identity and treated
+    as read-only, as everywhere. (A switch window's mean error, whose persistent parts
+    are one draw, is :class:`~moma_env.estimator.window.SettlingWindow`'s.)
     """
 
-    __slots__ = ("_errors", "_J", "_Q", "_P", "_mean", "_window")
+    __slots__ = ("_errors", "_J", "_Q", "_P", "_mean")
 
-    def __init__(self, window: bool = False) -> None:
-        self._window = window
+    def __init__(self) -> None:
         self.clear()
 
     def clear(self) -> None:
@@ -492,8 +483,6 @@ class RunningErrorMean:
             mean = errors[0]
         elif P is None:
             mean = LinearError._of({s: Js / n for s, Js in J.items()}, Q / (n * n))
-        elif self._window:
-            mean = LinearError._of({s: Js / n for s, Js in J.items()}, window_mean_noise(Q, P, n), P / n)
         else:
             mean = LinearError._of({s: Js / n for s, Js in J.items()}, Q / (n * n), P / (n * n))
         self._mean = mean

@@ -8,9 +8,10 @@ from typing import Any
 import numba
 import numpy as np
 
+from moma_env.estimator.uncertainty import LinearError, covariance_kernel, covariance_one_kernel
 from moma_env.geometry import polar_rotation_kernel, project_to_rotation
 
-__all__ = ["SwitchWindow"]
+__all__ = ["SwitchWindow", "SettlingWindow"]
 
 _LAST_ROW = (0.0, 0.0, 0.0, 1.0)
 
@@ -313,6 +314,11 @@ class SwitchWindow:
                 self._n_summed = _window_sums(
                     self._rotations, self._xyz, np.array(index, dtype=np.int64), count, self._summed, self._n_summed, self._R_sum, self._t_sum
                 )
+        return self._finish_mean(T, count, written)
+
+    def _finish_mean(self, T: np.ndarray, count: int, written: bool) -> np.ndarray:
+        """The mean of ``count`` inliers after :func:`window_mean_kernel` (``written``: it wrote
+        ``T``), kept until the next change; a copy of it is returned."""
         if count == 1:
             self._mean = self._poses[self._inliers[0]]
             return self._mean.copy()
@@ -322,3 +328,288 @@ class SwitchWindow:
             T[3] = _LAST_ROW
         self._mean = T
         return T.copy()
+
+
+@numba.njit(cache=True, error_model="numpy")
+def window_error_mean_kernel(
+    err_slots: np.ndarray, err_counts: np.ndarray, err_J: np.ndarray, err_Q: np.ndarray, err_P: np.ndarray, err_has_P: np.ndarray,
+    index: np.ndarray, count: int, out_slots: np.ndarray, out_J: np.ndarray, out_Q: np.ndarray, out_P: np.ndarray,
+) -> tuple[int, bool]:
+    """The error of the mean of the window samples ``index[:count]`` (``count`` >= 1), as
+    ``RunningErrorMean(window=True).mean`` gives it for their errors, bit for bit.
+
+    Sample ``i``'s error: the Jacobians ``err_J[i, :err_counts[i]]`` with respect to the
+    references of key slots ``err_slots[i, :err_counts[i]]``, its fresh noise ``err_Q[i]``
+    and, if ``err_has_P[i]``, its persistent part ``err_P[i]`` (6x6 each). The mean's
+    Jacobians go to ``out_J[:k]`` for the slots ``out_slots[:k]`` (in the order they first
+    appear: the samples in inlier order, each in its own order), its noise to ``out_Q``
+    and its persistent part to ``out_P``. Each Jacobian and ``P`` is the first one's copy
+    plus the others in order, ``Q`` zero plus every one; then, for more than one sample,
+    ``J / n``, ``(Q + (n - 1) P) / n^2`` and ``P / n`` (``Q / n^2`` without a persistent
+    part: :func:`~moma_env.estimator.uncertainty.window_mean_noise`). One sample is its own
+    mean, copied; none (a window whose samples are not all finite may keep none) gives
+    ``Q = 0 / 0`` as numpy divides (hence numpy's error model). Returns ``(k, whether the
+    mean has a persistent part)``.
+    """
+    k = 0
+    has_P = False
+    if count == 1:
+        i = index[0]
+        for a in range(err_counts[i]):
+            out_slots[a] = err_slots[i, a]
+            out_J[a] = err_J[i, a]
+        out_Q[:] = err_Q[i]
+        if err_has_P[i]:
+            out_P[:] = err_P[i]
+        return err_counts[i], err_has_P[i]
+    out_Q[:] = 0.0
+    for j in range(count):
+        i = index[j]
+        for a in range(err_counts[i]):
+            slot = err_slots[i, a]
+            b = 0
+            while b < k and out_slots[b] != slot:
+                b += 1
+            if b == k:
+                out_slots[k] = slot
+                out_J[k] = err_J[i, a]
+                k += 1
+            else:
+                for r in range(6):
+                    for c in range(6):
+                        out_J[b, r, c] = out_J[b, r, c] + err_J[i, a, r, c]
+        for r in range(6):
+            for c in range(6):
+                out_Q[r, c] = out_Q[r, c] + err_Q[i, r, c]
+        if err_has_P[i]:
+            if has_P:
+                for r in range(6):
+                    for c in range(6):
+                        out_P[r, c] = out_P[r, c] + err_P[i, r, c]
+            else:
+                out_P[:] = err_P[i]
+                has_P = True
+    for b in range(k):
+        for r in range(6):
+            for c in range(6):
+                out_J[b, r, c] = out_J[b, r, c] / count
+    for r in range(6):
+        for c in range(6):
+            if has_P:
+                out_Q[r, c] = (out_Q[r, c] + (count - 1) * out_P[r, c]) / (count * count)
+                out_P[r, c] = out_P[r, c] / count
+            else:
+                out_Q[r, c] = out_Q[r, c] / (count * count)
+    return k, has_P
+
+
+@numba.njit(cache=True)
+def slot_covariance_kernel(slots: np.ndarray, k: int, J: np.ndarray, Q: np.ndarray, blocks: np.ndarray, n_slots: int) -> np.ndarray:
+    """:meth:`LinearError.covariance` of the error ``J[:k]`` (with respect to the references of
+    key slots ``slots[:k]``) plus fresh noise ``Q``, given the joint covariance of the slots'
+    references as ``blocks[u * n_slots + v]`` (slots ``u``, ``v``); the same calls, the same bits."""
+    if k == 1:
+        u = slots[0]
+        return covariance_one_kernel(J[0], blocks[u * n_slots + u], Q)
+    chosen = np.empty((k * k, 6, 6))
+    for a in range(k):
+        for b in range(k):
+            chosen[a * k + b] = blocks[slots[a] * n_slots + slots[b]]
+    return covariance_kernel(np.ascontiguousarray(J[:k]), chosen, Q)
+
+
+@numba.njit(cache=True)
+def settling_add_kernel(
+    T: np.ndarray, rotations: np.ndarray, xyz: np.ndarray, n: int, finite_before: bool, k: float, floor_m: float, floor_rad: float,
+    index: np.ndarray, summed: np.ndarray, n_summed: int, R_sum: np.ndarray, t_sum: np.ndarray, T_mean: np.ndarray,
+    err_slots: np.ndarray, err_counts: np.ndarray, err_J: np.ndarray, err_Q: np.ndarray, err_P: np.ndarray, err_has_P: np.ndarray,
+    slots: np.ndarray, J: np.ndarray, Q: np.ndarray, P: np.ndarray, has_P: bool,
+    blocks: np.ndarray, n_slots: int, out_slots: np.ndarray, out_J: np.ndarray, out_Q: np.ndarray, out_P: np.ndarray,
+) -> tuple:
+    """:meth:`SettlingWindow.add` in one call: sample ``n`` (the pose ``T`` with its error:
+    Jacobians ``J`` for the key slots ``slots``, noise ``Q``, persistent part ``P`` if
+    ``has_P``) stored (:func:`store_sample_kernel`), then, if every sample is finite, the
+    inliers and the mean pose (:func:`window_mean_kernel`), the mean's error
+    (:func:`window_error_mean_kernel`) and its covariance (:func:`slot_covariance_kernel`).
+
+    Returns ``(sample finite, inlier count, n_summed, T_mean written, mean error's key
+    count, whether it has a persistent part, covariance)``; the count is -1 (nothing else
+    computed) when a sample is not finite."""
+    finite = store_sample_kernel(T, rotations, xyz, n)
+    m = slots.shape[0]
+    err_counts[n] = m
+    for a in range(m):
+        err_slots[n, a] = slots[a]
+        err_J[n, a] = J[a]
+    err_Q[n] = Q
+    err_has_P[n] = has_P
+    if has_P:
+        err_P[n] = P
+    if not (finite and finite_before):
+        return finite, -1, n_summed, False, 0, False, Q
+    count, n_summed, written = window_mean_kernel(rotations, xyz, n + 1, k, floor_m, floor_rad, index, summed, n_summed, R_sum, t_sum, T_mean)
+    n_out, has_P_out = window_error_mean_kernel(err_slots, err_counts, err_J, err_Q, err_P, err_has_P, index, count, out_slots, out_J, out_Q, out_P)
+    return finite, count, n_summed, written, n_out, has_P_out, slot_covariance_kernel(out_slots, n_out, out_J, out_Q, blocks, n_slots)
+
+
+class SettlingWindow(SwitchWindow):
+    """The switch window of a settling robot, whose samples carry their errors
+    (:class:`~moma_env.estimator.uncertainty.LinearError`, with respect to the frozen
+    references' errors): :meth:`add` stores a sample and its error and gives the mean pose
+    and the covariance of its error in one compiled call (:func:`settling_add_kernel`).
+
+    The mean's error is ``RunningErrorMean(window=True).mean`` of the inliers' errors and
+    its covariance their :meth:`~moma_env.estimator.uncertainty.LinearError.covariance`
+    under ``joint``, bit for bit; the errors are kept in arrays, each reference key in a
+    slot of its own, and the joint covariance of the slots' references is copied from
+    ``joint`` when a key first appears (a frozen pose's joint entries never change while
+    a sample depends on it).
+
+    Args:
+        capacity, outlier_k, floor_m, floor_rad: those of :class:`SwitchWindow`.
+        joint: the estimator's joint covariance of the frozen poses' errors, ``(key, key)
+            -> 6x6``, read when a sample brings a new key.
+    """
+
+    __slots__ = (
+        "_joint", "_keys", "_slot_of", "_blocks", "_last_keys", "_last_slots",
+        "_err_slots", "_err_counts", "_err_J", "_err_Q", "_err_P", "_err_has_P",
+        "_out_slots", "_out_J", "_out_Q", "_out_P", "_error",
+    )
+
+    def __init__(
+        self, capacity: int, outlier_k: float = 3.0, floor_m: float = 0.002, floor_rad: float = 0.002,
+        joint: dict | None = None,
+    ):
+        super().__init__(capacity, outlier_k, floor_m, floor_rad)
+        self._joint = {} if joint is None else joint
+        self._err_counts = np.zeros(capacity, dtype=np.int64)
+        self._err_has_P = np.zeros(capacity, dtype=np.bool_)
+        self._err_Q = np.empty((capacity, 6, 6))
+        self._err_P = np.empty((capacity, 6, 6))
+        self._out_Q = np.empty((6, 6))
+        self._out_P = np.empty((6, 6))
+        self._size_keys(0, 0)
+        self._clear_errors()
+
+    def _size_keys(self, per_sample: int, slots: int) -> None:
+        """Room for ``per_sample`` keys in a sample's error and ``slots`` keys in all (at least one),
+        keeping what is stored."""
+        per_sample, slots = max(per_sample, 1), max(slots, 1)
+        if getattr(self, "_err_J", None) is None or self._err_J.shape[1] < per_sample:
+            err_slots = np.zeros((self.capacity, per_sample), dtype=np.int64)
+            err_J = np.empty((self.capacity, per_sample, 6, 6))
+            if getattr(self, "_err_J", None) is not None:
+                old = self._err_J.shape[1]
+                err_slots[:, :old] = self._err_slots
+                err_J[:, :old] = self._err_J
+            self._err_slots, self._err_J = err_slots, err_J
+        if getattr(self, "_out_J", None) is None or self._out_J.shape[0] < slots:
+            self._out_slots = np.zeros(slots, dtype=np.int64)
+            self._out_J = np.empty((slots, 6, 6))
+
+    def _clear_errors(self) -> None:
+        self._keys: list = []  # slot -> reference key
+        self._slot_of: dict = {}  # reference key -> slot
+        self._blocks = np.zeros((0, 6, 6))  # [u * len(keys) + v]: joint[(keys[u], keys[v])]
+        self._last_keys: list | None = None
+        self._last_slots = np.zeros(0, dtype=np.int64)
+        self._error: tuple[int, bool] | None = None  # the mean error's key count and persistent flag
+
+    def clear(self) -> None:
+        """Forget every sample and its error."""
+        super().clear()
+        self._clear_errors()
+
+    def references(self) -> list:
+        """The reference keys the samples' errors depend on (every sample, inlier or not)."""
+        return list(self._keys)
+
+    def append(self, T: np.ndarray, payload: Any = None) -> None:
+        """:meth:`add` without its results; ``payload`` must be the sample's
+        :class:`~moma_env.estimator.uncertainty.LinearError`."""
+        self.add(T, payload)
+
+    def _slots(self, keys: list) -> np.ndarray:
+        """The slots of ``keys`` (an int64 array), new keys given slots and their joint covariance."""
+        if keys == self._last_keys:
+            return self._last_slots
+        slot_of = self._slot_of
+        added = False
+        slots = []
+        for key in keys:
+            slot = slot_of.get(key)
+            if slot is None:
+                slot = slot_of[key] = len(self._keys)
+                self._keys.append(key)
+                added = True
+            slots.append(slot)
+        if added:
+            joint, every = self._joint, self._keys
+            self._blocks = np.array([joint[(s, r)] for s in every for r in every]).reshape(-1, 6, 6)
+            self._size_keys(len(keys), len(every))
+        elif len(keys) > self._err_J.shape[1]:
+            self._size_keys(len(keys), len(self._keys))
+        self._last_keys = keys
+        self._last_slots = np.array(slots, dtype=np.int64)
+        return self._last_slots
+
+    def add(self, T: np.ndarray, error: LinearError) -> tuple[np.ndarray, np.ndarray]:
+        """Add a 4x4 pose (copied, in W) and its error; returns the mean pose (a new 4x4
+        array, :meth:`mean`) and the 6x6 covariance of its error (a new array). Raises if
+        the window is already full."""
+        n = len(self._poses)
+        if n >= self.capacity:
+            raise ValueError(f"switch window already holds {self.capacity} samples")
+        if not isinstance(error, LinearError):
+            raise TypeError(f"a settling window sample's error must be a LinearError, got {type(error).__name__}")
+        T = T.copy() if type(T) is np.ndarray and T.dtype.char == "d" and T.shape == (4, 4) else np.array(T, dtype=float)
+        if T.shape != (4, 4):
+            raise ValueError(f"a window sample must be a 4x4 pose, got shape {T.shape}")
+        keys, stack, Q, P, has_P = error.operands()
+        if not has_P:  # the kernel's arrays writable, as always, so that it is compiled once
+            P = self._out_P
+        if not keys:
+            stack = np.empty((0, 6, 6))
+        slots = self._slots(keys)
+        T_mean = np.empty((4, 4))
+        finite, count, n_summed, written, n_out, has_P_out, covariance = settling_add_kernel(
+            T, self._rotations, self._xyz, n, self._finite, float(self.outlier_k), float(self.floor_m), float(self.floor_rad),
+            self._index, self._summed, self._n_summed, self._R_sum, self._t_sum, T_mean,
+            self._err_slots, self._err_counts, self._err_J, self._err_Q, self._err_P, self._err_has_P,
+            slots, stack, Q, P, has_P, self._blocks, len(self._keys), self._out_slots, self._out_J, self._out_Q, self._out_P,
+        )
+        self._poses.append(T)
+        self._payloads.append(error)
+        self._mean = None
+        if not finite:
+            self._finite = False
+        if count < 0:  # a sample not finite: numpy's statistics (SwitchWindow), the same error kernels
+            self._inliers = None
+            pose = self.mean()
+            covariance = self._error_statistics(self._inliers)
+            return pose, covariance
+        self._n_summed = n_summed
+        self._inliers = self._index[:count].tolist()
+        self._error = (n_out, has_P_out)
+        return self._finish_mean(T_mean, count, written), covariance
+
+    def _error_statistics(self, inliers: list[int]) -> np.ndarray:
+        """The mean error of the samples ``inliers`` into the window's buffers; its covariance."""
+        index = np.array(inliers, dtype=np.int64)
+        n_out, has_P_out = window_error_mean_kernel(
+            self._err_slots, self._err_counts, self._err_J, self._err_Q, self._err_P, self._err_has_P,
+            index, index.size, self._out_slots, self._out_J, self._out_Q, self._out_P,
+        )
+        self._error = (n_out, has_P_out)
+        return slot_covariance_kernel(self._out_slots, n_out, self._out_J, self._out_Q, self._blocks, len(self._keys))
+
+    def mean_error(self) -> LinearError:
+        """The error of :meth:`mean` (of the current inliers), a new
+        :class:`~moma_env.estimator.uncertainty.LinearError`; raises when empty."""
+        if self._error is None:
+            self._error_statistics(self.inliers())
+        n_out, has_P = self._error
+        keys, slots = self._keys, self._out_slots
+        J = {keys[slots[b]]: self._out_J[b].copy() for b in range(n_out)}
+        return LinearError(J, self._out_Q.copy(), self._out_P.copy() if has_P else None)
