@@ -333,26 +333,28 @@ class SwitchWindow:
 @numba.njit(cache=True, error_model="numpy")
 def window_error_mean_kernel(
     err_slots: np.ndarray, err_counts: np.ndarray, err_J: np.ndarray, err_Q: np.ndarray, err_P: np.ndarray, err_has_P: np.ndarray,
-    index: np.ndarray, count: int, out_slots: np.ndarray, out_J: np.ndarray, out_Q: np.ndarray, out_P: np.ndarray,
+    index: np.ndarray, count: int, sums: np.ndarray, sum_slots: np.ndarray, sum_J: np.ndarray, sum_Q: np.ndarray, sum_P: np.ndarray,
+    summed: np.ndarray, out_slots: np.ndarray, out_J: np.ndarray, out_Q: np.ndarray, out_P: np.ndarray,
 ) -> tuple[int, bool]:
-    """The error of the mean of the window samples ``index[:count]`` (``count`` >= 1), as
-    ``RunningErrorMean(window=True).mean`` gives it for their errors, bit for bit.
+    """The error of the mean of the window samples ``index[:count]``, as
+    ``RunningErrorMean(window=True).mean`` gave it for their errors, bit for bit.
 
     Sample ``i``'s error: the Jacobians ``err_J[i, :err_counts[i]]`` with respect to the
     references of key slots ``err_slots[i, :err_counts[i]]``, its fresh noise ``err_Q[i]``
-    and, if ``err_has_P[i]``, its persistent part ``err_P[i]`` (6x6 each). The mean's
-    Jacobians go to ``out_J[:k]`` for the slots ``out_slots[:k]`` (in the order they first
-    appear: the samples in inlier order, each in its own order), its noise to ``out_Q``
-    and its persistent part to ``out_P``. Each Jacobian and ``P`` is the first one's copy
-    plus the others in order, ``Q`` zero plus every one; then, for more than one sample,
+    and, if ``err_has_P[i]``, its persistent part ``err_P[i]`` (6x6 each). The samples'
+    sums: each Jacobian (per slot, in the order the slots first appear: the samples in
+    inlier order, each in its own order) and ``P`` the first one's copy plus the others
+    in order, ``Q`` zero plus every one. They are running sums, kept in ``sum_slots``,
+    ``sum_J``, ``sum_Q``, ``sum_P`` for the samples ``summed[:sums[0]]`` (``sums``: that
+    count, the slots summed, whether ``P`` is), and only the new samples are added while
+    the inliers only grow at the end (the same additions in the same order), else they
+    start afresh. The mean into ``out_slots[:k]``, ``out_J[:k]``, ``out_Q``, ``out_P``:
     ``J / n``, ``(Q + (n - 1) P) / n^2`` and ``P / n`` (``Q / n^2`` without a persistent
     part: :func:`~moma_env.estimator.uncertainty.window_mean_noise`). One sample is its own
     mean, copied; none (a window whose samples are not all finite may keep none) gives
     ``Q = 0 / 0`` as numpy divides (hence numpy's error model). Returns ``(k, whether the
     mean has a persistent part)``.
     """
-    k = 0
-    has_P = False
     if count == 1:
         i = index[0]
         for a in range(err_counts[i]):
@@ -361,45 +363,65 @@ def window_error_mean_kernel(
         out_Q[:] = err_Q[i]
         if err_has_P[i]:
             out_P[:] = err_P[i]
+        sums[0] = 0
         return err_counts[i], err_has_P[i]
-    out_Q[:] = 0.0
-    for j in range(count):
+    m = sums[0]
+    if m > count:
+        m = 0
+    else:
+        for j in range(m):
+            if summed[j] != index[j]:
+                m = 0
+                break
+    if m == 0:
+        k = 0
+        has_P = False
+        sum_Q[:] = 0.0
+    else:
+        k = sums[1]
+        has_P = sums[2] != 0
+    for j in range(m, count):
         i = index[j]
         for a in range(err_counts[i]):
             slot = err_slots[i, a]
             b = 0
-            while b < k and out_slots[b] != slot:
+            while b < k and sum_slots[b] != slot:
                 b += 1
             if b == k:
-                out_slots[k] = slot
-                out_J[k] = err_J[i, a]
+                sum_slots[k] = slot
+                sum_J[k] = err_J[i, a]
                 k += 1
             else:
                 for r in range(6):
                     for c in range(6):
-                        out_J[b, r, c] = out_J[b, r, c] + err_J[i, a, r, c]
+                        sum_J[b, r, c] = sum_J[b, r, c] + err_J[i, a, r, c]
         for r in range(6):
             for c in range(6):
-                out_Q[r, c] = out_Q[r, c] + err_Q[i, r, c]
+                sum_Q[r, c] = sum_Q[r, c] + err_Q[i, r, c]
         if err_has_P[i]:
             if has_P:
                 for r in range(6):
                     for c in range(6):
-                        out_P[r, c] = out_P[r, c] + err_P[i, r, c]
+                        sum_P[r, c] = sum_P[r, c] + err_P[i, r, c]
             else:
-                out_P[:] = err_P[i]
+                sum_P[:] = err_P[i]
                 has_P = True
+        summed[j] = i
+    sums[0] = count
+    sums[1] = k
+    sums[2] = 1 if has_P else 0
     for b in range(k):
+        out_slots[b] = sum_slots[b]
         for r in range(6):
             for c in range(6):
-                out_J[b, r, c] = out_J[b, r, c] / count
+                out_J[b, r, c] = sum_J[b, r, c] / count
     for r in range(6):
         for c in range(6):
             if has_P:
-                out_Q[r, c] = (out_Q[r, c] + (count - 1) * out_P[r, c]) / (count * count)
-                out_P[r, c] = out_P[r, c] / count
+                out_Q[r, c] = (sum_Q[r, c] + (count - 1) * sum_P[r, c]) / (count * count)
+                out_P[r, c] = sum_P[r, c] / count
             else:
-                out_Q[r, c] = out_Q[r, c] / (count * count)
+                out_Q[r, c] = sum_Q[r, c] / (count * count)
     return k, has_P
 
 
@@ -423,8 +445,9 @@ def settling_add_kernel(
     T: np.ndarray, rotations: np.ndarray, xyz: np.ndarray, n: int, finite_before: bool, k: float, floor_m: float, floor_rad: float,
     index: np.ndarray, summed: np.ndarray, n_summed: int, R_sum: np.ndarray, t_sum: np.ndarray, T_mean: np.ndarray,
     err_slots: np.ndarray, err_counts: np.ndarray, err_J: np.ndarray, err_Q: np.ndarray, err_P: np.ndarray, err_has_P: np.ndarray,
-    slots: np.ndarray, J: np.ndarray, Q: np.ndarray, P: np.ndarray, has_P: bool,
-    blocks: np.ndarray, n_slots: int, out_slots: np.ndarray, out_J: np.ndarray, out_Q: np.ndarray, out_P: np.ndarray,
+    slots: np.ndarray, J: np.ndarray, Q: np.ndarray, P: np.ndarray, has_P: bool, blocks: np.ndarray, n_slots: int,
+    sums: np.ndarray, sum_slots: np.ndarray, sum_J: np.ndarray, sum_Q: np.ndarray, sum_P: np.ndarray, err_summed: np.ndarray,
+    out_slots: np.ndarray, out_J: np.ndarray, out_Q: np.ndarray, out_P: np.ndarray,
 ) -> tuple:
     """:meth:`SettlingWindow.add` in one call: sample ``n`` (the pose ``T`` with its error:
     Jacobians ``J`` for the key slots ``slots``, noise ``Q``, persistent part ``P`` if
@@ -448,7 +471,10 @@ def settling_add_kernel(
     if not (finite and finite_before):
         return finite, -1, n_summed, False, 0, False, Q
     count, n_summed, written = window_mean_kernel(rotations, xyz, n + 1, k, floor_m, floor_rad, index, summed, n_summed, R_sum, t_sum, T_mean)
-    n_out, has_P_out = window_error_mean_kernel(err_slots, err_counts, err_J, err_Q, err_P, err_has_P, index, count, out_slots, out_J, out_Q, out_P)
+    n_out, has_P_out = window_error_mean_kernel(
+        err_slots, err_counts, err_J, err_Q, err_P, err_has_P, index, count,
+        sums, sum_slots, sum_J, sum_Q, sum_P, err_summed, out_slots, out_J, out_Q, out_P,
+    )
     return finite, count, n_summed, written, n_out, has_P_out, slot_covariance_kernel(out_slots, n_out, out_J, out_Q, blocks, n_slots)
 
 
@@ -474,6 +500,7 @@ class SettlingWindow(SwitchWindow):
     __slots__ = (
         "_joint", "_keys", "_slot_of", "_blocks", "_last_keys", "_last_slots",
         "_err_slots", "_err_counts", "_err_J", "_err_Q", "_err_P", "_err_has_P",
+        "_sums", "_sum_slots", "_sum_J", "_sum_Q", "_sum_P", "_err_summed",
         "_out_slots", "_out_J", "_out_Q", "_out_P", "_error",
     )
 
@@ -487,6 +514,10 @@ class SettlingWindow(SwitchWindow):
         self._err_has_P = np.zeros(capacity, dtype=np.bool_)
         self._err_Q = np.empty((capacity, 6, 6))
         self._err_P = np.empty((capacity, 6, 6))
+        self._sums = np.zeros(3, dtype=np.int64)  # samples summed, slots summed, whether P is
+        self._err_summed = np.empty(capacity, dtype=np.int64)  # the samples summed, in order
+        self._sum_Q = np.empty((6, 6))
+        self._sum_P = np.empty((6, 6))
         self._out_Q = np.empty((6, 6))
         self._out_P = np.empty((6, 6))
         self._size_keys(0, 0)
@@ -507,6 +538,13 @@ class SettlingWindow(SwitchWindow):
         if getattr(self, "_out_J", None) is None or self._out_J.shape[0] < slots:
             self._out_slots = np.zeros(slots, dtype=np.int64)
             self._out_J = np.empty((slots, 6, 6))
+            sum_slots = np.zeros(slots, dtype=np.int64)
+            sum_J = np.empty((slots, 6, 6))
+            if getattr(self, "_sum_J", None) is not None:  # the running sums carry on
+                old = self._sum_J.shape[0]
+                sum_slots[:old] = self._sum_slots
+                sum_J[:old] = self._sum_J
+            self._sum_slots, self._sum_J = sum_slots, sum_J
 
     def _clear_errors(self) -> None:
         self._keys: list = []  # slot -> reference key
@@ -515,6 +553,7 @@ class SettlingWindow(SwitchWindow):
         self._last_keys: list | None = None
         self._last_slots = np.zeros(0, dtype=np.int64)
         self._error: tuple[int, bool] | None = None  # the mean error's key count and persistent flag
+        self._sums[0] = 0
 
     def clear(self) -> None:
         """Forget every sample and its error."""
@@ -577,7 +616,9 @@ class SettlingWindow(SwitchWindow):
             T, self._rotations, self._xyz, n, self._finite, float(self.outlier_k), float(self.floor_m), float(self.floor_rad),
             self._index, self._summed, self._n_summed, self._R_sum, self._t_sum, T_mean,
             self._err_slots, self._err_counts, self._err_J, self._err_Q, self._err_P, self._err_has_P,
-            slots, stack, Q, P, has_P, self._blocks, len(self._keys), self._out_slots, self._out_J, self._out_Q, self._out_P,
+            slots, stack, Q, P, has_P, self._blocks, len(self._keys),
+            self._sums, self._sum_slots, self._sum_J, self._sum_Q, self._sum_P, self._err_summed,
+            self._out_slots, self._out_J, self._out_Q, self._out_P,
         )
         self._poses.append(T)
         self._payloads.append(error)
@@ -599,7 +640,8 @@ class SettlingWindow(SwitchWindow):
         index = np.array(inliers, dtype=np.int64)
         n_out, has_P_out = window_error_mean_kernel(
             self._err_slots, self._err_counts, self._err_J, self._err_Q, self._err_P, self._err_has_P,
-            index, index.size, self._out_slots, self._out_J, self._out_Q, self._out_P,
+            index, index.size, self._sums, self._sum_slots, self._sum_J, self._sum_Q, self._sum_P, self._err_summed,
+            self._out_slots, self._out_J, self._out_Q, self._out_P,
         )
         self._error = (n_out, has_P_out)
         return slot_covariance_kernel(self._out_slots, n_out, self._out_J, self._out_Q, self._blocks, len(self._keys))
