@@ -113,6 +113,8 @@ def test_one_call_gives_the_mean_and_covariance_of_the_replaced_code(seed):
         assert_same_error(window.mean_error(), want_error)
         every = {s for e in reference.payloads() for s in e.J}
         assert sorted(window.references()) == sorted(every)
+        for got, want in zip(window.payloads(), reference.payloads(), strict=True):
+            assert_same_error(got, want)
 
 
 def test_one_sample_is_its_own_mean():

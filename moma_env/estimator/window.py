@@ -510,41 +510,57 @@ class SettlingWindow(SwitchWindow):
     ):
         super().__init__(capacity, outlier_k, floor_m, floor_rad)
         self._joint = {} if joint is None else joint
-        self._err_counts = np.zeros(capacity, dtype=np.int64)
-        self._err_has_P = np.zeros(capacity, dtype=np.bool_)
-        self._err_Q = np.empty((capacity, 6, 6))
-        self._err_P = np.empty((capacity, 6, 6))
+        # The samples' errors, allocated at the first sample (a robot that never settles
+        # keeps none); persistent parts in a stand-in row until a sample brings one.
+        self._err_counts: np.ndarray | None = None
+        self._err_has_P: np.ndarray | None = None
+        self._err_Q: np.ndarray | None = None
+        self._err_slots: np.ndarray | None = None
+        self._err_J: np.ndarray | None = None
+        self._err_P = np.empty((1, 6, 6))
         self._sums = np.zeros(3, dtype=np.int64)  # samples summed, slots summed, whether P is
         self._err_summed = np.empty(capacity, dtype=np.int64)  # the samples summed, in order
         self._sum_Q = np.empty((6, 6))
         self._sum_P = np.empty((6, 6))
         self._out_Q = np.empty((6, 6))
         self._out_P = np.empty((6, 6))
-        self._size_keys(0, 0)
+        self._sum_J: np.ndarray | None = None
+        self._size_slots(1)
         self._clear_errors()
 
-    def _size_keys(self, per_sample: int, slots: int) -> None:
-        """Room for ``per_sample`` keys in a sample's error and ``slots`` keys in all (at least one),
-        keeping what is stored."""
-        per_sample, slots = max(per_sample, 1), max(slots, 1)
-        if getattr(self, "_err_J", None) is None or self._err_J.shape[1] < per_sample:
-            err_slots = np.zeros((self.capacity, per_sample), dtype=np.int64)
-            err_J = np.empty((self.capacity, per_sample, 6, 6))
-            if getattr(self, "_err_J", None) is not None:
-                old = self._err_J.shape[1]
-                err_slots[:, :old] = self._err_slots
-                err_J[:, :old] = self._err_J
+    def _size_samples(self, per_sample: int, has_P: bool) -> None:
+        """Room for ``per_sample`` keys in every sample's error (and a persistent part if
+        ``has_P``), keeping what is stored."""
+        capacity = self.capacity
+        if self._err_J is None:
+            self._err_counts = np.zeros(capacity, dtype=np.int64)
+            self._err_has_P = np.zeros(capacity, dtype=np.bool_)
+            self._err_Q = np.empty((capacity, 6, 6))
+            self._err_slots = np.zeros((capacity, max(per_sample, 1)), dtype=np.int64)
+            self._err_J = np.empty((capacity, max(per_sample, 1), 6, 6))
+        elif self._err_J.shape[1] < per_sample:
+            old = self._err_J.shape[1]
+            err_slots = np.zeros((capacity, per_sample), dtype=np.int64)
+            err_J = np.empty((capacity, per_sample, 6, 6))
+            err_slots[:, :old] = self._err_slots
+            err_J[:, :old] = self._err_J
             self._err_slots, self._err_J = err_slots, err_J
-        if getattr(self, "_out_J", None) is None or self._out_J.shape[0] < slots:
-            self._out_slots = np.zeros(slots, dtype=np.int64)
-            self._out_J = np.empty((slots, 6, 6))
-            sum_slots = np.zeros(slots, dtype=np.int64)
-            sum_J = np.empty((slots, 6, 6))
-            if getattr(self, "_sum_J", None) is not None:  # the running sums carry on
-                old = self._sum_J.shape[0]
-                sum_slots[:old] = self._sum_slots
-                sum_J[:old] = self._sum_J
-            self._sum_slots, self._sum_J = sum_slots, sum_J
+        if has_P and self._err_P.shape[0] < capacity:  # no sample had one: nothing to keep
+            self._err_P = np.empty((capacity, 6, 6))
+
+    def _size_slots(self, slots: int) -> None:
+        """Room for ``slots`` reference keys in the sums and the mean, keeping the running sums."""
+        if self._sum_J is not None and self._sum_J.shape[0] >= slots:
+            return
+        self._out_slots = np.zeros(slots, dtype=np.int64)
+        self._out_J = np.empty((slots, 6, 6))
+        sum_slots = np.zeros(slots, dtype=np.int64)
+        sum_J = np.empty((slots, 6, 6))
+        if self._sum_J is not None:  # the running sums carry on
+            old = self._sum_J.shape[0]
+            sum_slots[:old] = self._sum_slots
+            sum_J[:old] = self._sum_J
+        self._sum_slots, self._sum_J = sum_slots, sum_J
 
     def _clear_errors(self) -> None:
         self._keys: list = []  # slot -> reference key
@@ -559,6 +575,21 @@ class SettlingWindow(SwitchWindow):
         """Forget every sample and its error."""
         super().clear()
         self._clear_errors()
+
+    def payloads(self, indices: list[int] | None = None) -> list[LinearError]:
+        """The errors of the samples at ``indices`` (all when None): a new
+        :class:`~moma_env.estimator.uncertainty.LinearError` each, of the stored arrays."""
+        if indices is None:
+            indices = range(len(self._poses))
+        keys, slots, counts, has_P = self._keys, self._err_slots, self._err_counts, self._err_has_P
+        return [
+            LinearError(
+                {keys[slots[i, a]]: self._err_J[i, a].copy() for a in range(counts[i])},
+                self._err_Q[i].copy(),
+                self._err_P[i].copy() if has_P[i] else None,
+            )
+            for i in indices
+        ]
 
     def references(self) -> list:
         """The reference keys the samples' errors depend on (every sample, inlier or not)."""
@@ -586,9 +617,7 @@ class SettlingWindow(SwitchWindow):
         if added:
             joint, every = self._joint, self._keys
             self._blocks = np.array([joint[(s, r)] for s in every for r in every]).reshape(-1, 6, 6)
-            self._size_keys(len(keys), len(every))
-        elif len(keys) > self._err_J.shape[1]:
-            self._size_keys(len(keys), len(self._keys))
+            self._size_slots(len(every))
         self._last_keys = keys
         self._last_slots = np.array(slots, dtype=np.int64)
         return self._last_slots
@@ -611,6 +640,8 @@ class SettlingWindow(SwitchWindow):
         if not keys:
             stack = np.empty((0, 6, 6))
         slots = self._slots(keys)
+        if self._err_J is None or len(keys) > self._err_J.shape[1] or (has_P and self._err_P.shape[0] < self.capacity):
+            self._size_samples(len(keys), has_P)
         T_mean = np.empty((4, 4))
         finite, count, n_summed, written, n_out, has_P_out, covariance = settling_add_kernel(
             T, self._rotations, self._xyz, n, self._finite, float(self.outlier_k), float(self.floor_m), float(self.floor_rad),
@@ -621,7 +652,7 @@ class SettlingWindow(SwitchWindow):
             self._out_slots, self._out_J, self._out_Q, self._out_P,
         )
         self._poses.append(T)
-        self._payloads.append(error)
+        self._payloads.append(None)  # the error is in the arrays (payloads() reads them)
         self._mean = None
         if not finite:
             self._finite = False
