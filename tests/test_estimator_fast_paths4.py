@@ -13,15 +13,11 @@ import math
 
 import numpy as np
 import pytest
+from error_bits import assert_same_error, same_bits
 
 from moma_env.estimator.results import Phase, RobotEstimate, Status
 from moma_env.estimator.uncertainty import LinearError, RunningErrorMean
 from moma_env.estimator.window import SwitchWindow, store_sample_kernel
-
-
-def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
-    a, b = np.asarray(a), np.asarray(b)
-    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
 
 
 def reference_store(T: np.ndarray, rotations: np.ndarray, xyz: np.ndarray, n: int) -> bool:
@@ -113,10 +109,5 @@ def test_the_running_mean_gives_the_plain_means_bits_through_any_changes(seed):
             if not errors:
                 continue
             got, want = running.mean(errors), reference_mean(errors)
-            assert list(got.J) == list(want.J)
-            assert all(same_bits(got.J[s], want.J[s]) for s in got.J)
-            assert same_bits(got.Q, want.Q)
-            assert (got.P is None) == (want.P is None)
-            if got.P is not None:
-                assert same_bits(got.P, want.P)
+            assert_same_error(got, want)
             assert running.mean(list(errors)) is got

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from error_bits import assert_same_error, same_bits
 
 from moma_env.estimator.uncertainty import LinearError
 from moma_env.estimator.window import SettlingWindow, SwitchWindow
@@ -21,11 +22,6 @@ from moma_env.geometry import rotvec_to_matrix
 pytestmark = pytest.mark.filterwarnings("ignore:.*encountered in divide:RuntimeWarning")
 
 KEYS = [3, 7, 11]
-
-
-def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
-    a, b = np.asarray(a), np.asarray(b)
-    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
 
 
 def reference_window_mean(errors: list[LinearError]) -> LinearError:
@@ -76,15 +72,6 @@ def random_pose(rng: np.random.Generator, centre: np.ndarray) -> np.ndarray:
     if u > 0.985:
         T[0, 3] = np.nan  # a sample that is not finite: numpy's statistics from then on
     return T
-
-
-def assert_same_error(got: LinearError, want: LinearError) -> None:
-    assert list(got.J) == list(want.J)
-    assert all(same_bits(got.J[s], want.J[s]) for s in got.J)
-    assert same_bits(got.Q, want.Q)
-    assert (got.P is None) == (want.P is None)
-    if got.P is not None:
-        assert same_bits(got.P, want.P)
 
 
 @pytest.mark.parametrize("seed", range(8))

@@ -82,6 +82,18 @@ def store_sample_kernel(T: np.ndarray, rotations: np.ndarray, xyz: np.ndarray, n
 
 
 @numba.njit(cache=True)
+def summed_prefix(summed: np.ndarray, n_summed: int, index: np.ndarray, count: int) -> int:
+    """How many of running sums' samples ``summed[:n_summed]`` carry over to the samples
+    ``index[:count]``: ``n_summed`` when they are its first ones, else 0 (start afresh)."""
+    if n_summed > count:
+        return 0
+    for j in range(n_summed):
+        if summed[j] != index[j]:
+            return 0
+    return n_summed
+
+
+@numba.njit(cache=True)
 def _window_sums(
     rotations: np.ndarray, xyz: np.ndarray, inliers: np.ndarray, count: int, summed: np.ndarray, n_summed: int,
     R_sum: np.ndarray, t_sum: np.ndarray,
@@ -90,14 +102,7 @@ def _window_sums(
     to those of ``inliers[:count]``, in place: only the new ones are added when the summed
     samples are a prefix of the inliers, else the sums start afresh (each added left to
     right, in inlier order, as summing them anew adds). Returns the new ``n_summed``."""
-    m = n_summed
-    if m > count:
-        m = 0
-    else:
-        for j in range(m):
-            if summed[j] != inliers[j]:
-                m = 0
-                break
+    m = summed_prefix(summed, n_summed, inliers, count)
     if m == 0:
         R_sum[:] = 0.0
         t_sum[:] = 0.0
@@ -365,14 +370,7 @@ def window_error_mean_kernel(
             out_P[:] = err_P[i]
         sums[0] = 0
         return err_counts[i], err_has_P[i]
-    m = sums[0]
-    if m > count:
-        m = 0
-    else:
-        for j in range(m):
-            if summed[j] != index[j]:
-                m = 0
-                break
+    m = summed_prefix(summed, sums[0], index, count)
     if m == 0:
         k = 0
         has_P = False
