@@ -341,8 +341,9 @@ def window_error_mean_kernel(
     index: np.ndarray, count: int, sums: np.ndarray, sum_slots: np.ndarray, sum_J: np.ndarray, sum_Q: np.ndarray, sum_P: np.ndarray,
     summed: np.ndarray, out_slots: np.ndarray, out_J: np.ndarray, out_Q: np.ndarray, out_P: np.ndarray,
 ) -> tuple[int, bool]:
-    """The error of the mean of the window samples ``index[:count]``, as
-    ``RunningErrorMean(window=True).mean`` gave it for their errors, bit for bit.
+    """The error of the mean of the window samples ``index[:count]``: their Jacobians and
+    fresh noise averaged, their persistent parts taken as one draw (the arithmetic below,
+    in this order).
 
     Sample ``i``'s error: the Jacobians ``err_J[i, :err_counts[i]]`` with respect to the
     references of key slots ``err_slots[i, :err_counts[i]]``, its fresh noise ``err_Q[i]``
@@ -482,9 +483,10 @@ class SettlingWindow(SwitchWindow):
     references' errors): :meth:`add` stores a sample and its error and gives the mean pose
     and the covariance of its error in one compiled call (:func:`settling_add_kernel`).
 
-    The mean's error is ``RunningErrorMean(window=True).mean`` of the inliers' errors and
-    its covariance their :meth:`~moma_env.estimator.uncertainty.LinearError.covariance`
-    under ``joint``, bit for bit; the errors are kept in arrays, each reference key in a
+    The mean's error is the mean of the inliers' errors, their persistent parts one draw
+    (:func:`window_error_mean_kernel`), and its covariance is what
+    :meth:`~moma_env.estimator.uncertainty.LinearError.covariance` gives under ``joint``,
+    bit for bit; the errors are kept in arrays, each reference key in a
     slot of its own, and the joint covariance of the slots' references is copied from
     ``joint`` when a key first appears (a frozen pose's joint entries never change while
     a sample depends on it).
