@@ -243,14 +243,20 @@ class SwitchWindow:
         self._mean = None
         self._n_summed = 0
 
-    def append(self, T: np.ndarray, payload: Any = None) -> None:
-        """Add a 4x4 pose (copied) and its payload; raises if the window is already full."""
+    def _new_sample(self, T: np.ndarray) -> tuple[int, np.ndarray]:
+        """The next sample's index and a float64 4x4 copy of ``T``; ValueError if the window is
+        full or ``T`` is not 4x4 (nothing stored yet)."""
         n = len(self._poses)
         if n >= self.capacity:
             raise ValueError(f"switch window already holds {self.capacity} samples")
         T = T.copy() if type(T) is np.ndarray and T.dtype.char == "d" and T.shape == (4, 4) else np.array(T, dtype=float)
         if T.shape != (4, 4):
             raise ValueError(f"a window sample must be a 4x4 pose, got shape {T.shape}")
+        return n, T
+
+    def append(self, T: np.ndarray, payload: Any = None) -> None:
+        """Add a 4x4 pose (copied) and its payload; raises if the window is already full."""
+        n, T = self._new_sample(T)
         if not store_sample_kernel(T, self._rotations, self._xyz, n):
             self._finite = False
         self._poses.append(T)
@@ -626,14 +632,9 @@ class SettlingWindow(SwitchWindow):
         """Add a 4x4 pose (copied, in W) and its error; returns the mean pose (a new 4x4
         array, :meth:`mean`) and the 6x6 covariance of its error (a new array). Raises if
         the window is already full."""
-        n = len(self._poses)
-        if n >= self.capacity:
-            raise ValueError(f"switch window already holds {self.capacity} samples")
+        n, T = self._new_sample(T)
         if not isinstance(error, LinearError):
             raise TypeError(f"a settling window sample's error must be a LinearError, got {type(error).__name__}")
-        T = T.copy() if type(T) is np.ndarray and T.dtype.char == "d" and T.shape == (4, 4) else np.array(T, dtype=float)
-        if T.shape != (4, 4):
-            raise ValueError(f"a window sample must be a 4x4 pose, got shape {T.shape}")
         keys, stack, Q, P, has_P = error.operands()
         if not has_P:  # the kernel's arrays writable, as always, so that it is compiled once
             P = self._out_P
