@@ -33,8 +33,10 @@ from moma_env.estimator.uncertainty import (
     NO_MATRIX,
     LinearError,
     compose_jacobian_first,
+    covariance_of_operands,
     matrix6_array,
     noise_operands,
+    packed_operands,
 )
 from moma_env.estimator.window import SettlingWindow
 from moma_env.geometry import invert, mean_pose, pose_array
@@ -545,7 +547,9 @@ class MomaEstimator:
         # 2. Samples of the non-reference robots: boards seen by located cameras,
         #    and robots carrying a located camera. A located camera's error operands
         #    are taken once, for both kinds of samples.
-        samples: dict[_Robot, list[tuple[np.ndarray, LinearError]]] = {}
+        # Each sample: (pose, its error's reference keys, the error packed, whether it has a
+        # persistent part): LinearError.of_packed's arguments, an error made only to be fused.
+        samples: dict[_Robot, list[tuple[np.ndarray, list, np.ndarray, bool]]] = {}
         camera_operands: dict[str, list] = {}
         for camera_id, group in by_camera.items():
             located_camera = camera_poses.get(camera_id)
@@ -565,7 +569,7 @@ class MomaEstimator:
                         plane_z is not None, 0.0 if plane_z is None else plane_z,
                         Js, Q, P, has_P, cov, has_cov, persistent, has_persistent,
                     )
-                    samples.setdefault(r, []).append((sample, LinearError.of_packed(keys, packed, has_P_out)))
+                    samples.setdefault(r, []).append((sample, keys, packed, has_P_out))
         for camera_id, (T_w_c, camera_error) in camera_poses.items():
             r = camera_owner[camera_id]
             if r.phase is not _REFERENCE:
@@ -578,29 +582,34 @@ class MomaEstimator:
                     T_w_c, r.camera_mounts[camera_id], r.camera_inverses[camera_id],
                     plane_z is not None, 0.0 if plane_z is None else plane_z, Js, Q, P, has_P,
                 )
-                samples.setdefault(r, []).append((sample, LinearError.of_packed(keys, packed, has_P_out)))
+                samples.setdefault(r, []).append((sample, keys, packed, has_P_out))
 
         measured: list[_Robot] = []
         settle_delay = self._config.settle_delay_s
-        for r, pairs in samples.items():
-            if len(pairs) == 1:
-                T, error = pairs[0]
-            elif self._information_fusion:
-                T, error = information_fusion([pose for pose, _ in pairs], [e for _, e in pairs], joint)
+        for r, parts in samples.items():
+            if len(parts) == 1:  # the sample's error used as its compiled call packed it
+                T, keys, packed, has_P = parts[0]
+                operands = packed_operands(keys, packed, has_P)
             else:
-                T = mean_pose([pose for pose, _ in pairs])
-                error = LinearError.mean([e for _, e in pairs])
+                poses = [part[0] for part in parts]
+                errors = [LinearError.of_packed(keys, packed, has_P) for _, keys, packed, has_P in parts]
+                if self._information_fusion:
+                    T, error = information_fusion(poses, errors, joint)
+                else:
+                    T = mean_pose(poses)
+                    error = LinearError.mean(errors)
+                operands = error.operands()
             gate = r.gate
             if gate is not None and not gate.accept(T, t):
                 continue
             phase = r.phase
             if phase is _MOBILE:
                 r.pose = T
-                r.covariance = error.covariance(joint)
+                r.covariance = covariance_of_operands(operands[0], operands[1], operands[2], joint)
                 measured.append(r)
             elif t - r.static_since >= settle_delay:  # SETTLING
                 window = r.window
-                r.pose, r.covariance = window.add(T, error)
+                r.pose, r.covariance = window.add_operands(T, *operands)
                 if window.full:
                     self._freeze_window(r, t)
 
@@ -661,14 +670,20 @@ class MomaEstimator:
                     _check_pose(d)
                 if failed & 2:
                     _check_covariance(d)
+                # Without a persistent part, C-ordered: what pose_array and noise_operands give.
+                fast = persistent is None and T_c_m.flags.c_contiguous and cov.flags.c_contiguous
             else:
                 if not _clearly_rigid(T_c_m):
                     _check_pose(d)
                 if cov is not None and not _clearly_valid_covariance(cov):
                     _check_covariance(d)
-            if persistent is not None:
-                _check_persistent(d)
-            entry = (board_id, r, pose_array(T_c_m, "T_c_m"), *noise_operands(cov, persistent))
+                fast = False
+            if fast:
+                entry = (board_id, r, T_c_m, cov, True, NO_MATRIX, False)
+            else:
+                if persistent is not None:
+                    _check_persistent(d)
+                entry = (board_id, r, pose_array(T_c_m, "T_c_m"), *noise_operands(cov, persistent))
             group = by_camera.get(camera_id)
             if group is None:
                 by_camera[camera_id] = [entry]

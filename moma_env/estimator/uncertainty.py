@@ -57,6 +57,8 @@ __all__ = [
     "pack_operands_kernel",
     "covariance_kernel",
     "covariance_one_kernel",
+    "covariance_of_operands",
+    "packed_operands",
     "compose_first_kernel",
     "compose_jacobians_kernel",
     "inverse_jacobian_kernel",
@@ -298,6 +300,26 @@ def covariance_one_kernel(J, block, Q):
     return (S + S.T) * 0.5
 
 
+def packed_operands(keys: list, packed: np.ndarray, has_P: bool) -> tuple[list, np.ndarray, np.ndarray, np.ndarray, bool]:
+    """:meth:`LinearError.operands` of ``LinearError.of_packed(keys, packed, has_P)``, without
+    making the error: ``(keys, packed[:k], packed[k], packed[k + 1] or a zero stand-in, has_P)``,
+    views of ``packed`` (the layout of :func:`pack_operands_kernel`)."""
+    k = len(keys)
+    return keys, packed[:k], packed[k], packed[k + 1] if has_P else NO_MATRIX, has_P
+
+
+def covariance_of_operands(keys: Sequence, stack: np.ndarray, Q: np.ndarray, P: Mapping[tuple, np.ndarray]) -> np.ndarray:
+    """:meth:`LinearError.covariance` of the error of these operands (:meth:`LinearError.operands`:
+    its reference ``keys``, their Jacobians stacked, its fresh noise ``Q``) under the joint
+    covariance ``P[(s, r)]``: the same compiled calls on the same values, the same bits."""
+    if len(keys) == 1:
+        s = keys[0]
+        return covariance_one_kernel(stack[0], P[(s, s)], Q)
+    if not keys:
+        return covariance_kernel(_NO_JACOBIANS, _NO_JACOBIANS, Q)
+    return covariance_kernel(stack, np.array([P[(s, r)] for s in keys for r in keys]), Q)
+
+
 class LinearError:
     """The error of one estimate: ``e = sum_s J[s] @ e_s + n``, ``n ~ N(0, Q)`` (6-vectors).
 
@@ -404,13 +426,10 @@ class LinearError:
     def covariance(self, P: Mapping[tuple[str, str], np.ndarray]) -> np.ndarray:
         """6x6 covariance, given the joint covariance ``P[(s, r)]`` of the references' errors."""
         J = self.J
-        if len(J) == 1:  # the usual case: one reference
+        if len(J) == 1:  # the usual case: one reference, no stacked operands
             ((s, Js),) = J.items()
             return covariance_one_kernel(Js, P[(s, s)], self.Q)
-        if not J:
-            return covariance_kernel(_NO_JACOBIANS, _NO_JACOBIANS, self.Q)
-        keys = list(J)
-        return covariance_kernel(np.array(list(J.values())), np.array([P[(s, r)] for s in keys for r in keys]), self.Q)
+        return covariance_of_operands(list(J), np.array(list(J.values())) if J else _NO_JACOBIANS, self.Q, P)
 
     def cross(self, P: Mapping[tuple[str, str], np.ndarray], other: str) -> np.ndarray:
         """6x6 covariance ``E[e e_other^T]`` with reference ``other``'s error (fresh noise is independent of it)."""

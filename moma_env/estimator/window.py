@@ -635,7 +635,28 @@ class SettlingWindow(SwitchWindow):
         n, T = self._new_sample(T)
         if not isinstance(error, LinearError):
             raise TypeError(f"a settling window sample's error must be a LinearError, got {type(error).__name__}")
-        keys, stack, Q, P, has_P = error.operands()
+        return self._add(n, T, *error.operands())
+
+    def add_operands(
+        self, T: np.ndarray, keys: list, stack: np.ndarray, Q: np.ndarray, P: np.ndarray, has_P: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`add` of the error whose :meth:`~moma_env.estimator.uncertainty.LinearError.operands`
+        are ``(keys, stack, Q, P, has_P)`` (what the estimator's compiled samples give:
+        :func:`~moma_env.estimator.uncertainty.packed_operands`), without making the error.
+        ``stack``, ``Q`` and ``P`` are read, not kept. ValueError for operands of other shapes."""
+        n, T = self._new_sample(T)
+        if stack.shape != (len(keys), 6, 6) or Q.shape != (6, 6) or P.shape != (6, 6):
+            raise ValueError(
+                f"error operands must be {len(keys)} 6x6 Jacobians, a 6x6 Q and a 6x6 P, "
+                f"got shapes {stack.shape}, {Q.shape}, {P.shape}"
+            )
+        return self._add(n, T, keys, stack, Q, P, has_P)
+
+    def _add(
+        self, n: int, T: np.ndarray, keys: list, stack: np.ndarray, Q: np.ndarray, P: np.ndarray, has_P: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Store sample ``n`` (``T``, this window's copy) with the error of those operands; the
+        mean pose and the covariance of its error (:meth:`add`)."""
         if not has_P:  # the kernel's arrays writable, as always, so that it is compiled once
             P = self._out_P
         if not keys:
