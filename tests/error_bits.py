@@ -19,3 +19,16 @@ def assert_same_error(got: LinearError, want: LinearError) -> None:
     assert (got.P is None) == (want.P is None)
     if got.P is not None:
         assert same_bits(got.P, want.P)
+
+
+def random_joint(rng: np.random.Generator, keys: list) -> dict:
+    """A joint covariance of the references ``keys`` as the estimator keeps it: ``(s, s)``
+    symmetric positive semi-definite, ``(s, r)`` and ``(r, s)`` transposed."""
+    joint = {}
+    for i, s in enumerate(keys):
+        A = rng.normal(size=(6, 6))
+        joint[(s, s)] = A @ A.T
+        for r in keys[:i]:
+            C = rng.normal(size=(6, 6))
+            joint[(s, r)], joint[(r, s)] = C, C.T
+    return joint

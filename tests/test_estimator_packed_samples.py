@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from error_bits import assert_same_error, same_bits
+from error_bits import assert_same_error, random_joint, same_bits
 
 from moma_env import geometry as g
 from moma_env.estimator import Detection, EstimatorConfig, MomaEstimator
@@ -24,17 +24,6 @@ pytestmark = pytest.mark.filterwarnings("ignore:.*encountered in divide:RuntimeW
 
 KEYS = [4, 9, 2]
 NO_CORNERS = np.zeros((0, 2))
-
-
-def random_joint(rng: np.random.Generator) -> dict:
-    joint = {}
-    for i, s in enumerate(KEYS):
-        A = rng.normal(size=(6, 6))
-        joint[(s, s)] = A @ A.T
-        for r in KEYS[:i]:
-            C = rng.normal(size=(6, 6))
-            joint[(s, r)], joint[(r, s)] = C, C.T
-    return joint
 
 
 def packed_error(rng: np.random.Generator, k: int, with_P: bool) -> tuple[list, np.ndarray, bool]:
@@ -62,7 +51,7 @@ def test_packed_operands_are_the_operands_of_the_packed_error(k, with_P):
 @pytest.mark.parametrize("k", [0, 1, 3])
 def test_covariance_of_operands_is_the_error_s_covariance(k):
     rng = np.random.default_rng(k)
-    joint = random_joint(rng)
+    joint = random_joint(rng, KEYS)
     for with_P in (False, True):
         keys, packed, has_P = packed_error(rng, k, with_P)
         error = LinearError.of_packed(keys, packed, has_P)
@@ -83,7 +72,7 @@ def random_pose(rng: np.random.Generator) -> np.ndarray:
 @pytest.mark.parametrize("seed", range(4))
 def test_a_window_given_operands_keeps_what_it_keeps_given_errors(seed):
     rng = np.random.default_rng(seed)
-    joint = random_joint(rng)
+    joint = random_joint(rng, KEYS)
     by_error = SettlingWindow(25, joint=joint)
     by_operands = SettlingWindow(25, joint=joint)
     for _ in range(80):
@@ -105,7 +94,7 @@ def test_a_window_given_operands_keeps_what_it_keeps_given_errors(seed):
 
 def test_operands_of_other_shapes_are_refused_before_anything_is_stored():
     rng = np.random.default_rng(0)
-    window = SettlingWindow(3, joint=random_joint(rng))
+    window = SettlingWindow(3, joint=random_joint(rng, KEYS))
     keys, packed, has_P = packed_error(rng, 2, False)
     keys_, stack, Q, P, has_P = packed_operands(keys, packed, has_P)
     for bad in ((keys_[:1], stack, Q, P), (keys_, stack, Q[:3], P), (keys_, stack, Q, np.zeros((6, 5)))):
@@ -165,4 +154,6 @@ def test_detections_in_any_memory_order_give_the_same_estimates(layout):
             assert same_bits(got.T_w_b, want.T_w_b) and same_bits(got.covariance, want.covariance)
     kinds = [e.kind for e in c_ordered.events]
     assert "frozen" in kinds and "mobile" in kinds
-    assert [(e.time, e.robot, e.kind, e.n_samples) for e in other.events] == [(e.time, e.robot, e.kind, e.n_samples) for e in c_ordered.events]
+    assert [(e.time, e.robot, e.kind, e.n_samples) for e in other.events] == [
+        (e.time, e.robot, e.kind, e.n_samples) for e in c_ordered.events
+    ]

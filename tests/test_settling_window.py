@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from error_bits import assert_same_error, same_bits
+from error_bits import assert_same_error, random_joint, same_bits
 
 from moma_env.estimator.uncertainty import LinearError
 from moma_env.estimator.window import SettlingWindow, SwitchWindow
@@ -43,18 +43,6 @@ def reference_window_mean(errors: list[LinearError]) -> LinearError:
     return LinearError({s: Js / n for s, Js in J.items()}, (Q + (n - 1) * P) / (n * n), P / n)
 
 
-def random_joint(rng: np.random.Generator) -> dict:
-    """A joint covariance as the estimator keeps it: ``(s, r)`` and ``(r, s)`` transposed."""
-    joint = {}
-    for i, s in enumerate(KEYS):
-        A = rng.normal(size=(6, 6))
-        joint[(s, s)] = A @ A.T
-        for r in KEYS[:i]:
-            C = rng.normal(size=(6, 6))
-            joint[(s, r)], joint[(r, s)] = C, C.T
-    return joint
-
-
 def random_error(rng: np.random.Generator) -> LinearError:
     keys = [s for s in rng.permutation(KEYS).tolist() if rng.random() < 0.5]
     Q = rng.normal(size=(6, 6))
@@ -77,7 +65,7 @@ def random_pose(rng: np.random.Generator, centre: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize("seed", range(8))
 def test_one_call_gives_the_mean_and_covariance_of_the_replaced_code(seed):
     rng = np.random.default_rng(seed)
-    joint = random_joint(rng)
+    joint = random_joint(rng, KEYS)
     capacity = int(rng.integers(1, 26))
     window = SettlingWindow(capacity, joint=joint)
     reference = SwitchWindow(capacity)
@@ -106,7 +94,7 @@ def test_one_call_gives_the_mean_and_covariance_of_the_replaced_code(seed):
 
 def test_one_sample_is_its_own_mean():
     rng = np.random.default_rng(0)
-    joint = random_joint(rng)
+    joint = random_joint(rng, KEYS)
     error = random_error(rng)
     error.Q[0, 1] = -0.0
     window = SettlingWindow(5, joint=joint)
