@@ -65,6 +65,7 @@ __all__ = [
     "upright_jacobian_kernel",
     "RunningErrorMean",
     "window_mean_noise",
+    "window_mean_noise_into",
 ]
 
 
@@ -211,11 +212,27 @@ def window_mean_noise(Q_sum: np.ndarray, P_sum: np.ndarray | None, n: int) -> np
 
         Cov(mean) = (sum_i Q_i + (n - 1) sum_i P_i) / n^2
 
-    With ``P_sum`` None this is ``Q_sum / n^2``, bit for bit.
+    With ``P_sum`` None this is ``Q_sum / n^2``, bit for bit. The arithmetic is
+    :func:`window_mean_noise_into`'s (what a switch window's compiled mean computes).
     """
-    if P_sum is None:
-        return Q_sum / (n * n)
-    return (Q_sum + (n - 1) * P_sum) / (n * n)
+    Q_sum = np.asarray(Q_sum, dtype=float)
+    out = np.empty(Q_sum.shape)
+    has_P = P_sum is not None
+    window_mean_noise_into(Q_sum, np.asarray(P_sum, dtype=float) if has_P else Q_sum, has_P, n, out)
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy")  # n = 0 divides as numpy does, to NaN
+def window_mean_noise_into(Q_sum: np.ndarray, P_sum: np.ndarray, has_P: bool, n: int, out: np.ndarray) -> None:
+    """:func:`window_mean_noise` of 2-D arrays into ``out``, compiled, element by element:
+    ``(Q + (n - 1) P) / n^2``, or ``Q / n^2`` when not ``has_P`` (``P_sum`` then unread),
+    the arithmetic numpy applies to the whole arrays."""
+    for r in range(Q_sum.shape[0]):
+        for c in range(Q_sum.shape[1]):
+            if has_P:
+                out[r, c] = (Q_sum[r, c] + (n - 1) * P_sum[r, c]) / (n * n)
+            else:
+                out[r, c] = Q_sum[r, c] / (n * n)
 
 
 #: Stand-ins for an absent matrix in the compiled calls (never read: a flag says so).

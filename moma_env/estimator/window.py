@@ -8,7 +8,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from moma_env.estimator.uncertainty import LinearError, covariance_kernel, covariance_one_kernel
+from moma_env.estimator.uncertainty import LinearError, covariance_kernel, covariance_one_kernel, window_mean_noise_into
 from moma_env.geometry import polar_rotation_kernel, project_to_rotation
 
 __all__ = ["SwitchWindow", "SettlingWindow"]
@@ -362,7 +362,7 @@ def window_error_mean_kernel(
     the inliers only grow at the end (the same additions in the same order), else they
     start afresh. The mean into ``out_slots[:k]``, ``out_J[:k]``, ``out_Q``, ``out_P``:
     ``J / n``, ``(Q + (n - 1) P) / n^2`` and ``P / n`` (``Q / n^2`` without a persistent
-    part: :func:`~moma_env.estimator.uncertainty.window_mean_noise`). One sample is its own
+    part: :func:`~moma_env.estimator.uncertainty.window_mean_noise_into`). One sample is its own
     mean, copied; none (a window whose samples are not all finite may keep none) gives
     ``Q = 0 / 0`` as numpy divides (hence numpy's error model). Returns ``(k, whether the
     mean has a persistent part)``.
@@ -420,13 +420,11 @@ def window_error_mean_kernel(
         for r in range(6):
             for c in range(6):
                 out_J[b, r, c] = sum_J[b, r, c] / count
-    for r in range(6):
-        for c in range(6):
-            if has_P:
-                out_Q[r, c] = (sum_Q[r, c] + (count - 1) * sum_P[r, c]) / (count * count)
+    window_mean_noise_into(sum_Q, sum_P, has_P, count, out_Q)
+    if has_P:
+        for r in range(6):
+            for c in range(6):
                 out_P[r, c] = sum_P[r, c] / count
-            else:
-                out_Q[r, c] = sum_Q[r, c] / (count * count)
     return k, has_P
 
 
