@@ -32,3 +32,28 @@ def random_joint(rng: np.random.Generator, keys: list) -> dict:
             C = rng.normal(size=(6, 6))
             joint[(s, r)], joint[(r, s)] = C, C.T
     return joint
+
+
+def reference_mean_error(errors: list[LinearError], one_draw: bool = False) -> LinearError:
+    """The error of the mean of estimates with these errors, in plain numpy: Jacobians and
+    fresh noise averaged, the noises independent; persistent parts ``P`` one draw when
+    ``one_draw`` (a switch window's samples: ``(Q + (n - 1) P) / n^2`` and ``P / n``), else
+    independent too (``Q / n^2``, ``P / n^2``). One error is its own mean."""
+    n = len(errors)
+    if n == 1:
+        return errors[0]
+    J: dict = {}
+    Q = np.zeros((6, 6))
+    P = None
+    for e in errors:
+        for s, Js in e.J.items():
+            J[s] = J[s] + Js if s in J else Js.copy()
+        Q += e.Q
+        if e.P is not None:
+            P = e.P.copy() if P is None else P + e.P
+    mean_J = {s: Js / n for s, Js in J.items()}
+    if P is None:
+        return LinearError(mean_J, Q / (n * n))
+    if one_draw:
+        return LinearError(mean_J, (Q + (n - 1) * P) / (n * n), P / n)
+    return LinearError(mean_J, Q / (n * n), P / (n * n))

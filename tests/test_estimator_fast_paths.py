@@ -13,6 +13,7 @@ from collections import deque
 
 import numpy as np
 import pytest
+from error_bits import reference_mean_error
 
 from moma_env import geometry as g
 from moma_env.estimator import Detection, EstimatorConfig, MomaEstimator, OutlierGate, OutlierGateConfig, SwitchWindow
@@ -158,19 +159,6 @@ def test_window_accepts_what_np_array_accepts():
 
 
 # ------------------------------------------------------------------ the error model
-def reference_error_mean(errors: list[LinearError]) -> LinearError:
-    n = len(errors)
-    if n == 1:
-        return errors[0]
-    J: dict = {}
-    Q = np.zeros((6, 6))
-    for e in errors:
-        for s, Js in e.J.items():
-            J[s] = J[s] + Js if s in J else Js.copy()
-        Q += e.Q
-    return LinearError({s: Js / n for s, Js in J.items()}, Q / (n * n))
-
-
 def reference_covariance(error: LinearError, P: dict) -> np.ndarray:
     S = error.Q.copy()
     items = list(error.J.items())
@@ -212,12 +200,12 @@ def test_running_error_mean_matches_linear_error_mean(seed):
         if not errors:
             continue
         got = running.mean(errors)
-        assert same_error(got, reference_error_mean(errors))
+        assert same_error(got, reference_mean_error(errors))
         assert running.mean(list(errors)) is got
         assert same_bits(got.covariance(P), reference_covariance(got, P))
-        assert same_error(LinearError.mean(errors), reference_error_mean(errors))
+        assert same_error(LinearError.mean(errors), reference_mean_error(errors))
     running.clear()
-    assert same_error(running.mean(errors), reference_error_mean(errors))
+    assert same_error(running.mean(errors), reference_mean_error(errors))
 
 
 @pytest.mark.parametrize("seed", range(6))

@@ -3,16 +3,17 @@
 :class:`~moma_env.estimator.window.SettlingWindow` stores a sample with its error and
 returns the mean pose and the covariance of the mean's error in one call. The reference
 here is what the estimator computed before: a :class:`SwitchWindow` of the poses for the
-inliers and the mean, the window mean of the inliers' errors (the Python below, the
-former ``RunningErrorMean(window=True)``) and :meth:`LinearError.covariance` under the
-joint covariance. Every pose, covariance and error is compared bit for bit.
+inliers and the mean, the window mean of the inliers' errors (``reference_mean_error`` of
+tests/error_bits.py, as the former ``RunningErrorMean(window=True)`` computed it) and
+:meth:`LinearError.covariance` under the joint covariance. Every pose, covariance and
+error is compared bit for bit.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from error_bits import assert_same_error, random_joint, same_bits
+from error_bits import assert_same_error, random_joint, reference_mean_error, same_bits
 
 from moma_env.estimator.uncertainty import LinearError
 from moma_env.estimator.window import SettlingWindow, SwitchWindow
@@ -22,25 +23,6 @@ from moma_env.geometry import rotvec_to_matrix
 pytestmark = pytest.mark.filterwarnings("ignore:.*encountered in divide:RuntimeWarning")
 
 KEYS = [3, 7, 11]
-
-
-def reference_window_mean(errors: list[LinearError]) -> LinearError:
-    """The error of the mean of one window's samples: their persistent parts one draw."""
-    n = len(errors)
-    if n == 1:
-        return errors[0]
-    J: dict = {}
-    Q = np.zeros((6, 6))
-    P = None
-    for e in errors:
-        for s, Js in e.J.items():
-            J[s] = J[s] + Js if s in J else Js.copy()
-        Q += e.Q
-        if e.P is not None:
-            P = e.P.copy() if P is None else P + e.P
-    if P is None:
-        return LinearError({s: Js / n for s, Js in J.items()}, Q / (n * n))
-    return LinearError({s: Js / n for s, Js in J.items()}, (Q + (n - 1) * P) / (n * n), P / n)
 
 
 def random_error(rng: np.random.Generator) -> LinearError:
@@ -81,7 +63,7 @@ def test_one_call_gives_the_mean_and_covariance_of_the_replaced_code(seed):
         reference.append(T, error)
         want_pose = reference.mean()
         inliers = reference.inliers()
-        want_error = reference_window_mean(reference.payloads(inliers))
+        want_error = reference_mean_error(reference.payloads(inliers), one_draw=True)
         assert window.inliers() == inliers
         assert same_bits(pose, want_pose) and same_bits(window.mean(), want_pose)
         assert same_bits(covariance, want_error.covariance(joint))
