@@ -144,24 +144,13 @@ def test_batch_rewards_and_flags_are_one_array_per_agent_as_before(num_envs: int
     rng = np.random.default_rng(0)
     for _ in range(30):
         actions = envs.sample_actions(rng)
-        seen: list[tuple] = []
+        pending: list[Any] = []  # each copy's step, whose result is its copy's values
         for env in envs.envs:
             original = env.begin_step
 
             def begin_step(a: Any, original: Any = original) -> Any:
-                pending = original(a)
-                finish = pending.finish
-
-                class Recorded:
-                    camera_requests = pending.camera_requests
-
-                    @staticmethod
-                    def finish(detections: Any) -> Any:
-                        out = finish(detections)
-                        seen.append(out)
-                        return out
-
-                return Recorded()
+                pending.append(original(a))
+                return pending[-1]
 
             env.begin_step = begin_step  # type: ignore[method-assign]
         try:
@@ -169,6 +158,7 @@ def test_batch_rewards_and_flags_are_one_array_per_agent_as_before(num_envs: int
         finally:
             for env in envs.envs:
                 del env.begin_step
+        seen = [step.result for step in pending]
         for a in envs.possible_agents:
             for got, index, dtype in ((rewards, 1, np.float64), (terminations, 2, bool), (truncations, 3, bool)):
                 expected = np.array([out[index][a] for out in seen], dtype=dtype)

@@ -61,7 +61,7 @@ from moma_env.geometry import se3_to_se2
 from moma_env.scenarios import Scenario
 from moma_env.sim import Frame, Simulation, measured
 
-__all__ = ["MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep"]
+__all__ = ["MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep", "run_phases"]
 
 #: Status -> its name in infos (``"localised"``, ...): read from a table, not from the enum's ``name`` each time.
 _STATUS_NAMES: Mapping[Status, str] = MappingProxyType({status: status.name.lower() for status in Status})
@@ -90,31 +90,136 @@ def checked_seed(seed: object) -> int | None:
 
 
 class PendingStep:
-    """An env step between its physics and its cameras (:meth:`MomaParallelEnv.begin_step`).
+    """An env step run in phases (:meth:`MomaParallelEnv.begin_step`), so that a batch can run
+    each phase for every copy before the next phase (:func:`run_phases`).
+
+    The phases, in order: the actions checked and applied with the state requests (run by
+    ``begin_step``); the robots' commands; the observers' commands; the world's control step;
+    the camera requests of the new scene (then the step awaits their detections); the
+    localiser's update; the step's frame; the rewards; the observations; the infos. Every
+    step of an env has the same phases.
 
     Attributes:
         camera_requests: what the cameras are asked to measure in the moved scene
-            (:class:`~moma_env.camera.MeasureRequest`), in the order of their detections.
+            (:class:`~moma_env.camera.MeasureRequest`), in the order of their detections;
+            None until the step reaches its cameras.
+        result: ``(observations, rewards, terminations, truncations, infos)`` once the step
+            has finished, else None.
     """
 
-    __slots__ = ("camera_requests", "_stages", "_finished")
+    __slots__ = ("camera_requests", "result", "_phases", "_detections", "_state")
 
-    def __init__(self, camera_requests: tuple, stages: Generator):
-        self.camera_requests = camera_requests
-        self._stages = stages
-        self._finished = False
+    def __init__(self, phases: Generator):
+        self.camera_requests: tuple | None = None
+        self.result: tuple[dict, dict, dict, dict, dict] | None = None
+        self._phases = phases
+        self._detections: Sequence[Any] | None = None
+        self._state = _RUNNING
+
+    def advance(self) -> bool:
+        """Run the step's next phase. True if another phase can run now; False once the step
+        awaits the detections of its :attr:`camera_requests` (:meth:`detected`) or has
+        finished (:attr:`result`)."""
+        state = self._state
+        if state is not _RUNNING:
+            raise RuntimeError(
+                "this step is finished already" if state is _DONE
+                else "the step awaits the detections of its camera requests; pass them to detected() first"
+            )
+        detections, self._detections = self._detections, None
+        try:
+            value = self._phases.send(detections)  # None except in the phase after the cameras
+        except StopIteration as done:
+            self._state = _DONE
+            self.result = done.value
+            return False
+        except BaseException:
+            self._state = _DONE
+            raise
+        if value is not None:
+            self.camera_requests = value
+            self._state = _AWAITING
+            return False
+        return True
+
+    def detected(self, detections: Sequence[Any]) -> None:
+        """Hand the step the detections of its :attr:`camera_requests` (all of them, in order,
+        in one sequence); the next :meth:`advance` runs the localiser on them."""
+        if self._state is not _AWAITING:
+            raise RuntimeError(
+                "this step is finished already" if self._state is _DONE
+                else "the step has not reached its cameras; run its phases first (to_cameras())"
+            )
+        self._detections = detections
+        self._state = _RUNNING
+
+    def to_cameras(self) -> tuple:
+        """Run the phases up to the cameras; the :attr:`camera_requests`. (:meth:`advance`
+        until it returns False, in one loop: the single env's step.)"""
+        state = self._state
+        if state is _AWAITING:
+            return self.camera_requests
+        if state is _DONE:
+            raise RuntimeError("this step is finished already")
+        phases = self._phases
+        self._state = _DONE  # until the cameras are reached (an error ends the step)
+        requests = None
+        try:
+            while requests is None:
+                requests = next(phases)  # the step's phases before the cameras yield None
+        except StopIteration:  # pragma: no cover - every step has cameras
+            raise RuntimeError("the env's step ended before its cameras") from None
+        self.camera_requests = requests
+        self._state = _AWAITING
+        return requests
 
     def finish(self, detections: Sequence[Any]) -> tuple[dict, dict, dict, dict, dict]:
         """The step's ``(observations, rewards, terminations, truncations, infos)`` given the
-        detections of :attr:`camera_requests` (all of them, in order, in one sequence)."""
-        if self._finished:
-            raise RuntimeError("this step is finished already")
-        self._finished = True
+        detections of :attr:`camera_requests` (all of them, in order, in one sequence): the
+        phases after the cameras, run to the end (:meth:`detected`, then :meth:`advance`
+        until it returns False, in one loop)."""
+        if self._state is not _AWAITING:
+            self.detected(detections)  # raises the state's error
+        phases = self._phases
+        self._state = _DONE
         try:
-            self._stages.send(detections)
+            phases.send(detections)
+            while True:
+                next(phases)
         except StopIteration as done:
-            return done.value
-        raise RuntimeError("the env's step did not finish")  # pragma: no cover - the stages yield once
+            self.result = done.value
+        return self.result
+
+
+#: The states of a :class:`PendingStep`.
+_RUNNING, _AWAITING, _DONE = "running", "awaiting detections", "done"
+
+
+def run_phases(steps: Sequence[PendingStep], measure: Callable[[list[tuple]], Sequence[Sequence[Any]]]) -> list[tuple]:
+    """Finish ``steps`` (begun by :meth:`MomaParallelEnv.begin_step`, one per env) phase by
+    phase: every step runs a phase before any runs the next, and the camera requests of all
+    of them are measured together, ``measure(requests)`` -> each step's detections.
+
+    Each env runs the same code on its own state as in its own :meth:`~MomaParallelEnv.step`
+    (envs share nothing), so the results are those of stepping the envs one after the other,
+    bit for bit. Running a phase for every env in turn keeps that phase's code and data in
+    the processor's caches, which running each env's whole step in turn does not
+    (docs/vector.md measures it). Returns each step's :attr:`PendingStep.result`, in order.
+    """
+    if len(steps) == 1:  # the same order of phases, run in PendingStep's own loops
+        step = steps[0]
+        (found,) = measure([step.to_cameras()])
+        return [step.finish(found)]
+    running = list(steps)
+    while running:
+        running = [step for step in running if step.advance()]
+    detections = measure([step.camera_requests for step in steps])
+    for step, found in zip(steps, detections, strict=True):
+        step.detected(found)
+    running = list(steps)
+    while running:
+        running = [step for step in running if step.advance()]
+    return [step.result for step in steps]
 
 
 class MomaParallelEnv(ParallelEnv):
@@ -382,16 +487,17 @@ class MomaParallelEnv(ParallelEnv):
     # ------------------------------------------------------------------ step
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         pending = self.begin_step(actions)
-        return pending.finish(self.measure(pending.camera_requests))
+        return pending.finish(self.measure(pending.to_cameras()))
 
     def begin_step(self, actions: Mapping[str, Any]) -> PendingStep:
-        """:meth:`step` up to the cameras: the actions are checked and applied and the world
-        moves; the returned :class:`PendingStep` holds the camera requests of the new scene
-        and finishes the step on their detections. ``step(a)`` is
-        ``begin_step(a).finish(<the requests measured>)``; a vector env measures the
-        requests of all its copies in one batch between the two."""
-        stages = self._stages(actions)
-        return PendingStep(next(stages), stages)
+        """:meth:`step` in phases: the actions are checked and applied (the first phase, run
+        now: a bad action raises here); the returned :class:`PendingStep` runs the others.
+        ``step(a)`` is ``p = begin_step(a)``, ``p.finish(<p.to_cameras() measured>)``; a vector
+        env runs each phase of every copy's step before the next (:func:`run_phases`) and
+        measures the camera requests of all its copies in one batch."""
+        pending = PendingStep(self._stages(actions))
+        pending.advance()
+        return pending
 
     def _stages(self, actions: Mapping[str, Any]) -> Generator[tuple, Sequence[Any], tuple[dict, dict, dict, dict, dict]]:
         agents = self.agents  # the step's agents (the list is replaced, not changed, when the episode ends)
@@ -432,13 +538,17 @@ class MomaParallelEnv(ParallelEnv):
                 n_switch += 1
                 note(switch.device, f"{switch.kind}:{switch.device}")
         mode.granted(sim, switches)
+        yield None  # the phases of PendingStep's docstring; each ``yield None`` ends one
 
         # 2. Commands, 3. physics, cameras, localiser.
         velocities = mode.commands(parsed, sim, note)
-        detections = yield sim.move(velocities, self._uav_command(observer_actions))
-        frame = sim.localise(detections)
+        yield None
+        uav_command = self._uav_command(observer_actions)
+        yield None
+        frame = yield from sim.phases(velocities, uav_command)  # yields the camera requests
         if mode.after_step(sim, note):
             frame = sim.refresh()
+        yield None
 
         # 4. Rewards, terminations, observations.
         reward = self._reward.step(frame, n_switch, n_refused)
@@ -448,7 +558,9 @@ class MomaParallelEnv(ParallelEnv):
         self._refused_total += n_refused
         done = self._reward.done
         truncate = frame.steps >= self._max_cycles
+        yield None
         observations = self._observations(frame)
+        yield None
         rewards = dict.fromkeys(agents, reward.total)
         terminations = dict.fromkeys(agents, done)
         truncations = dict.fromkeys(agents, truncate and not done)

@@ -6,10 +6,11 @@ copies of a ``MultiAgentEnv`` and steps them one after the other
 (``SyncVectorMultiAgentEnv``); it has no hook for an env that steps its copies
 together. :class:`MomaVectorEnvRunner` (``PPOConfig().env_runners(env_runner_cls=...)``)
 builds :class:`BatchedMultiAgentEnv` instead: ``num_envs_per_env_runner`` copies of
-the configuration's parallel env whose step begins every copy's step up to the
-cameras (:meth:`MomaParallelEnv.begin_step`), measures all copies' camera requests in
-one call (:func:`moma_env.vector.env.measure_copies`, as :class:`moma_env.vector.MomaVectorEnv`
-does) and finishes each copy. It follows RLlib's vector contract: per-copy dicts of
+the configuration's parallel env whose step runs the phases of every copy's step
+(:meth:`MomaParallelEnv.begin_step`) one phase for every copy before the next, with all
+copies' camera requests measured in one call (:func:`moma_env.env.parallel.run_phases`
+with :func:`moma_env.vector.env.measure_copies`, as :class:`moma_env.vector.MomaVectorEnv`
+does). It follows RLlib's vector contract: per-copy dicts of
 agents, ``"__all__"`` in the done flags, and ``next_step`` autoreset (a copy whose
 episode ended is reset at the next step, with zero rewards, instead of stepped). Copy
 ``i`` of a ``reset(seed=s)`` is reset with ``s + i``.
@@ -28,7 +29,7 @@ from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 from ray.rllib.env.vector.vector_multi_agent_env import VectorMultiAgentEnv
 
 from moma_env.config import ConfigError, check_count
-from moma_env.env.parallel import MomaParallelEnv
+from moma_env.env.parallel import MomaParallelEnv, run_phases
 from moma_env.integrations.rllib_env import MaskedObservations, masked_parallel_env
 from moma_env.vector.env import measure_copies
 
@@ -121,9 +122,7 @@ class BatchedMultiAgentEnv(VectorMultiAgentEnv):
             else:
                 stepping.append(i)
                 pending.append(self._raw(copy).begin_step(actions[i]))
-        detections = measure_copies([p.camera_requests for p in pending])
-        for i, p, found in zip(stepping, pending, detections):
-            obs, rew, term, trunc, info = p.finish(found)
+        for i, (obs, rew, term, trunc, info) in zip(stepping, run_phases(pending, measure_copies), strict=True):
             observations[i] = self._observe(self.copies[i], obs)
             rewards[i] = dict(rew)
             terminateds[i] = _done(term)

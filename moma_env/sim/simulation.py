@@ -23,7 +23,7 @@ seconds; the localiser's world frame is fixed by the UGVs' initial poses.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -175,7 +175,8 @@ class Simulation:
         self.device_positions: list[tuple[str, tuple[float, float]]] = []
         self._localiser: Localiser | None = None
         self._frame: Frame | None = None
-        self._awaiting = None
+        self._stepping = False  # between the world's move and the localiser's update of a step
+        self._localising: Generator | None = None  # the phases move() began, for localise()
         self._references: tuple[frozenset[str], frozenset[str]] | None = None
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -297,7 +298,8 @@ class Simulation:
         self._steps = 0
         self._switches: list[Switch] = []
         self._localiser = self._new_localiser()
-        self._awaiting: tuple[MeasureRequest, ...] | None = None
+        self._stepping = False
+        self._localising = None
         if self._measure_at_reset:
             self._detections = measured(self._camera_requests())
             self._localiser.update(self.world.time, self._detections)
@@ -452,6 +454,32 @@ class Simulation:
         """
         return self.localise(measured(self.move(velocities, uav)))
 
+    def phases(self, velocities: Mapping[str, Any], uav: Any = None) -> Generator[tuple[MeasureRequest, ...] | None, Sequence[Any] | None, Frame]:
+        """:meth:`advance` as a generator of its phases, for a caller that steps many
+        simulations phase by phase (:func:`moma_env.env.parallel.run_phases`).
+
+        Each resumption runs one phase: the world moves one control step (then the
+        generator yields None); the camera requests of the new scene are made (it yields
+        them: send their detections back, in their order, as :meth:`localise` takes them);
+        the localiser updates on them (it yields None); the step's :class:`Frame` is made
+        (returned as the generator's value). :meth:`move` and :meth:`localise` are its
+        first two and last two phases.
+        """
+        self._require_started()
+        if self._stepping:
+            raise RuntimeError("move() called twice; localise() the measured requests first")
+        self.world.step(velocities, uav)
+        self._steps += 1
+        self._stepping = True
+        yield None
+        detections = yield self._camera_requests()
+        self._stepping = False
+        self._detections = list(detections)
+        self._localiser.update(self.world.time, self._detections)
+        yield None
+        self._frame = self._snapshot()
+        return self._frame
+
     def move(self, velocities: Mapping[str, Any], uav: Any = None) -> tuple[MeasureRequest, ...]:
         """The first half of :meth:`advance`: the world moves one control step; returns what
         the cameras are asked to measure in the new scene, for :meth:`localise`.
@@ -459,24 +487,25 @@ class Simulation:
         A caller stepping many simulations measures all their requests at once
         (:func:`moma_env.camera.measure_batch`) and hands each its detections.
         """
-        self._require_started()
-        if self._awaiting is not None:
-            raise RuntimeError("move() called twice; localise() the measured requests first")
-        self.world.step(velocities, uav)
-        self._steps += 1
-        self._awaiting = self._camera_requests()
-        return self._awaiting
+        phases = self.phases(velocities, uav)
+        next(phases)
+        requests = next(phases)
+        self._localising = phases
+        return requests
 
     def localise(self, detections: Sequence[Any]) -> Frame:
         """The second half of :meth:`advance`: the localiser updates on ``detections`` (those
         of the requests :meth:`move` returned, in their order); the step's :class:`Frame`."""
-        if self._awaiting is None:
+        phases = self._localising
+        if phases is None:
             raise RuntimeError("localise() without move(): no camera requests are awaiting detections")
-        self._awaiting = None
-        self._detections = list(detections)
-        self._localiser.update(self.world.time, self._detections)
-        self._frame = self._snapshot()
-        return self._frame
+        self._localising = None
+        phases.send(detections)
+        try:
+            next(phases)
+        except StopIteration as done:
+            return done.value
+        raise RuntimeError("the simulation's step did not end after the localiser")  # pragma: no cover - three yields
 
     def step(self, commands: Commands) -> Frame:
         """:meth:`request`, the reels, then :meth:`advance`: one step of a caller without an executive."""

@@ -5,9 +5,10 @@
 own step (:class:`~moma_env.env.parallel.MomaParallelEnv` over its
 :class:`~moma_env.sim.Simulation`): one implementation of the camera, the
 estimator, the rules, the rewards and the observations, whatever ``num_envs`` is.
-A batch step begins every copy's step (actions, rules, physics), measures the
-camera requests of all copies together, then finishes every copy's step on its
-detections (localiser, rewards, observations).
+A batch step runs the phases of every copy's step (:class:`~moma_env.env.parallel.PendingStep`:
+actions and rules, commands, physics, camera requests, then, after the camera requests of
+all copies are measured together, localiser, frame, rewards, observations, infos) one
+phase for every copy before the next (:func:`~moma_env.env.parallel.run_phases`).
 
 Arrays, per agent of ``possible_agents`` (every copy has the same agents):
 
@@ -50,7 +51,7 @@ from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
 from moma_env.env.agent_names import is_observer_agent
-from moma_env.env.parallel import MomaParallelEnv, checked_seed
+from moma_env.env.parallel import MomaParallelEnv, checked_seed, run_phases
 from moma_env.vector.collection import deferred_collection
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.camera import MeasureRequest, measure_batch
@@ -233,11 +234,9 @@ class MomaVectorEnv:
             column = checked[a]
             columns.append((a, column.tolist() if column.ndim == 1 else column))
         pending = [env.begin_step({a: column[i] for a, column in columns}) for i, env in enumerate(envs)]
-        detections = self.measure([p.camera_requests for p in pending])
         # Each copy's (observations, rewards, terminations, truncations, infos).
         results = []
-        for env, step, found in zip(envs, pending, detections, strict=True):
-            result = step.finish(found)
+        for env, result in zip(envs, run_phases(pending, self.measure), strict=True):
             if not env.agents:
                 obs, rew, term, trunc, info = result
                 final = {"final_observation": obs, "final_info": info, "final_state": env.state(), "final_time": env.frame.time}
