@@ -9,7 +9,7 @@ import pytest
 
 from moma_env.camera import make_camera
 from moma_env.env.factory import parallel_env
-from moma_env.env.parallel import run_phases
+from moma_env.env.parallel import MEASUREMENT, STEP_PHASES, run_phases
 from moma_env.scenarios import make_scenario
 from moma_env.sim import Simulation, measured
 from moma_env.vector.env import measure_copies
@@ -156,3 +156,17 @@ def test_a_simulation_refuses_a_second_move_and_a_localise_without_move():
     with pytest.raises(RuntimeError, match="without move"):
         sim.localise([])
     sim.advance({})  # after a refused call the simulation steps on
+
+
+@pytest.mark.parametrize("n", [1, 3])
+def test_timed_phases_give_the_same_steps_and_time_every_phase(n):
+    timed, untimed = envs("top_observer", n, action_mode="switching"), envs("top_observer", n, action_mode="switching")
+    seconds = {}
+    rng = np.random.default_rng(2)
+    for _ in range(5):
+        actions = [random_actions(env, rng) for env in timed]
+        got = run_phases([env.begin_step(a) for env, a in zip(timed, actions)], measure_copies, seconds)
+        expected = run_phases([env.begin_step(a) for env, a in zip(untimed, actions)], measure_copies)
+        assert text(got) == text(expected)
+    assert set(seconds) == {*STEP_PHASES[1:], MEASUREMENT}
+    assert all(value > 0 for value in seconds.values())

@@ -16,7 +16,8 @@ interleaved rounds of one run:
 
 and prints each rate's best and median over the rounds, its ratio to MPE2's rate
 of the same round (best and median), and the breakdown of one MOMA batch step by
-stage (camera, estimator, world, the garbage collector, the rest) at the largest ``num_envs``,
+stage (each phase of the copies' steps, the cameras' measurement, the garbage collector,
+the rest) at the largest ``num_envs``,
 and each target of :data:`TARGET_BATCH`, :data:`TARGET_ONE_COPY` and :data:`TARGET_UGV_COST`
 met or missed (:func:`target_lines`). An
 env-step is one step of one copy. ``--memory-steps N`` instead prints the resident
@@ -102,47 +103,43 @@ def vmas_rate(num_envs: int, min_env_steps: int, seed: int = 0) -> float | None:
 
 
 def stage_breakdown(envs, batches: Sequence[dict[str, np.ndarray]], batch_steps: int) -> dict[str, float]:
-    """Mean milliseconds of one batch step and of its stages: ``camera`` (the batch
-    measurement of every copy's cameras, ``envs.measure``), ``estimator`` (every copy's
-    localiser ``update``), ``world`` (every copy's ``World.step``), ``gc`` (Python's
-    cyclic garbage collector, wherever it ran: :mod:`moma_env.vector.collection` runs it
-    at the end of a batch step, outside the other stages) and ``rest`` (rules, action
-    modes, rewards, observations, stacking). Copies reset by autoreset during the run
-    are re-wrapped."""
+    """Mean milliseconds of one batch step and of its stages: each phase of the copies'
+    steps (:data:`~moma_env.env.parallel.STEP_PHASES`, every copy's: ``physics`` the
+    world's control steps, ``localiser`` the estimator's updates, ...) and the cameras'
+    batch measurement (:data:`~moma_env.env.parallel.MEASUREMENT`), from the batch's
+    ``phase_seconds``; ``gc`` (Python's cyclic garbage collector, wherever it ran:
+    :mod:`moma_env.vector.collection` runs it at the end of a batch step, after the
+    phases); and ``rest`` (what a batch step does outside them: checking the actions,
+    stacking the copies' outputs, the autoresets)."""
     import gc
 
-    from training.bench_common import time_calls
+    from moma_env.env.parallel import MEASUREMENT, STEP_PHASES
 
-    totals = {"camera": 0.0, "estimator": 0.0, "world": 0.0, "gc": 0.0}
+    seconds: dict[str, float] = {}
     collecting: list[float] = []
+    collected = [0.0]
 
     def collector(phase: str, info: dict) -> None:
         if phase == "start":
             collecting.append(time.perf_counter())
         elif collecting:
-            totals["gc"] += time.perf_counter() - collecting.pop()
+            collected[0] += time.perf_counter() - collecting.pop()
 
-    time_calls(envs, "measure", totals, "camera")
-
-    def instrument() -> None:
-        for env in envs.envs:
-            sim = env.simulation
-            time_calls(sim.localiser, "update", totals, "estimator")
-            time_calls(sim.world, "step", totals, "world")
-
-    instrument()
+    envs.phase_seconds = seconds
     gc.callbacks.append(collector)
     try:
         start = time.perf_counter()
         for i in range(batch_steps):
             envs.step(batches[i % len(batches)])
-            instrument()
         elapsed = time.perf_counter() - start
     finally:
         gc.callbacks.remove(collector)
+        envs.phase_seconds = None
     out = {"batch step": elapsed / batch_steps * 1e3}
-    out.update({key: value / batch_steps * 1e3 for key, value in totals.items()})
-    out["rest"] = out["batch step"] - out["camera"] - out["estimator"] - out["world"] - out["gc"]
+    for key in (*STEP_PHASES[:5], MEASUREMENT, *STEP_PHASES[5:]):
+        out[key] = seconds.get(key, 0.0) / batch_steps * 1e3
+    out["gc"] = collected[0] / batch_steps * 1e3
+    out["rest"] = out["batch step"] - sum(value for key, value in out.items() if key != "batch step")
     return out
 
 
@@ -286,7 +283,7 @@ def format_vector_bench(result: dict) -> str:
     lines.append(f"one batch step of top_observer switching at num_envs={result['breakdown_num_envs']}:")
     breakdown = result["breakdown_ms"]
     for key, value in breakdown.items():
-        lines.append(f"  {key:<12}{value:9.2f} ms")
+        lines.append(f"  {key:<20}{value:9.2f} ms")
     stages = {k: v for k, v in breakdown.items() if k != "batch step"}
     bound = max(stages, key=stages.get)
     lines.append(

@@ -38,6 +38,7 @@ Seeds follow Gymnasium: ``reset(seed=None)`` or a non-negative integer.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Generator, Mapping, Sequence
 from numbers import Integral
 from types import MappingProxyType
@@ -61,7 +62,7 @@ from moma_env.geometry import se3_to_se2
 from moma_env.scenarios import Scenario
 from moma_env.sim import Frame, Simulation, measured
 
-__all__ = ["MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep", "run_phases"]
+__all__ = ["MEASUREMENT", "MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep", "STEP_PHASES", "run_phases"]
 
 #: Status -> its name in infos (``"localised"``, ...): read from a table, not from the enum's ``name`` each time.
 _STATUS_NAMES: Mapping[Status, str] = MappingProxyType({status: status.name.lower() for status in Status})
@@ -93,11 +94,11 @@ class PendingStep:
     """An env step run in phases (:meth:`MomaParallelEnv.begin_step`), so that a batch can run
     each phase for every copy before the next phase (:func:`run_phases`).
 
-    The phases, in order: the actions checked and applied with the state requests (run by
-    ``begin_step``); the robots' commands; the observers' commands; the world's control step;
-    the camera requests of the new scene (then the step awaits their detections); the
-    localiser's update; the step's frame; the rewards; the observations; the infos. Every
-    step of an env has the same phases.
+    The phases, in order (:data:`STEP_PHASES`): the actions checked and applied with the
+    state requests (run by ``begin_step``); the robots' commands; the observers' commands;
+    the world's control step; the camera requests of the new scene (then the step awaits
+    their detections); the localiser's update; the step's frame; the rewards; the
+    observations; the infos. Every step of an env has the same phases.
 
     Attributes:
         camera_requests: what the cameras are asked to measure in the moved scene
@@ -194,8 +195,21 @@ class PendingStep:
 #: The states of a :class:`PendingStep`.
 _RUNNING, _AWAITING, _DONE = "running", "awaiting detections", "done"
 
+#: The phases of an env's step, in order (:class:`PendingStep`); the first is run by
+#: :meth:`MomaParallelEnv.begin_step`, the fifth ends with the camera requests.
+STEP_PHASES = (
+    "actions", "commands", "observer commands", "physics", "camera requests",
+    "localiser", "frame", "rewards", "observations", "infos",
+)
+#: The key of the cameras' measurement in :func:`run_phases`'s ``seconds``.
+MEASUREMENT = "camera measurement"
 
-def run_phases(steps: Sequence[PendingStep], measure: Callable[[list[tuple]], Sequence[Sequence[Any]]]) -> list[tuple]:
+
+def run_phases(
+    steps: Sequence[PendingStep],
+    measure: Callable[[list[tuple]], Sequence[Sequence[Any]]],
+    seconds: dict[str, float] | None = None,
+) -> list[tuple]:
     """Finish ``steps`` (begun by :meth:`MomaParallelEnv.begin_step`, one per env) phase by
     phase: every step runs a phase before any runs the next, and the camera requests of all
     of them are measured together, ``measure(requests)`` -> each step's detections.
@@ -205,21 +219,39 @@ def run_phases(steps: Sequence[PendingStep], measure: Callable[[list[tuple]], Se
     bit for bit. Running a phase for every env in turn keeps that phase's code and data in
     the processor's caches, which running each env's whole step in turn does not
     (docs/vector.md measures it). Returns each step's :attr:`PendingStep.result`, in order.
+
+    ``seconds``: if given, the wall time of each phase after the first (for all the steps,
+    keys of :data:`STEP_PHASES`) and of the measurement (:data:`MEASUREMENT`) is added to it.
     """
-    if len(steps) == 1:  # the same order of phases, run in PendingStep's own loops
+    if seconds is None and len(steps) == 1:  # the same order of phases, run in PendingStep's own loops
         step = steps[0]
         (found,) = measure([step.to_cameras()])
         return [step.finish(found)]
+    clock = time.perf_counter if seconds is not None else None
+    phases = iter(STEP_PHASES[1:])
     running = list(steps)
     while running:
+        start = clock() if clock else 0.0
         running = [step for step in running if step.advance()]
+        if clock:
+            _add(seconds, next(phases), clock() - start)
+    start = clock() if clock else 0.0
     detections = measure([step.camera_requests for step in steps])
+    if clock:
+        _add(seconds, MEASUREMENT, clock() - start)
     for step, found in zip(steps, detections, strict=True):
         step.detected(found)
     running = list(steps)
     while running:
+        start = clock() if clock else 0.0
         running = [step for step in running if step.advance()]
+        if clock:
+            _add(seconds, next(phases), clock() - start)
     return [step.result for step in steps]
+
+
+def _add(seconds: dict[str, float], key: str, value: float) -> None:
+    seconds[key] = seconds.get(key, 0.0) + value
 
 
 class MomaParallelEnv(ParallelEnv):

@@ -43,6 +43,7 @@ copy, that copy's masks are computed anew.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -51,7 +52,7 @@ from gymnasium import spaces
 
 from moma_env.env.factory import parallel_env
 from moma_env.env.agent_names import is_observer_agent
-from moma_env.env.parallel import MomaParallelEnv, checked_seed, run_phases
+from moma_env.env.parallel import STEP_PHASES, MomaParallelEnv, checked_seed, run_phases
 from moma_env.vector.collection import deferred_collection
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.camera import MeasureRequest, measure_batch
@@ -167,6 +168,11 @@ class MomaVectorEnv:
         #: detections (:func:`measure_copies`); an instance attribute, so a benchmark can
         #: time it by wrapping it.
         self.measure: Callable[[Sequence[Sequence[MeasureRequest]]], list[list[Any]]] = measure_copies
+        #: None, or a dict to which every batch step adds the wall time (s) of each phase of its
+        #: copies' steps (keys of :data:`~moma_env.env.parallel.STEP_PHASES`) and of the cameras'
+        #: measurement (:data:`~moma_env.env.parallel.MEASUREMENT`): what ``moma-env bench
+        #: --vector`` breaks a batch step into.
+        self.phase_seconds: dict[str, float] | None = None
 
     # ------------------------------------------------------------------ spaces
     @property
@@ -233,10 +239,14 @@ class MomaVectorEnv:
         for a in agents:
             column = checked[a]
             columns.append((a, column.tolist() if column.ndim == 1 else column))
+        seconds = self.phase_seconds
+        start = time.perf_counter() if seconds is not None else 0.0
         pending = [env.begin_step({a: column[i] for a, column in columns}) for i, env in enumerate(envs)]
+        if seconds is not None:
+            seconds[STEP_PHASES[0]] = seconds.get(STEP_PHASES[0], 0.0) + time.perf_counter() - start
         # Each copy's (observations, rewards, terminations, truncations, infos).
         results = []
-        for env, result in zip(envs, run_phases(pending, self.measure), strict=True):
+        for env, result in zip(envs, run_phases(pending, self.measure, seconds), strict=True):
             if not env.agents:
                 obs, rew, term, trunc, info = result
                 final = {"final_observation": obs, "final_info": info, "final_state": env.state(), "final_time": env.frame.time}
