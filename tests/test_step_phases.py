@@ -170,3 +170,31 @@ def test_timed_phases_give_the_same_steps_and_time_every_phase(n):
         assert text(got) == text(expected)
     assert set(seconds) == {*STEP_PHASES[1:], MEASUREMENT}
     assert all(value > 0 for value in seconds.values())
+
+
+def test_a_batch_stepped_in_chunks_is_the_batch_stepped_at_once(monkeypatch):
+    import moma_env.vector.env as vector_env
+    from moma_env import vector
+
+    def batch():
+        envs = vector.make("top_observer", 7, action_mode="switching", max_cycles=12)
+        envs.reset(seed=4)
+        return envs
+
+    whole, chunked = batch(), batch()
+    measured_sizes = []
+
+    def counting(requests):
+        measured_sizes.append(len(requests))
+        return measure_copies(requests)
+
+    chunked.measure = counting
+    rng = np.random.default_rng(1)
+    for _ in range(30):  # episodes end (max_cycles 12) and the copies reset themselves
+        actions = whole.sample_actions(rng)
+        expected = whole.step(actions)
+        monkeypatch.setattr(vector_env, "PHASE_CHUNK", 3)
+        got = chunked.step(actions)
+        monkeypatch.undo()
+        assert text(got) == text(expected)
+    assert measured_sizes == [3, 3, 1] * 30  # every step in chunks of 3, 3 and 1 copies

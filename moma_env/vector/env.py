@@ -7,8 +7,9 @@ own step (:class:`~moma_env.env.parallel.MomaParallelEnv` over its
 estimator, the rules, the rewards and the observations, whatever ``num_envs`` is.
 A batch step runs the phases of every copy's step (:class:`~moma_env.env.parallel.PendingStep`:
 actions and rules, commands, physics, camera requests, then, after the camera requests of
-all copies are measured together, localiser, frame, rewards, observations, infos) one
-phase for every copy before the next (:func:`~moma_env.env.parallel.run_phases`).
+the copies are measured together, localiser, frame, rewards, observations, infos) one
+phase for every copy before the next (:func:`~moma_env.env.parallel.run_phases`), in
+chunks of at most :data:`PHASE_CHUNK` copies.
 
 Arrays, per agent of ``possible_agents`` (every copy has the same agents):
 
@@ -57,10 +58,16 @@ from moma_env.vector.collection import deferred_collection
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.camera import MeasureRequest, measure_batch
 
-__all__ = ["FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "masks_in_infos"]
+__all__ = ["FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "PHASE_CHUNK", "masks_in_infos"]
 
 #: The keys the autoreset adds to a copy's infos (see the module docstring).
 FINAL_KEYS = ("final_observation", "final_info", "final_state", "final_time", "final_action_masks")
+
+#: A batch step runs its copies in chunks of at most this many, each chunk phase by phase
+#: (:func:`~moma_env.env.parallel.run_phases`) with its cameras measured together: the
+#: copies' state of a chunk stays in the processor's caches from one phase to the next,
+#: which that of 1,024 copies does not (docs/speed_history.md#chunks-of-64-copies).
+PHASE_CHUNK = 64
 
 
 def masks_in_infos(infos: Sequence[Mapping[str, Any]], agents: Sequence[str]) -> dict[str, np.ndarray] | None:
@@ -240,13 +247,16 @@ class MomaVectorEnv:
             column = checked[a]
             columns.append((a, column.tolist() if column.ndim == 1 else column))
         seconds = self.phase_seconds
-        start = time.perf_counter() if seconds is not None else 0.0
-        pending = [env.begin_step({a: column[i] for a, column in columns}) for i, env in enumerate(envs)]
-        if seconds is not None:
-            seconds[STEP_PHASES[0]] = seconds.get(STEP_PHASES[0], 0.0) + time.perf_counter() - start
+        stepped: list[tuple] = []
+        for first in range(0, len(envs), PHASE_CHUNK):
+            start = time.perf_counter() if seconds is not None else 0.0
+            pending = [env.begin_step({a: column[i] for a, column in columns}) for i, env in enumerate(envs[first : first + PHASE_CHUNK], first)]
+            if seconds is not None:
+                seconds[STEP_PHASES[0]] = seconds.get(STEP_PHASES[0], 0.0) + time.perf_counter() - start
+            stepped.extend(run_phases(pending, self.measure, seconds))
         # Each copy's (observations, rewards, terminations, truncations, infos).
         results = []
-        for env, result in zip(envs, run_phases(pending, self.measure, seconds), strict=True):
+        for env, result in zip(envs, stepped, strict=True):
             if not env.agents:
                 obs, rew, term, trunc, info = result
                 final = {"final_observation": obs, "final_info": info, "final_state": env.state(), "final_time": env.frame.time}
