@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Generator, Mapping, Sequence
+from collections.abc import Callable, Generator, Iterator, Mapping, Sequence
 from numbers import Integral
 from types import MappingProxyType
 from typing import Any
@@ -227,27 +227,28 @@ def run_phases(
         step = steps[0]
         (found,) = measure([step.to_cameras()])
         return [step.finish(found)]
-    clock = time.perf_counter if seconds is not None else None
     phases = iter(STEP_PHASES[1:])
-    running = list(steps)
-    while running:
-        start = clock() if clock else 0.0
-        running = [step for step in running if step.advance()]
-        if clock:
-            _add(seconds, next(phases), clock() - start)
-    start = clock() if clock else 0.0
+    _advance_all(steps, phases, seconds)
+    start = time.perf_counter() if seconds is not None else 0.0
     detections = measure([step.camera_requests for step in steps])
-    if clock:
-        _add(seconds, MEASUREMENT, clock() - start)
+    if seconds is not None:
+        _add(seconds, MEASUREMENT, time.perf_counter() - start)
     for step, found in zip(steps, detections, strict=True):
         step.detected(found)
+    _advance_all(steps, phases, seconds)
+    return [step.result for step in steps]
+
+
+def _advance_all(steps: Sequence[PendingStep], phases: Iterator[str], seconds: dict[str, float] | None) -> None:
+    """Run every step's phases, each phase for every step before the next, until each awaits
+    its detections or has finished; with ``seconds``, each phase's time under its name, the
+    next of ``phases``."""
     running = list(steps)
     while running:
-        start = clock() if clock else 0.0
+        start = time.perf_counter() if seconds is not None else 0.0
         running = [step for step in running if step.advance()]
-        if clock:
-            _add(seconds, next(phases), clock() - start)
-    return [step.result for step in steps]
+        if seconds is not None:
+            _add(seconds, next(phases), time.perf_counter() - start)
 
 
 def _add(seconds: dict[str, float], key: str, value: float) -> None:

@@ -171,9 +171,9 @@ class MomaVectorEnv:
         # One copy's action spaces, looked up by every step's checks (they are made once per
         # env and stay the same objects across resets).
         self._action_spaces = {a: first.action_space(a) for a in self.possible_agents}
-        #: The batch measurement of a step: every copy's camera requests -> that copy's
-        #: detections (:func:`measure_copies`); an instance attribute, so a benchmark can
-        #: time it by wrapping it.
+        #: The batch measurement of a step, called once per chunk of :data:`PHASE_CHUNK`
+        #: copies: each copy's camera requests -> that copy's detections
+        #: (:func:`measure_copies`); an instance attribute, so a benchmark or a test can wrap it.
         self.measure: Callable[[Sequence[Sequence[MeasureRequest]]], list[list[Any]]] = measure_copies
         #: None, or a dict to which every batch step adds the wall time (s) of each phase of its
         #: copies' steps (keys of :data:`~moma_env.env.parallel.STEP_PHASES`) and of the cameras'
