@@ -532,7 +532,9 @@ class MomaParallelEnv(ParallelEnv):
         pending.advance()
         return pending
 
-    def _stages(self, actions: Mapping[str, Any]) -> Generator[tuple, Sequence[Any], tuple[dict, dict, dict, dict, dict]]:
+    def _stages(self, actions: Mapping[str, Any]) -> Generator[tuple | None, Sequence[Any] | None, tuple[dict, dict, dict, dict, dict]]:
+        """The step's phases (:class:`PendingStep`): yields None at the end of each, and the camera
+        requests at the end of the fifth (send their detections back); returns the step's result."""
         agents = self.agents  # the step's agents (the list is replaced, not changed, when the episode ends)
         if not agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
