@@ -10,7 +10,9 @@ order, so the batch has the interface and the episodes of one
 with the seed it would get there (``s + i``) and runs the same code on its own
 generator. What changes is the wall time: on a machine with ``W`` free cores the
 copies' Python runs ``W`` at a time, and a step waits for the slowest shard and
-one pipe round trip.
+one pipe round trip. A worker's step and reset send the small arrays of the copies'
+infos as one array per place (:mod:`moma_env.vector.info_arrays`): here each is a row
+view of it.
 
 The actions, seeds and indices are checked here, before a worker is asked
 (:mod:`moma_env.vector.batch_checks`: the same errors as the in-process batch).
@@ -28,10 +30,12 @@ code with ``if __name__ == "__main__":``, as for any multiprocessing pool.
 from __future__ import annotations
 
 import multiprocessing as mp
+from multiprocessing.connection import Connection
 import pickle
 import signal
 import traceback
 import weakref
+from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -42,6 +46,7 @@ from moma_env.env.parallel import MomaParallelEnv, checked_seed
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.vector.collection import deferred_collection
 from moma_env.vector.env import LatestMasks, MomaVectorEnv
+from moma_env.vector.info_arrays import lift_arrays, put_arrays
 
 __all__ = ["ShardedVectorEnv", "copy_action_masks", "default_start_method", "shard_sizes"]
 
@@ -119,8 +124,27 @@ def _serve(connection, name: str, num_envs: int, options: dict[str, Any]) -> Non
         except Exception as error:  # noqa: BLE001 - every error goes back to the parent
             connection.send(_error_message(error))
         else:
-            connection.send(("ok", result, ""))
+            send_reply(connection, command, result)
     connection.close()
+
+
+#: The commands whose result ends with the copies' infos, sent with their arrays lifted
+#: (:mod:`moma_env.vector.info_arrays`) and put back in the parent.
+_LIFTED = frozenset({"step", "reset"})
+
+
+def send_reply(connection: Connection, command: str, result: Any) -> None:
+    """Send a command's result; a step's or reset's with its infos' arrays as columns
+    (``(result, columns)``), the worker's own infos left as they were."""
+    if command not in _LIFTED:
+        connection.send(("ok", result, ""))
+        return
+    infos = result[-1]
+    columns, lifted = lift_arrays(infos)
+    try:
+        connection.send(("ok", (result, columns), ""))
+    finally:
+        put_arrays(infos, columns, lifted)
 
 
 class _Shard:
@@ -132,28 +156,34 @@ class _Shard:
         self.process = context.Process(target=_serve, args=(child, name, size, options), daemon=True, name=f"moma-shard-{index}")
         self.process.start()
         child.close()
-        self.pending = 1  # commands sent and not yet answered: first, the start's reply
+        self.awaited: deque[str] = deque(["start"])  # the commands sent and not yet answered
 
     def what(self) -> str:
         return f"worker {self.index} (copies {self.first}..{self.first + self.size - 1})"
 
     def send(self, command: str, payload: Any = None) -> None:
         self.connection.send((command, payload))
-        self.pending += 1
+        self.awaited.append(command)
 
     def receive(self) -> tuple[str, Any, str]:
+        """The reply to the oldest command not yet answered (a step's or reset's infos
+        with their arrays put back)."""
         try:
             reply = self.connection.recv()
         except (EOFError, OSError):
-            self.pending = 0  # nothing more will come
+            self.awaited.clear()  # nothing more will come
             return ("error", None, f"{self.what()} exited (exit code {self.process.exitcode})")
-        self.pending -= 1
-        return reply
+        command = self.awaited.popleft()
+        status, value, text = reply
+        if status == "ok" and command in _LIFTED:
+            value, columns = value
+            put_arrays(value[-1], columns)
+        return status, value, text
 
     def drain(self) -> None:
         """Read the replies still owed to a call that was interrupted (Ctrl-C between the
         send and the receive), so that the next call reads its own."""
-        while self.pending > 0:
+        while self.awaited:
             self.receive()
 
     def stop(self) -> None:
