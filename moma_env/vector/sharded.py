@@ -30,13 +30,13 @@ code with ``if __name__ == "__main__":``, as for any multiprocessing pool.
 from __future__ import annotations
 
 import multiprocessing as mp
-from multiprocessing.connection import Connection
 import pickle
 import signal
 import traceback
 import weakref
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
+from multiprocessing.connection import Connection
 from typing import Any
 
 import numpy as np
