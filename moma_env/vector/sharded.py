@@ -48,7 +48,7 @@ from moma_env.vector.collection import deferred_collection
 from moma_env.vector.env import LatestMasks, MomaVectorEnv
 from moma_env.vector.info_arrays import lift_arrays, put_arrays
 
-__all__ = ["ShardedVectorEnv", "copy_action_masks", "default_start_method", "shard_sizes"]
+__all__ = ["ShardedVectorEnv", "copy_action_masks", "default_start_method", "send_reply", "shard_sizes"]
 
 
 def default_start_method() -> str:
