@@ -101,3 +101,23 @@ def test_every_ugv_observation_is_the_python_builders_bit_for_bit(seed):
             want = reference_ugv(layout, agent, table, goals.get(agent), since, dwell_left, rope)
             assert got[agent].dtype == np.float32 and got[agent].shape == layout.spaces[agent].shape
             assert got[agent].tobytes() == want.tobytes(), agent
+
+
+def test_a_layout_keeps_the_previous_episodes_features_and_spaces_for_the_same_agents():
+    devices, ugvs = ("ugv_0", "ugv_1", "sled_0"), ("ugv_0", "ugv_1")
+    tows = {"ugv_1": "sled_0"}
+    first = ObservationLayout(devices, ugvs, tows, ("observer",), (0.0, 0.0), 2.0, 1.0, 5.0, goals={"ugv_0": (1.0, 0.0, 0.0)})
+    same = ObservationLayout(devices, ugvs, tows, ("observer",), (3.0, 1.0), 4.0, 2.0, 6.0, previous=first)
+    assert same.spaces is first.spaces and same.features is first.features
+    assert (same._cx, same._r, same._dwell) == (3.0, 4.0, 2.0)  # the episode's own values
+    fresh = ObservationLayout(devices, ugvs, tows, ("observer",), (3.0, 1.0), 4.0, 2.0, 6.0)
+    assert fresh.features == same.features and all(fresh.spaces[a] == same.spaces[a] for a in fresh.spaces)
+    for changed in (
+        ObservationLayout(devices, ugvs, {}, ("observer",), (0.0, 0.0), 2.0, 1.0, 5.0, previous=first),
+        ObservationLayout(devices, ugvs, tows, (), (0.0, 0.0), 2.0, 1.0, 5.0, previous=first),
+        ObservationLayout(("ugv_0", "ugv_1"), ugvs, {}, (), (0.0, 0.0), 2.0, 1.0, 5.0, previous=first),
+    ):
+        assert changed.spaces is not first.spaces
+        assert changed.features == ObservationLayout(changed.devices, ugvs, changed.tows, tuple(a for a in changed.features if a not in ugvs),
+                                                     (0.0, 0.0), 2.0, 1.0, 5.0).features
+

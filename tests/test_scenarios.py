@@ -139,6 +139,20 @@ def test_configs_compare_and_hash_by_value(name):
     assert a.scenario().world.arena.obstacles == (BoxObstacle(2.0, 2.0, 0.3, 0.3),)
 
 
+@pytest.mark.parametrize("name", NAMES)
+def test_every_scenario_call_gives_a_new_scenario_equal_to_the_first(name):
+    """The constructor's scenario is handed out once; later calls build their own (a caller
+    may change its scenario's goals without changing another's)."""
+    config = CONFIGURATIONS[name]()
+    first, second, third = config.scenario(), config.scenario(), config.scenario()
+    assert first is not second and second is not third and first.goals is not second.goals
+    assert first == second == third
+    first.goals.clear()
+    assert config.scenario() == second and config.scenario().goals == second.goals != {}
+    assert config.occupied_disks == config.layout.disks
+    assert dataclasses.replace(config) == config and repr(config) == repr(dataclasses.replace(config))
+
+
 # -- top observer ----------------------------------------------------------------------------
 
 

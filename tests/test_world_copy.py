@@ -171,6 +171,30 @@ def test_the_journal_starts_again_at_every_reset():
     assert len(ops) == 0 and len(values) == 0
 
 
+@pytest.mark.parametrize("moment", ["fresh", "reset"])
+def test_a_reset_of_an_unchanged_world_keeps_its_space_and_runs_like_a_fresh_one(moment):
+    world, _ = prepared(moment)
+    space = world._space
+    world.reset()
+    world.reset(np.random.default_rng(0))
+    assert world._space is space
+    twin = World(CONFIG)
+    assert observed(world) == observed(twin)
+    run(world, 0, 60)
+    run(twin, 0, 60)
+    assert observed(world) == observed(twin)
+
+
+@pytest.mark.parametrize("change", ["step", "set_static", "set_reel"])
+def test_any_change_makes_the_next_reset_rebuild_the_space(change):
+    world = World(CONFIG)
+    space = world._space
+    {"step": lambda: world.step(), "set_static": lambda: world.set_static("a", True), "set_reel": lambda: world.set_reel("s", 0.5)}[change]()
+    world.reset()
+    assert world._space is not space
+    assert observed(world) == observed(World(CONFIG))
+
+
 def test_a_state_that_does_not_replay_to_its_fingerprint_is_refused():
     world, _ = prepared("mid-run")
     state = world.__getstate__()

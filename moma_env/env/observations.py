@@ -367,6 +367,8 @@ class ObservationLayout:
         switch_horizon_s: the time since the last switch (s) at which its feature
             reaches 1 (and stays: it is clipped).
         goals: UGV agent -> its goal ``(x, y, yaw)`` in W (m, rad); a UGV left out has none.
+        previous: the layout of the env's previous episode, if any: its features and spaces
+            (which depend only on the devices and agents) are kept when those are the same.
     """
 
     def __init__(
@@ -380,14 +382,20 @@ class ObservationLayout:
         dwell_s: float,
         switch_horizon_s: float,
         goals: Mapping[str, tuple[float, float, float]] | None = None,
+        previous: ObservationLayout | None = None,
     ):
         self.devices = tuple(devices)
         self.tows = dict(tows)
-        self.features = {a: ugv_features(self.devices, a, a in self.tows) for a in ugv_agents}
-        for agent in observer_agents:
-            self.features[agent] = observer_features(self.devices)
-        self.spaces = {a: _box(f) for a, f in self.features.items()}
-        self._bounds = {a: (space.low, space.high) for a, space in self.spaces.items()}
+        #: What the features and spaces depend on.
+        self._agents_key = (self.devices, tuple(ugv_agents), tuple(self.tows.items()), tuple(observer_agents))
+        if previous is not None and previous._agents_key == self._agents_key:
+            self.features, self.spaces, self._bounds = previous.features, previous.spaces, previous._bounds
+        else:
+            self.features = {a: ugv_features(self.devices, a, a in self.tows) for a in ugv_agents}
+            for agent in observer_agents:
+                self.features[agent] = observer_features(self.devices)
+            self.spaces = {a: _box(f) for a, f in self.features.items()}
+            self._bounds = {a: (space.low, space.high) for a, space in self.spaces.items()}
         self._cx, self._cy = centre
         self._r = half_diagonal
         self._dwell = dwell_s

@@ -357,7 +357,7 @@ class MomaParallelEnv(ParallelEnv):
         devices = self.simulation.devices
         self.layout = ObservationLayout(
             devices, self._ugvs, self._tows, tuple(self._observers), centre, half_diag, scenario.dwell_s, self.config.switch_horizon_s,
-            goals=scenario.goals,
+            goals=scenario.goals, previous=getattr(self, "layout", None),
         )
         if not hasattr(self, "_action_spaces"):
             # The spaces are made once: every scenario of the env has the same robots, and a
@@ -377,7 +377,8 @@ class MomaParallelEnv(ParallelEnv):
         self._trackers = {uav.name: BoardTrackingController(uav.camera_mount[:3, :3], scenario.camera.fx, image_size, self.config.tracking)
                            for uav in wc.uavs}
         n_state = 5 * len(devices) + 7 * len(wc.uavs) + 4 * len(self._ugvs)
-        self.state_space = spaces.Box(-np.inf, np.inf, shape=(n_state,), dtype=np.float32)
+        if getattr(self, "state_space", None) is None or self.state_space.shape != (n_state,):
+            self.state_space = spaces.Box(-np.inf, np.inf, shape=(n_state,), dtype=np.float32)
 
     def _make_action_space(self, agent: str) -> spaces.Space:
         if agent in self._observers:

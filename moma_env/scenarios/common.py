@@ -243,7 +243,12 @@ class ScenarioConfig(ABC):
     def __post_init__(self) -> None:
         self._check_fields()
         self._check_common_fields()
-        self._build()  # checks the layout; the result is rebuilt by scenario()
+        # Laid out and built once (both are functions of the fields alone): the layout serves
+        # occupied_disks and required_views, the checked scenario the first scenario() call.
+        # Private attributes, not fields: equality, hashing, repr and replace() ignore them.
+        layout = self._make_layout()
+        object.__setattr__(self, "_layout", layout)
+        object.__setattr__(self, "_unclaimed", self._build(layout))
 
     def _check_common_fields(self) -> None:
         if self.arena is not None:
@@ -281,8 +286,9 @@ class ScenarioConfig(ABC):
             obstacles.append(item)
         return tuple(obstacles)
 
-    def _build(self) -> Scenario:
-        layout = self._make_layout()
+    def _build(self, layout: Layout) -> Scenario:
+        """The scenario of ``layout`` (this configuration's, from :meth:`_make_layout`), after
+        the checks that depend on it."""
         arena = self._arena_config(layout.disks, self.obstacles + layout.obstacles)
         for k, obstacle in enumerate(self.obstacles):
             for label, x, y, radius in layout.disks:
@@ -352,13 +358,22 @@ class ScenarioConfig(ABC):
     # -- public -------------------------------------------------------------------------
 
     def scenario(self) -> Scenario:
-        """The episode layout (a new :class:`Scenario`; building it draws nothing random)."""
-        return self._build()
+        """The episode layout (a new :class:`Scenario` at every call; building it draws nothing random)."""
+        built = self.__dict__["_unclaimed"]
+        if built is None:
+            return self._build(self.__dict__["_layout"])
+        object.__setattr__(self, "_unclaimed", None)  # the one built by the constructor, handed out once
+        return built
+
+    @property
+    def layout(self) -> Layout:
+        """The devices at the start, their goals and footprints (:class:`Layout`, made once)."""
+        return self.__dict__["_layout"]
 
     @property
     def occupied_disks(self) -> tuple[Disk, ...]:
         """Labelled floor disks ``(label, x, y, radius)`` the devices cover at the start and at their goals (m)."""
-        return self._make_layout().disks
+        return self.layout.disks
 
     def corridor(self) -> np.ndarray:
         """Convex hull (k, 2) of the centres of :attr:`occupied_disks`, counter-clockwise (m).

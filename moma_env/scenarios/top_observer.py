@@ -213,7 +213,7 @@ class TopObserverConfig(ScenarioConfig):
     def required_views(self) -> Mapping[str, tuple[str, ...]]:
         """Every observer's camera sees every robot's board."""
         team = tuple(ugv_name(i) for i in range(self.n_ugvs))
-        return {uav.camera_name: team for uav in self._make_layout().uavs}
+        return {uav.camera_name: team for uav in self.layout.uavs}
 
     @classmethod
     def random(cls, rng: np.random.Generator, **team: float) -> TopObserverConfig:

@@ -267,10 +267,15 @@ class World:
         The world draws no random numbers (its physics is deterministic);
         ``rng`` is accepted so that callers can pass their generator uniformly.
         The space of the episode before is retired (see the module's notes on
-        memory): now and then this runs a full garbage collection.
+        memory): now and then this runs a full garbage collection. A world that
+        nothing changed since it was built or reset (its journal is empty: no
+        step, no switch, no reel command) is at that state already, and keeps
+        its space.
         """
         if rng is not None and not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy Generator or None, got {type(rng).__name__}")
+        if self._space is not None and not self._journal_ops:
+            return
         del self._journal_ops[:]
         del self._journal_values[:]
         retired = weakref.ref(self._space) if self._space is not None else None
