@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -151,6 +153,10 @@ def test_every_scenario_call_gives_a_new_scenario_equal_to_the_first(name):
     assert config.scenario() == second and config.scenario().goals == second.goals != {}
     assert config.occupied_disks == config.layout.disks
     assert dataclasses.replace(config) == config and repr(config) == repr(dataclasses.replace(config))
+    fresh = CONFIGURATIONS[name]()
+    for twin in (copy.copy(fresh), copy.deepcopy(fresh), pickle.loads(pickle.dumps(fresh))):
+        assert twin == fresh and twin.layout == fresh.layout
+        assert twin.scenario() is not fresh.scenario() and twin.scenario() == second
 
 
 # -- top observer ----------------------------------------------------------------------------

@@ -250,6 +250,12 @@ class ScenarioConfig(ABC):
         object.__setattr__(self, "_layout", layout)
         object.__setattr__(self, "_unclaimed", self._build(layout))
 
+    def __getstate__(self) -> dict[str, Any]:
+        # A copy or a pickle builds its own first scenario: the constructor's is handed out once.
+        state = dict(self.__dict__)
+        state["_unclaimed"] = None
+        return state
+
     def _check_common_fields(self) -> None:
         if self.arena is not None:
             object.__setattr__(self, "arena", check_numbers(self._field("arena"), self.arena, ("width", "height"), positive=True))
