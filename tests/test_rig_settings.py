@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 
+from moma_env.camera import CameraConfig
 from moma_env.config import ConfigError
 from moma_env.env.factory import RandomScenarios, checked_overrides, parallel_env
 from moma_env.estimator import EstimatorConfig
@@ -57,6 +58,57 @@ def test_an_env_with_random_layouts_runs_every_layout_with_the_settings():
         base.reset(seed=seed)
         assert env.scenario.leg_length == 1.5 and base.scenario.leg_length == 0.5
         assert env.scenario.world == base.scenario.world
+
+
+@pytest.mark.parametrize("configuration", CONFIGURATIONS)
+def test_random_draws_leave_the_cameras_settings_at_their_defaults(configuration):
+    config_type = SCENARIO_SPECS[configuration].config_type
+    default = CameraConfig()
+    for seed in range(4):
+        camera = config_type.random(np.random.default_rng(seed)).camera
+        for name in CameraConfig.SETTING_FIELDS:
+            assert getattr(camera, name) == getattr(default, name), (configuration, seed, name)
+
+
+CAMERA_SETTINGS = {"pnp_method": "SQPNP", "pose_disambiguation": "min_cost", "attitude_noise_deg": 0.5, "pnp_sigma_floor_px": 0.2}
+
+
+@pytest.mark.parametrize("configuration", CONFIGURATIONS)
+def test_random_layouts_keep_the_cameras_settings_given_and_draw_the_same_layouts(configuration):
+    factory = RandomScenarios(configuration, {"camera": {**CAMERA_SETTINGS, "fx": 555.0}})
+    plain = RandomScenarios(configuration)
+    assert plain.camera_settings == {}
+    assert {name: factory.camera_settings[name] for name in CAMERA_SETTINGS} == CAMERA_SETTINGS
+    assert set(factory.camera_settings) == set(CameraConfig.SETTING_FIELDS)
+    for seed in range(3):
+        scenario = factory(np.random.default_rng(seed))
+        reference = plain(np.random.default_rng(seed))
+        assert scenario.world == reference.world and scenario.goals == reference.goals  # the same draws
+        assert dataclasses.replace(reference.camera, **CAMERA_SETTINGS) == scenario.camera  # fx drawn, not 555
+        assert reference.camera.pnp_method == "PLANAR_LM"
+
+
+@pytest.mark.parametrize("configuration", CONFIGURATIONS)
+def test_a_camera_override_of_defaults_draws_the_same_scenarios(configuration):
+    factory, plain = RandomScenarios(configuration, {"camera": {}}), RandomScenarios(configuration)
+    for seed in range(3):
+        assert factory(np.random.default_rng(seed)) == plain(np.random.default_rng(seed))
+
+
+def test_an_env_with_random_layouts_solves_every_layout_with_the_cameras_settings():
+    env = parallel_env("top_observer_team4", camera={"pnp_method": "SQPNP", "pnp_warm_start": True})
+    for seed in (1, 2):
+        env.reset(seed=seed)
+        cameras = list(env.simulation.cameras.values())
+        assert cameras and all(c.config.pnp_method == "SQPNP" and c.config.pnp_warm_start for c in cameras)
+        assert env.scenario.camera.fx != CameraConfig().fx  # drawn
+
+
+def test_a_cameras_setting_that_a_drawn_camera_does_not_admit_is_an_error_naming_it():
+    factory = RandomScenarios("top_observer", {"camera": {"noise_px": 0.0, "pnp_warm_max_rms_px": 0.01}})
+    with pytest.raises(ConfigError, match="camera.pnp_warm_max_rms_px"):
+        for seed in range(10):
+            factory(np.random.default_rng(seed))
 
 
 def test_checked_overrides_names_the_bad_field():

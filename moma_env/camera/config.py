@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass
+from typing import ClassVar
 
 from moma_env.camera.distortion import N_DIST_COEFFS, distorted_radius, fold_radius_sq
 from moma_env.config import (
@@ -141,6 +142,24 @@ class CameraConfig:
             backend's (the measured ``RENDERED_SHIFT_PERSISTENCE`` for the
             rendered one).
     """
+
+    #: The settings of the pose solver and of the noise model, which random layouts never
+    #: draw (``moma_env.scenarios.sampling.random_camera`` draws ``fx``, ``noise_px`` and
+    #: ``dist``) and keep from an env's ``camera`` override. The image, the principal point
+    #: and the visibility limits are not among them: they decide which boards a layout's
+    #: cameras see at the start, which the draws check.
+    SETTING_FIELDS: ClassVar[tuple[str, ...]] = (
+        "pnp_method",
+        "pose_disambiguation",
+        "upright_prior_deg",
+        "attitude_noise_deg",
+        "pnp_sigma_source",
+        "pnp_sigma_floor_px",
+        "pnp_warm_start",
+        "pnp_warm_max_rms_px",
+        "board_shift_px",
+        "board_shift_persistence",
+    )
 
     width: int = 720
     height: int = 576

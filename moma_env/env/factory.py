@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from moma_env.camera import FloorConfig, RenderConfig
+from moma_env.camera import CameraConfig, FloorConfig, RenderConfig
 from moma_env.config import ConfigError, from_mapping
 from moma_env.control import TrackingControllerConfig
 from moma_env.env.centralised import CentralisedTeamEnv
@@ -64,9 +64,11 @@ class RandomScenarios:
     ``random``) that keeps the base configuration's team fields (``TEAM_FIELDS``,
     e.g. ``n_ugvs``), so every layout has the same agents, and the rig's settings
     among the overrides (``SETTING_FIELDS``: the estimator, ``leg_length``,
-    ``dwell_s``, the goal tolerances, ``max_cycles``), so every layout is run alike. The
-    other overrides (what ``random`` draws: formation, goals, camera, obstacles, ...)
-    shape the base layout only. Instances pickle as their arguments.
+    ``dwell_s``, the goal tolerances, ``max_cycles``; and with a ``camera`` override,
+    its pose solver's and noise model's settings, ``CameraConfig.SETTING_FIELDS``, put
+    into each drawn camera), so every layout is run alike. The other overrides (what
+    ``random`` draws: formation, goals, the camera's intrinsics and noise, obstacles,
+    ...) shape the base layout only. Instances pickle as their arguments.
 
     Args:
         configuration: a registered configuration name, e.g. ``"top_observer"``.
@@ -77,7 +79,9 @@ class RandomScenarios:
         ConfigError: naming the field, for an unknown configuration, a bad
             override, or a team random layouts cannot keep (e.g.
             ``"top_observer.n_ugvs"`` with its allowed range), or several
-            observers (random layouts draw one), at construction.
+            observers (random layouts draw one), at construction; at a call, a
+            camera setting that a drawn camera does not admit (e.g.
+            ``camera.pnp_warm_max_rms_px`` below the drawn ``noise_px``).
     """
 
     def __init__(self, configuration: str, overrides: Mapping[str, Any] | None = None) -> None:
@@ -87,6 +91,8 @@ class RandomScenarios:
         self._base = from_mapping(spec.config_type, self._overrides, name=configuration)
         self._team = spec.config_type.check_team({name: getattr(self._base, name) for name in spec.team_fields})
         self._settings = {name: getattr(self._base, name) for name in spec.config_type.SETTING_FIELDS if name in self._overrides}
+        camera = self._base.camera
+        self._camera_settings = {name: getattr(camera, name) for name in CameraConfig.SETTING_FIELDS} if "camera" in self._overrides else {}
         self._base_scenario = self._base.scenario()
         if len(self._base_scenario.world.uavs) > 1:
             raise ConfigError(
@@ -119,13 +125,22 @@ class RandomScenarios:
         """The rig's settings every random layout keeps (those among the overrides), e.g. ``{"leg_length": 1.5}``."""
         return dict(self._settings)
 
+    @property
+    def camera_settings(self) -> dict[str, Any]:
+        """The camera's settings every random layout keeps (all of ``CameraConfig.SETTING_FIELDS``
+        when the overrides give a ``camera``, else none), e.g. ``{"pnp_method": "SQPNP", ...}``."""
+        return dict(self._camera_settings)
+
     def __call__(self, rng: np.random.Generator | None) -> Scenario:
         """The base scenario for ``rng=None``, else a random one drawn from ``rng``."""
         if rng is None:
             return self._base_scenario
         config = _spec(self._configuration).random(rng, **self._team)
-        if self._settings:
-            config = replace(config, **self._settings)
+        changes = dict(self._settings)
+        if self._camera_settings:
+            changes["camera"] = replace(config.camera, **self._camera_settings)
+        if changes:
+            config = replace(config, **changes)
         return config.scenario()
 
     def __reduce__(self) -> tuple[type[RandomScenarios], tuple[str, dict[str, Any]]]:
