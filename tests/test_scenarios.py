@@ -154,6 +154,9 @@ def test_every_scenario_call_gives_a_new_scenario_equal_to_the_first(name):
     assert config.occupied_disks == config.layout.disks
     assert dataclasses.replace(config) == config and repr(config) == repr(dataclasses.replace(config))
     fresh = CONFIGURATIONS[name]()
+    older = object.__new__(type(fresh))  # as unpickled from a version that kept neither
+    older.__dict__.update({k: v for k, v in fresh.__getstate__().items() if k not in ("_layout", "_unclaimed")})
+    assert older.layout == fresh.layout and older.scenario() == second and older.occupied_disks == fresh.occupied_disks
     for twin in (copy.copy(fresh), copy.deepcopy(fresh), pickle.loads(pickle.dumps(fresh))):
         assert twin == fresh and twin.layout == fresh.layout
         assert twin.scenario() is not fresh.scenario() and twin.scenario() == second

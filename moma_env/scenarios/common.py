@@ -365,16 +365,20 @@ class ScenarioConfig(ABC):
 
     def scenario(self) -> Scenario:
         """The episode layout (a new :class:`Scenario` at every call; building it draws nothing random)."""
-        built = self.__dict__["_unclaimed"]
+        built = self.__dict__.get("_unclaimed")
         if built is None:
-            return self._build(self.__dict__["_layout"])
+            return self._build(self.layout)
         object.__setattr__(self, "_unclaimed", None)  # the one built by the constructor, handed out once
         return built
 
     @property
     def layout(self) -> Layout:
         """The devices at the start, their goals and footprints (:class:`Layout`, made once)."""
-        return self.__dict__["_layout"]
+        layout = self.__dict__.get("_layout")
+        if layout is None:  # a configuration unpickled from a version that did not keep it
+            layout = self._make_layout()
+            object.__setattr__(self, "_layout", layout)
+        return layout
 
     @property
     def occupied_disks(self) -> tuple[Disk, ...]:
