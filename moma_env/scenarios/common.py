@@ -197,7 +197,8 @@ class ScenarioConfig(ABC):
 
     @abstractmethod
     def _make_layout(self) -> Layout:
-        """Robots at their start poses, goals and footprints (fields already checked)."""
+        """Robots at their start poses, goals and footprints (fields already checked); called
+        once, by the constructor, and kept as :attr:`layout` for every other reader."""
 
     @abstractmethod
     def required_views(self) -> Mapping[str, tuple[str, ...]]:
