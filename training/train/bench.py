@@ -1,7 +1,8 @@
 """PPO training frames per second on the switching task (a benchmark, never a test).
 
 ``training_fps`` trains PPO or MaskablePPO (the run's default hyperparameters, 64x64
-networks, ``VecNormalize``, one torch thread) on a configuration or task in
+networks, ``VecNormalize``, one torch thread while collecting and one per core for the
+updates, as ``moma-env train``) on a configuration or task in
 ``switching`` mode with the geometric camera, through a route, and reports the wall
 time of ``learn`` only (envs and model built beforehand): SB3 timesteps per second
 (agent steps on the shared route, env steps on the centralised one) and joint env
@@ -30,6 +31,7 @@ from typing import Any
 
 from agents.learned import torch_threads
 from training.bench_common import time_calls
+from training.train.callbacks import update_threads_callback
 from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.models import build_model, training_logger
@@ -59,7 +61,7 @@ def training_fps(
             time_calls(model, "collect_rollouts", clocks, "collect")
             time_calls(model, "train", clocks, "learn")
             start = time.perf_counter()
-            model.learn(steps)
+            model.learn(steps, callback=update_threads_callback(config))
             elapsed = time.perf_counter() - start
             slots_per_env_step = venv.num_envs // envs
             timesteps = int(model.num_timesteps)

@@ -1,6 +1,7 @@
-"""Callbacks of a training run: periodic checkpoints and periodic held-out evaluations.
+"""Callbacks of a training run: periodic checkpoints, periodic held-out evaluations, and
+torch's thread count for the updates.
 
-Both act at the start of a rollout, that is after the model has been updated
+The first two act at the start of a rollout, that is after the model has been updated
 with every step counted so far (for PPO, after ``train()`` of the previous
 rollout), so a checkpoint at ``S`` timesteps holds the weights trained on those
 ``S`` steps and a resumed run neither repeats nor skips an update.
@@ -17,11 +18,53 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from moma_env.io import write_json
 from moma_env.vector.parent_watch import WorkerPool, worker_pool
-from training.train.config import TrainConfig, eval_jobs
+from training.train.config import ROLLOUT_UPDATES, TrainConfig, eval_jobs, update_threads
 from training.train.curves import EVALUATIONS, write_curves
 from training.train.evaluation import evaluate_model, headline
 
-__all__ = ["CheckpointCallback", "EvaluationCallback", "EVALUATIONS"]
+__all__ = ["CheckpointCallback", "EvaluationCallback", "EVALUATIONS", "UpdateThreadsCallback", "update_threads_callback"]
+
+
+class UpdateThreadsCallback(BaseCallback):
+    """torch's intra-op threads: ``update`` for the gradient updates that follow each rollout,
+    ``rollout`` while the rollout is collected.
+
+    An on-policy algorithm (PPO, MaskablePPO, A2C) updates after each rollout, while every
+    env copy, in this process or in a worker, waits for the new policy: its updates can take
+    the cores the copies use while collecting, where a second thread only contends with
+    them. The count is set at the end of each rollout (SB3 then calls ``train()``) and back
+    at the start of the next. A run is deterministic for its seed and both thread counts; on
+    the default networks and minibatches one or two update threads give the same weights
+    (``tests/test_train_threads.py``).
+    """
+
+    def __init__(self, update: int, rollout: int):
+        super().__init__()
+        self.update = update
+        self.rollout = rollout
+
+    def _on_rollout_start(self) -> None:
+        import torch
+
+        torch.set_num_threads(self.rollout)
+
+    def _on_rollout_end(self) -> None:
+        import torch
+
+        torch.set_num_threads(self.update)
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def update_threads_callback(config: TrainConfig) -> UpdateThreadsCallback | None:
+    """The :class:`UpdateThreadsCallback` of ``config`` (:func:`~training.train.config.update_threads`
+    threads for the updates, ``config.torch_threads`` for the rollouts), or None where the
+    algorithm does not update between rollouts or both counts are the same."""
+    if config.algo not in ROLLOUT_UPDATES:
+        return None
+    threads = update_threads(config)
+    return UpdateThreadsCallback(threads, config.torch_threads) if threads != config.torch_threads else None
 
 
 class CheckpointCallback(BaseCallback):

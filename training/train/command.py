@@ -83,8 +83,11 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
                          "process below 8 copies, and with --subproc)")
     tr.add_argument("--seed", type=int_at_least(0, "seed"), default=defaults["seed"], help="seed of the model and the envs (default %(default)s)")
     tr.add_argument("--torch-threads", type=int_at_least(1, "thread count"), default=defaults["torch_threads"], metavar="N",
-                    help="torch's intra-op threads while training (default %(default)s: the networks are small, more threads "
-                         "contend with the envs for the cores; training is deterministic for a seed and a thread count)")
+                    help="torch's intra-op threads while collecting rollouts (default %(default)s: the networks are small, more "
+                         "threads contend with the envs for the cores; training is deterministic for a seed and its thread counts)")
+    tr.add_argument("--update-threads", type=int_at_least_or(AUTO, 1, "thread count"), default=AUTO, metavar="N",
+                    help="torch's intra-op threads for the gradient updates of ppo, a2c and maskable_ppo, which run after each "
+                         "rollout while every env copy waits (default auto: one per usable core)")
     tr.add_argument("--out", type=Path, required=True,
                     help="output folder, one run: checkpoints, manifest.json, evaluations.json (required; a folder holding another run is refused)")
     tr.add_argument("--resume", action="store_true",
@@ -183,6 +186,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         subproc=args.subproc,
         workers=resolved_workers(args.workers, args.num_envs, splits=not args.subproc),
         torch_threads=args.torch_threads,
+        update_threads=None if args.update_threads == AUTO else args.update_threads,
         seed=args.seed,
         action_mode=args.action_mode,
         route=args.route,
@@ -220,7 +224,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
 
 #: TrainConfig fields -> their ``moma-env train`` option (value options; flags are handled apart).
 _VALUE_OPTIONS = MappingProxyType({
-    "algo": "--algo", "steps": "--timesteps", "envs": "--num-envs", "workers": "--workers", "torch_threads": "--torch-threads", "seed": "--seed", "action_mode": "--action-mode",
+    "algo": "--algo", "steps": "--timesteps", "envs": "--num-envs", "workers": "--workers", "torch_threads": "--torch-threads", "update_threads": "--update-threads", "seed": "--seed", "action_mode": "--action-mode",
     "route": "--route", "max_cycles": "--max-cycles", "switch_horizon_s": "--switch-horizon", "team_action": "--team-action", "n_steps": "--n-steps", "batch_size": "--batch-size",
     "learning_rate": "--learning-rate", "gamma": "--gamma", "ent_coef": "--ent-coef",
     "checkpoint_every": "--checkpoint-every", "eval_every": "--eval-every", "eval_episodes": "--eval-episodes",

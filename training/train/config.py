@@ -43,6 +43,7 @@ __all__ = [
     "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "check_teacher", "NETWORKS", "TrainConfig", "reward_overrides",
     "run_env_options", "config_to_dict", "config_from_dict", "BackendTrainConfig", "check_learning_fields", "check_workers",
     "MIN_COPIES_PER_WORKER", "auto_workers", "eval_jobs", "usable_cores", "PPO_MINIBATCHES", "DEFAULT_BATCH_SIZE", "backend_batch_size",
+    "ROLLOUT_UPDATES", "update_threads",
 ]
 
 #: Algorithms by CLI name -> Stable-Baselines3 (or sb3-contrib) class name.
@@ -57,6 +58,10 @@ MASKED = frozenset({"maskable_ppo"})
 BOX_ONLY = frozenset({"sac", "td3"})
 #: Algorithms whose model a scripted teacher can initialise (``pretrain``): an actor and a critic.
 PRETRAINABLE = frozenset({"ppo", "maskable_ppo"})
+#: On-policy algorithms whose gradient updates run after each rollout, while every env copy
+#: waits for the new policy: ``update_threads`` applies to them. (The off-policy ones update
+#: between env steps, on ``torch_threads``.)
+ROLLOUT_UPDATES = frozenset({"ppo", "a2c", "maskable_ppo"})
 #: Minibatches per epoch of PPO's and MaskablePPO's updates when ``batch_size`` is None: each
 #: rollout (``n_steps`` x the slots) in this many, as MAPPO does, so that the learner's cost per
 #: sample falls as the batched env's copies grow.
@@ -146,6 +151,12 @@ def eval_jobs(config: "TrainConfig") -> int:
     return min(jobs, config.eval_episodes)
 
 
+def update_threads(config: "TrainConfig") -> int:
+    """torch's intra-op threads for ``config``'s gradient updates: ``config.update_threads``, or
+    where it is None one per usable core (nothing else runs during an on-policy update)."""
+    return config.update_threads if config.update_threads is not None else usable_cores()
+
+
 def auto_workers(envs: int, cores: int) -> int | None:
     """The worker processes ``--workers auto`` splits ``envs`` copies over on ``cores`` cores:
     one per core, each stepping at least :data:`MIN_COPIES_PER_WORKER` copies; None (every
@@ -220,7 +231,12 @@ class TrainConfig:
             The evaluations are the same for any value.
         progress_bar: show SB3's progress bar.
         torch_threads: torch's intra-op threads while training (1: the networks
-            are tiny, more threads only contend with the envs for the cores).
+            are tiny, more threads only contend with the envs for the cores), but for
+            the updates of ``update_threads``.
+        update_threads: torch's intra-op threads during the gradient updates of PPO,
+            MaskablePPO and A2C (:data:`ROLLOUT_UPDATES`), which run after each rollout
+            while every env copy waits (None: one per usable core, :func:`update_threads`;
+            the rollouts keep ``torch_threads``). Only the on-policy algorithms take it.
         network: ``"mlp"`` (SB3's MLP over the observation) or ``"team"`` (on the
             centralised route in switching mode: one encoder and one action head
             shared by every robot, with max and mean pooling over the team,
@@ -294,6 +310,7 @@ class TrainConfig:
     eval_jobs: int | None = None
     progress_bar: bool = False
     torch_threads: int = 1
+    update_threads: int | None = None
     network: str = "mlp"
     pretrain: str | None = None
     pretrain_rows: int = 256_000
@@ -340,6 +357,11 @@ class TrainConfig:
         if self.eval_jobs is not None:
             check_count("eval_jobs", self.eval_jobs, 1)
         check_count("torch_threads", self.torch_threads, 1)
+        if self.update_threads is not None:
+            check_count("update_threads", self.update_threads, 1)
+            if self.algo not in ROLLOUT_UPDATES:
+                raise ConfigError("update_threads", f"{self.algo} updates between env steps, on torch_threads; update_threads is for "
+                                  f"the algorithms that update after each rollout: {', '.join(sorted(ROLLOUT_UPDATES))}")
         check_choice("network", self.network, NETWORKS)
         if self.network == "team" and (self.route != "centralised" or self.action_mode != "switching" or self.algo not in PRETRAINABLE):
             raise ConfigError("network", "the team network gives each robot of the centralised team its switching action: "
@@ -414,7 +436,10 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "TrainConfig":
-        """Inverse of :meth:`to_dict`; unknown keys raise ConfigError."""
+        """Inverse of :meth:`to_dict`; unknown keys raise ConfigError. A run recorded before
+        ``update_threads`` existed updated on its ``torch_threads``, which it gets."""
+        if "update_threads" not in data and data.get("algo", "ppo") in ROLLOUT_UPDATES:
+            data = {**data, "update_threads": data.get("torch_threads", 1)}
         return config_from_dict(cls, data)
 
 

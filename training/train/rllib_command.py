@@ -58,6 +58,8 @@ def rllib_config_from_args(args: argparse.Namespace) -> "RllibTrainConfig":
         raise ConfigError("workers", "--backend rllib runs its envs in env runners: use --num-env-runners instead of --workers")
     if args.eval_jobs != AUTO:
         raise ConfigError("eval_jobs", "--backend rllib evaluates in this process: drop --eval-jobs (the sb3 backend takes it)")
+    if args.update_threads != AUTO:
+        raise ConfigError("update_threads", "--backend rllib does not take --update-threads (the sb3 backend does): its learner sets its own threads")
     if args.torch_threads != 1:
         raise ConfigError("torch_threads", "--backend rllib does not take --torch-threads: its env runners and learner set their own threads")
     if args.switch_horizon_s is not None:

@@ -29,10 +29,10 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 
 from moma_env.config import ConfigError
 from moma_env.io import claim_run_folder, run_kind, write_json
-from training.train.callbacks import EVALUATIONS, CheckpointCallback, EvaluationCallback
+from training.train.callbacks import EVALUATIONS, CheckpointCallback, EvaluationCallback, update_threads_callback
 from training.train.checkpoint import checkpoint_files, read_manifest, remove_stale_temporaries, save_checkpoint, source_revision
 from agents.learned import torch_threads
-from training.train.config import TrainConfig
+from training.train.config import ROLLOUT_UPDATES, TrainConfig, update_threads
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.demonstrations import read_demonstrations
 from training.train.init_from import INITIALISATION, read_initial_weights
@@ -47,7 +47,7 @@ PRETRAINING = "pretrain.json"
 #: Fields of the configuration that a resumed run may change; every other must match the run's.
 RESUMABLE_CHANGES = frozenset(
     {"steps", "subproc", "workers", "checkpoint_every", "eval_every", "eval_episodes", "eval_seed", "eval_max_cycles", "eval_sample_actions", "eval_jobs",
-     "progress_bar", "torch_threads"}
+     "progress_bar", "torch_threads", "update_threads"}
 )
 
 
@@ -123,7 +123,10 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
             write_json(out / INITIALISATION, source.load_into(model))
         wall_before = 0.0
         records = []
-    provenance = {"git": source_revision()}  # the code of this session (a resume records its own)
+    provenance: dict[str, Any] = {"git": source_revision()}  # the code of this session (a resume records its own)
+    threads = update_threads_callback(config)
+    if config.algo in ROLLOUT_UPDATES:
+        provenance["update_threads"] = update_threads(config)  # the count the updates of this session ran on
     session_start = time.perf_counter()
 
     def wall_time() -> float:
@@ -133,7 +136,9 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
         return save_checkpoint(out, model, config, wall_time(), provenance)
 
     evaluation = EvaluationCallback(config, out, records, wall_time)
-    chain = CallbackList([CheckpointCallback(config.checkpoint_every, save), evaluation, *callbacks])
+    # The threads first: the others' rollout-start work (checkpoints, evaluations) runs on the rollouts' count.
+    first = [threads] if threads is not None else []
+    chain = CallbackList([*first, CheckpointCallback(config.checkpoint_every, save), evaluation, *callbacks])
     logger = training_logger(out, model.num_timesteps)
     model.set_logger(logger)
     try:

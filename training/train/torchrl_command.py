@@ -50,6 +50,8 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
         raise ConfigError("subproc", "--backend torchrl steps its copies in one batched env: drop --subproc (--workers W splits it over W processes)")
     if args.eval_jobs != AUTO:
         raise ConfigError("eval_jobs", "--backend torchrl evaluates in this process: drop --eval-jobs (the sb3 backend takes it)")
+    if args.update_threads != AUTO:
+        raise ConfigError("update_threads", "--backend torchrl does not take --update-threads (the sb3 backend does): its updates run on --torch-threads")
     if args.action_mode != TORCHRL_ACTION_MODE:
         raise ConfigError("action_mode", f"--backend torchrl trains in {TORCHRL_ACTION_MODE} mode only, got {args.action_mode!r}")
     if args.network != "mlp":
