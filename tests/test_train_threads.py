@@ -124,7 +124,6 @@ def test_a_run_recorded_before_update_threads_reads_back_with_its_torch_threads(
 
 @pytest.mark.parametrize("extra, message", [
     (["--update-threads", "0"], None),
-    (["--backend", "torchrl", "--update-threads", "2"], "--backend torchrl does not take --update-threads"),
     (["--backend", "rllib", "--update-threads", "2"], "--backend rllib does not take --update-threads"),
     (["--algo", "dqn", "--update-threads", "2"], "update_threads: dqn updates between env steps"),
 ])
@@ -145,3 +144,38 @@ def test_the_cli_option_lands_in_the_config(tmp_path):
                  "--max-cycles", "20", "--update-threads", "2", "--no-progress", "--out", str(out)]) == 0
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["config"]["update_threads"] == 2 and manifest["update_threads"] == 2
+
+
+def test_torchrl_updates_run_on_their_threads(tmp_path, monkeypatch):
+    pytest.importorskip("torchrl")
+    from training.train import torchrl_run
+    from training.train.torchrl_config import TorchRLTrainConfig
+
+    update_counts: list[int] = []
+    original = torchrl_run._Learner.update
+
+    def recording_update(self, batch):
+        update_counts.append(torch.get_num_threads())
+        return original(self, batch)
+
+    monkeypatch.setattr(torchrl_run._Learner, "update", recording_update)
+    config = TorchRLTrainConfig(scenario="top_observer", steps=192, envs=2, n_steps=32, minibatch_size=32, num_epochs=1,
+                                net_arch=(8,), max_cycles=40, checkpoint_every=10**6, torch_threads=1, update_threads=3)
+    before = torch.get_num_threads()
+    torchrl_run.train_torchrl(config, tmp_path / "run")
+    assert len(update_counts) == 3 and set(update_counts) == {3}  # 3 batches of 64 env steps
+    assert torch.get_num_threads() == before
+    assert json.loads((tmp_path / "run" / "manifest.json").read_text())["update_threads"] == 3
+    recorded = config.to_dict()
+    del recorded["update_threads"]
+    assert TorchRLTrainConfig.from_dict(recorded).update_threads == 1  # recorded before the field: its torch_threads
+
+
+def test_the_torchrl_cli_passes_update_threads():
+    from training.cli import build_parser
+    from training.train.torchrl_command import torchrl_config_from_args
+
+    parser = build_parser()
+    base = ["train", "--backend", "torchrl", "--scenario", "top_observer", "--out", "unused"]
+    assert torchrl_config_from_args(parser.parse_args([*base, "--update-threads", "2"])).update_threads == 2
+    assert torchrl_config_from_args(parser.parse_args(base)).update_threads is None

@@ -86,7 +86,7 @@ def add_train_parser(sub, int_at_least=int_at_least) -> argparse.ArgumentParser:
                     help="torch's intra-op threads while collecting rollouts (default %(default)s: the networks are small, more "
                          "threads contend with the envs for the cores; training is deterministic for a seed and its thread counts)")
     tr.add_argument("--update-threads", type=int_at_least_or(AUTO, 1, "thread count"), default=AUTO, metavar="N",
-                    help="torch's intra-op threads for the gradient updates of ppo, a2c and maskable_ppo, which run after each "
+                    help="torch's intra-op threads for the gradient updates of ppo, a2c and maskable_ppo (and of --backend torchrl), which run after each "
                          "rollout while every env copy waits (default auto: one per usable core)")
     tr.add_argument("--out", type=Path, required=True,
                     help="output folder, one run: checkpoints, manifest.json, evaluations.json (required; a folder holding another run is refused)")

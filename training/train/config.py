@@ -43,7 +43,7 @@ __all__ = [
     "ALGORITHMS", "ROUTES", "DISCRETE_ONLY", "MASKED", "BOX_ONLY", "PRETRAINABLE", "TEACHERS", "check_teacher", "NETWORKS", "TrainConfig", "reward_overrides",
     "run_env_options", "config_to_dict", "config_from_dict", "BackendTrainConfig", "check_learning_fields", "check_workers",
     "MIN_COPIES_PER_WORKER", "auto_workers", "eval_jobs", "usable_cores", "PPO_MINIBATCHES", "DEFAULT_BATCH_SIZE", "backend_batch_size",
-    "ROLLOUT_UPDATES", "update_threads",
+    "ROLLOUT_UPDATES", "update_threads", "recorded_update_threads",
 ]
 
 #: Algorithms by CLI name -> Stable-Baselines3 (or sb3-contrib) class name.
@@ -151,10 +151,19 @@ def eval_jobs(config: "TrainConfig") -> int:
     return min(jobs, config.eval_episodes)
 
 
-def update_threads(config: "TrainConfig") -> int:
-    """torch's intra-op threads for ``config``'s gradient updates: ``config.update_threads``, or
-    where it is None one per usable core (nothing else runs during an on-policy update)."""
+def update_threads(config: Any) -> int:
+    """torch's intra-op threads for the gradient updates of ``config`` (a :class:`TrainConfig`
+    or a TorchRL run's): its ``update_threads``, or where that is None one per usable core
+    (nothing else runs during an on-policy update)."""
     return config.update_threads if config.update_threads is not None else usable_cores()
+
+
+def recorded_update_threads(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A recorded configuration ``data`` with ``update_threads`` as its run had it: a run
+    recorded before the field existed updated on its ``torch_threads``."""
+    if "update_threads" in data:
+        return dict(data)
+    return {**data, "update_threads": data.get("torch_threads", 1)}
 
 
 def auto_workers(envs: int, cores: int) -> int | None:
@@ -438,8 +447,8 @@ class TrainConfig:
     def from_dict(cls, data: Mapping[str, Any]) -> "TrainConfig":
         """Inverse of :meth:`to_dict`; unknown keys raise ConfigError. A run recorded before
         ``update_threads`` existed updated on its ``torch_threads``, which it gets."""
-        if "update_threads" not in data and data.get("algo", "ppo") in ROLLOUT_UPDATES:
-            data = {**data, "update_threads": data.get("torch_threads", 1)}
+        if data.get("algo", "ppo") in ROLLOUT_UPDATES:
+            data = recorded_update_threads(data)
         return config_from_dict(cls, data)
 
 

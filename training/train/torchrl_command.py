@@ -50,8 +50,6 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
         raise ConfigError("subproc", "--backend torchrl steps its copies in one batched env: drop --subproc (--workers W splits it over W processes)")
     if args.eval_jobs != AUTO:
         raise ConfigError("eval_jobs", "--backend torchrl evaluates in this process: drop --eval-jobs (the sb3 backend takes it)")
-    if args.update_threads != AUTO:
-        raise ConfigError("update_threads", "--backend torchrl does not take --update-threads (the sb3 backend does): its updates run on --torch-threads")
     if args.action_mode != TORCHRL_ACTION_MODE:
         raise ConfigError("action_mode", f"--backend torchrl trains in {TORCHRL_ACTION_MODE} mode only, got {args.action_mode!r}")
     if args.network != "mlp":
@@ -76,6 +74,7 @@ def torchrl_config_from_args(args: argparse.Namespace) -> "TorchRLTrainConfig":
         gamma=args.gamma, ent_coef=args.ent_coef, checkpoint_every=args.checkpoint_every, eval_every=args.eval_every,
         eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, eval_sample_actions=args.eval_sample_actions,
         workers=resolved_workers(args.workers, args.num_envs, splits=True), torch_threads=args.torch_threads,
+        update_threads=None if args.update_threads == AUTO else args.update_threads,
     )
 
 

@@ -12,11 +12,12 @@ team).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from moma_env.config import ConfigError, check_choice, check_count, check_positive, check_range
-from training.train.config import BackendTrainConfig, check_workers, run_env_options
+from training.train.config import BackendTrainConfig, check_workers, config_from_dict, recorded_update_threads, run_env_options
 
 __all__ = ["TorchRLTrainConfig", "CRITICS", "TORCHRL_ACTION_MODE"]
 
@@ -39,7 +40,10 @@ class TorchRLTrainConfig(BackendTrainConfig):
         critic: ``"centralised"`` (MAPPO) or ``"independent"`` (IPPO).
         gae_lambda, clip_range: GAE's lambda and PPO's ratio clip.
         max_grad_norm: gradients are clipped to this norm.
-        torch_threads: torch's intra-op threads while training.
+        torch_threads: torch's intra-op threads while collecting the batches.
+        update_threads: torch's intra-op threads for the updates, which run after each
+            batch while every env copy waits (None: one per usable core,
+            :func:`~training.train.config.update_threads`).
         workers: None, or split the batch's copies over this many worker processes
             (:func:`moma_env.vector.make`): the same rollouts, faster with a free core
             per worker and enough copies.
@@ -53,6 +57,7 @@ class TorchRLTrainConfig(BackendTrainConfig):
     clip_range: float = 0.2
     max_grad_norm: float = 0.5
     torch_threads: int = 1
+    update_threads: int | None = None
     workers: int | None = None
 
     def __post_init__(self) -> None:
@@ -65,6 +70,14 @@ class TorchRLTrainConfig(BackendTrainConfig):
         check_positive("clip_range", self.clip_range)
         check_positive("max_grad_norm", self.max_grad_norm)
         check_count("torch_threads", self.torch_threads, 1)
+        if self.update_threads is not None:
+            check_count("update_threads", self.update_threads, 1)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "TorchRLTrainConfig":
+        """Inverse of :meth:`to_dict`; unknown keys raise ConfigError. A run recorded before
+        ``update_threads`` existed updated on its ``torch_threads``, which it gets."""
+        return config_from_dict(cls, recorded_update_threads(data))
 
     @property
     def batch_size(self) -> int:

@@ -12,7 +12,9 @@ masks are part of the observation, so the actor never asks for a refused move.
 
 Determinism: torch's generator is seeded with ``config.seed`` before the networks are
 built and the env copies reset with ``seed + i``; on ``config.torch_threads`` threads
-the same configuration gives the same weights (``tests/test_train_torchrl.py``).
+while collecting and ``update_threads`` for the updates (which run while every env copy
+waits; recorded in the manifest) the same configuration gives the same weights
+(``tests/test_train_torchrl.py``).
 
 The output folder has the other backends' layout: ``manifest.json`` (written last,
 naming a complete checkpoint; ``"backend": "torchrl"``), the checkpoint it names
@@ -45,13 +47,14 @@ from moma_env.io import atomic_write_bytes, write_json
 from training.provenance import library_versions
 from training.train.backend_run import RunProgress, start_run
 from training.train.evaluation import headline
+from training.train.config import update_threads
 from training.train.torchrl_config import TorchRLTrainConfig
 
 __all__ = ["train_torchrl", "manifest_algorithm", "RESUMABLE_CHANGES", "GROUP"]
 
 #: Fields a resumed run may change; every other must match the run's.
 RESUMABLE_CHANGES = frozenset({"steps", "checkpoint_every", "eval_every", "eval_episodes", "eval_seed", "eval_max_cycles",
-                               "eval_sample_actions", "torch_threads", "workers"})
+                               "eval_sample_actions", "torch_threads", "update_threads", "workers"})
 #: The TorchRL group of the UGV agents (:data:`moma_env.vector.torchrl.UGV_GROUP`).
 GROUP = "ugv"
 _CHECKPOINT = re.compile(r"^checkpoint_\d{12}\.pt$")
@@ -213,7 +216,8 @@ def train_torchrl(config: TorchRLTrainConfig, out: str | Path, resume: bool = Fa
         if manifest is not None:
             learner.restore(load_checkpoint(out / manifest["checkpoint"]), str(out / manifest["checkpoint"]))
         learner.collect_s, learner.learn_s = timings
-        extra = {"git": source_revision()}
+        threads = update_threads(config)
+        extra = {"git": source_revision(), "update_threads": threads}  # the count the updates of this session ran on
         progress = RunProgress(out, config, start, f"{config.scenario}: TorchRL {manifest_algorithm(config)}, seed {config.seed}")
         last_saved = last_eval = steps
         wall = progress.wall
@@ -230,7 +234,8 @@ def train_torchrl(config: TorchRLTrainConfig, out: str | Path, resume: bool = Fa
                 began = time.perf_counter()
                 batch = next(batches)
                 collected = time.perf_counter()
-                learner.update(batch)
+                with torch_threads(threads):  # every env copy waits for the new weights
+                    learner.update(batch)
                 collector.update_policy_weights_()
                 learner.collect_s += collected - began
                 learner.learn_s += time.perf_counter() - collected
