@@ -148,6 +148,7 @@ def test_every_shipped_policys_command_remakes_its_recorded_configuration(monkey
     from agents.learned import policies_root
     from training.cli import build_parser
     from training.train.command import config_from_args
+    from training.train.config import recorded_update_threads
 
     monkeypatch.delenv(POLICIES_ENV, raising=False)
     root = policies_root()
@@ -155,7 +156,9 @@ def test_every_shipped_policys_command_remakes_its_recorded_configuration(monkey
     assert "top_observer_team4_legs_bc" in names
     defaults = {f.name: f.default for f in dataclasses.fields(TrainConfig) if f.default is not dataclasses.MISSING}
     for name in names:
-        recorded = json.loads((root / name / "manifest.json").read_text())["config"]
+        # As recorded; a field added since takes its default, but update_threads the run's torch_threads (what its
+        # updates ran on: TrainConfig.from_dict's reading of such a record).
+        recorded = recorded_update_threads(json.loads((root / name / "manifest.json").read_text())["config"])
         remade = config_from_args(build_parser().parse_args(retrain_argv(name, "out"))).to_dict()
         for key, value in remade.items():
             if key in ("progress_bar", "workers"):  # the retraining hides the bar; workers do not change the weights
