@@ -126,7 +126,7 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
     provenance: dict[str, Any] = {"git": source_revision()}  # the code of this session (a resume records its own)
     threads = update_threads_callback(config)
     if config.algo in ROLLOUT_UPDATES:
-        provenance["update_threads"] = update_threads(config)  # the count the updates of this session ran on
+        provenance["update_threads"] = update_threads(config)  # what the updates run on here (a resumed run records its own)
     session_start = time.perf_counter()
 
     def wall_time() -> float:

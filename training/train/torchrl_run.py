@@ -217,7 +217,7 @@ def train_torchrl(config: TorchRLTrainConfig, out: str | Path, resume: bool = Fa
             learner.restore(load_checkpoint(out / manifest["checkpoint"]), str(out / manifest["checkpoint"]))
         learner.collect_s, learner.learn_s = timings
         threads = update_threads(config)
-        extra = {"git": source_revision(), "update_threads": threads}  # the count the updates of this session ran on
+        extra = {"git": source_revision(), "update_threads": threads}  # what the updates run on here (a resumed run records its own)
         progress = RunProgress(out, config, start, f"{config.scenario}: TorchRL {manifest_algorithm(config)}, seed {config.seed}")
         last_saved = last_eval = steps
         wall = progress.wall
