@@ -240,8 +240,8 @@ class TrainConfig:
             The evaluations are the same for any value.
         progress_bar: show SB3's progress bar.
         torch_threads: torch's intra-op threads while training (1: the networks
-            are tiny, more threads only contend with the envs for the cores), but for
-            the updates of ``update_threads``.
+            are tiny, more threads only contend with the envs for the cores); the
+            on-policy algorithms' updates run on ``update_threads`` instead.
         update_threads: torch's intra-op threads during the gradient updates of PPO,
             MaskablePPO and A2C (:data:`ROLLOUT_UPDATES`), which run after each rollout
             while every env copy waits (None: one per usable core, :func:`update_threads`;

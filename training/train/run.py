@@ -124,7 +124,6 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
         wall_before = 0.0
         records = []
     provenance: dict[str, Any] = {"git": source_revision()}  # the code of this session (a resume records its own)
-    threads = update_threads_callback(config)
     if config.algo in ROLLOUT_UPDATES:
         provenance["update_threads"] = update_threads(config)  # what the updates run on here (a resumed run records its own)
     session_start = time.perf_counter()
@@ -137,6 +136,7 @@ def _train(config: TrainConfig, out: Path, resume: bool, callbacks: Sequence[Bas
 
     evaluation = EvaluationCallback(config, out, records, wall_time)
     # The threads first: the others' rollout-start work (checkpoints, evaluations) runs on the rollouts' count.
+    threads = update_threads_callback(config)
     first = [threads] if threads is not None else []
     chain = CallbackList([*first, CheckpointCallback(config.checkpoint_every, save), evaluation, *callbacks])
     logger = training_logger(out, model.num_timesteps)
