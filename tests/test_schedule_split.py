@@ -1,6 +1,7 @@
 """``schedule_split``: where a successful episode's time went, seen from the last robot to arrive,
 and the harness's episodes carrying it (time to goal = moving + waiting + still); ``schedule_bound``:
-the soonest any order of the same moves could arrive."""
+the soonest any order of the same moves could arrive; ``start_waves`` and ``fewest_waves``: the
+waves of starts an episode took and the fewest its legs allow."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import math
 
 import pytest
 
-from training.evaluation.episode import mobile_times, schedule_bound, schedule_split
+from training.evaluation.episode import fewest_waves, mobile_times, schedule_bound, schedule_split, start_waves
 from training.evaluation.harness import evaluate
 
 
@@ -51,6 +52,40 @@ def test_schedule_bound_is_the_longest_mover_or_the_work_of_all_but_one_robot():
         schedule_bound({"a": -1.0})
 
 
+def test_waves_are_the_starts_no_stop_separates():
+    mobile = {
+        #     reset  1      2      3      4      5      6      7
+        "a": [False, True, True, False, False, True, True, False],  # starts at 1 and 5
+        "b": [False, False, True, True, True, False, False, False],  # starts at 2 (no stop since 1: same wave)
+        "c": [False, False, False, False, True, True, False, False],  # starts at 4, after a's stop at 3: a new wave
+    }
+    # a's start at 5 follows b's stop at 5 in the same step: starts come first, so it joins c's wave
+    starts, waves = start_waves(mobile)
+    assert starts == {"a": 2, "b": 1, "c": 1}
+    assert waves == 2
+    # the same start one step later, after that stop: a third wave
+    later = dict(mobile, a=[False, True, True, False, False, False, True, False])
+    assert start_waves(later) == ({"a": 2, "b": 1, "c": 1}, 3)
+    assert start_waves({"a": [False, False], "b": [False, False]}) == ({"a": 0, "b": 0}, 0)
+    assert start_waves({"a": [True, True, False]}) == ({"a": 0}, 0)  # mobile from the reset: no start
+
+
+def test_fewest_waves_hold_one_start_per_robot_and_all_robots_but_one():
+    assert fewest_waves({"a": 5, "b": 4, "c": 4, "d": 3}) == 6   # 16 starts, 3 a wave
+    assert fewest_waves({"a": 7, "b": 2, "c": 2, "d": 1}) == 7   # a's own legs, one a wave
+    assert fewest_waves({"a": 3, "b": 4}) == 7                   # two robots: one at a time
+    assert fewest_waves({"a": 3}) == 3
+    assert fewest_waves({"a": 0, "b": 0, "c": 0}) == 0
+    with pytest.raises(ValueError, match="at least one robot"):
+        fewest_waves({})
+    with pytest.raises(ValueError, match="'b'"):
+        fewest_waves({"a": 1, "b": -1})
+    with pytest.raises(ValueError, match="'a'"):
+        fewest_waves({"a": 1.5})
+    with pytest.raises(ValueError, match="'a'"):
+        fewest_waves({"a": True})
+
+
 def test_evaluated_episodes_split_their_time_to_goal():
     result = evaluate("top_observer_team4", "greedy", 2, 1_000_000)
     for ep in result.episodes:
@@ -62,4 +97,8 @@ def test_evaluated_episodes_split_their_time_to_goal():
         assert row["waiting_s"] == ep.waiting_s and row["still_s"] == ep.still_s
         # the greedy schedule is one schedule of its own moves: never sooner than their bound
         assert 0.0 < ep.bound_s <= ep.time_to_goal_s and row["bound_s"] == ep.bound_s
+        # and never in fewer waves than its legs allow; every robot starts, so at least one wave
+        assert 1.0 <= ep.fewest_waves <= ep.waves and row["waves"] == ep.waves
+        assert ep.fewest_waves_time_s == pytest.approx(ep.time_to_goal_s * ep.fewest_waves / ep.waves)
     assert result.summary["waiting_s"]["n"] == 2 and result.summary["bound_s"]["n"] == 2
+    assert result.summary["waves"]["n"] == 2 and result.summary["fewest_waves_time_s"]["n"] == 2

@@ -96,11 +96,18 @@ def test_schedule_columns_split_the_time_to_goal_and_old_sweeps_are_refused():
     from training.sweep.compare import SCHEDULE_COLUMNS
 
     stat = lambda mean: {"mean": mean, "std": 0.5, "n": 10}  # noqa: E731
-    entry = _entry("greedy", 1.0, 23.0, 0.0065) | {"waiting_s": stat(5.0), "still_s": stat(4.0), "bound_s": stat(17.5)}
+    entry = _entry("greedy", 1.0, 23.0, 0.0065) | {
+        "waiting_s": stat(5.0), "still_s": stat(4.0), "bound_s": stat(17.5),
+        "waves": stat(7.25), "fewest_waves": stat(6.5), "fewest_waves_time_s": stat(20.6),
+    }
     row = comparison_table([entry], columns=SCHEDULE_COLUMNS).splitlines()[2]
-    assert row == "| greedy | 100 % | 23.0 ± 2.0 | 14.0 | 5.0 | 4.0 | 17.5 |"
+    assert row == "| greedy | 100 % | 23.0 ± 2.0 | 14.0 | 5.0 | 4.0 | 17.5 | 7.25 | 6.50 | 20.6 |"
     with pytest.raises(CompareError, match="waiting_s"):
         comparison_table([_entry("greedy", 1.0, 23.0, 0.0065)], columns=SCHEDULE_COLUMNS)
+    # a sweep written before the waves were recorded
+    old = {key: value for key, value in entry.items() if key not in ("waves", "fewest_waves", "fewest_waves_time_s")}
+    with pytest.raises(CompareError, match="waves"):
+        comparison_table([old], columns=SCHEDULE_COLUMNS)
 
 
 def _result_rows() -> list[dict[str, str]]:

@@ -21,7 +21,10 @@ from moma_env.geometry import wrap_angle
 from moma_env.metrics import RunMetrics, Trajectory, TrajectoryRecorder, run_metrics
 from training.evaluation.policies import Policy, PolicyEnvError
 
-__all__ = ["RobotEpisode", "EpisodeResult", "run_episode", "robot_agents", "schedule_split", "mobile_times", "schedule_bound"]
+__all__ = [
+    "RobotEpisode", "EpisodeResult", "run_episode", "robot_agents", "schedule_split", "mobile_times", "schedule_bound",
+    "start_waves", "fewest_waves",
+]
 
 FrameSink = Callable[[np.ndarray], None]
 
@@ -90,6 +93,13 @@ class EpisodeResult:
         bound_s: the soonest any schedule could reach every goal if each robot is
             mobile as long as it was in this episode and one robot at least stands at
             every instant (s; NaN without success); see :func:`schedule_bound`.
+        waves: how many waves of starts the episode took: a wave is the starts that no
+            robot's stop separates (NaN without success); see :func:`start_waves`.
+        fewest_waves: the fewest waves that the episode's starts (each robot's number of
+            legs) allow under the motion rules (NaN without success); see :func:`fewest_waves`.
+        fewest_waves_time_s: the time to goal scaled by ``fewest_waves / waves``: what the
+            episode would take with its waves packed into the fewest, each at its mean
+            length (s, an estimate, not a bound; NaN without success).
     """
 
     index: int
@@ -108,6 +118,9 @@ class EpisodeResult:
     waiting_s: float = math.nan
     still_s: float = math.nan
     bound_s: float = math.nan
+    waves: float = math.nan
+    fewest_waves: float = math.nan
+    fewest_waves_time_s: float = math.nan
 
     def row(self) -> dict[str, Any]:
         """The episode as one flat CSV row (distances in m, angles in deg, times in s)."""
@@ -126,6 +139,9 @@ class EpisodeResult:
             "waiting_s": self.waiting_s,
             "still_s": self.still_s,
             "bound_s": self.bound_s,
+            "waves": self.waves,
+            "fewest_waves": self.fewest_waves,
+            "fewest_waves_time_s": self.fewest_waves_time_s,
         }
         for name, r in self.robots.items():
             m = r.metrics
@@ -288,6 +304,59 @@ def schedule_bound(mobile_s: Mapping[str, float]) -> float:
     return max(longest, sum(values) / (len(values) - 1))
 
 
+def start_waves(mobile: Mapping[str, Sequence[bool]]) -> tuple[dict[str, int], int]:
+    """Each robot's starts and the team's waves of starts, from the robots' states after
+    each sample (``mobile[robot][k]``, the convention of :func:`schedule_split`).
+
+    A robot starts at sample ``k`` when it is mobile there and was not at ``k - 1``, and
+    stops when the reverse. A wave is the starts that no stop separates: the first start
+    of the episode, or the first after a stop, begins one. In a step, the starts (the
+    state requests) come before the stops (a leg ending under the step's commands).
+
+    Returns:
+        ``(starts, waves)``: robot -> how many times it started, and the number of waves.
+    """
+    starts = dict.fromkeys(mobile, 0)
+    flags = list(mobile.values())
+    names = list(mobile)
+    n_samples = min((len(f) for f in flags), default=0)
+    waves = 0
+    stopped = True  # the reset: the first start begins a wave
+    for k in range(1, n_samples):
+        started = False
+        for name, f in zip(names, flags):
+            if f[k] and not f[k - 1]:
+                starts[name] += 1
+                started = True
+        if started and stopped:
+            waves += 1
+            stopped = False
+        if any(f[k - 1] and not f[k] for f in flags):
+            stopped = True
+    return starts, waves
+
+
+def fewest_waves(starts: Mapping[str, int]) -> int:
+    """The fewest waves of starts (:func:`start_waves`) in which robot ``r`` can start
+    ``starts[r]`` legs: a wave holds at most one start of each robot (its leg must stop
+    before it starts again, and a stop ends the wave) and, with ``n`` robots, at most
+    ``n - 1`` starts (one robot at least stands: the motion rules' static reference), so
+    ``max(max(starts), ceil(sum(starts) / (n - 1)))``; with one robot, its starts.
+
+    Raises:
+        ValueError: no robots, or a count that is negative or not an integer.
+    """
+    if not starts:
+        raise ValueError("fewest_waves needs at least one robot")
+    for name, count in starts.items():
+        if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+            raise ValueError(f"starts of {name!r} must be an integer >= 0, got {count!r}")
+    counts = list(starts.values())
+    if len(counts) == 1:
+        return counts[0]
+    return max(max(counts), -(-sum(counts) // (len(counts) - 1)))
+
+
 def _count_events(infos: Mapping[str, Mapping[str, Any]]) -> tuple[int, int]:
     switches = refused = 0
     for info in infos.values():
@@ -355,8 +424,11 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
     if terminated and robots:
         waiting, still = schedule_split(times, mobile, {name: r.goal_time_s for name, r in results.items()})
         bound = schedule_bound(mobile_times(times, mobile))
+        starts, waves = start_waves(mobile)
+        fewest = fewest_waves(starts)
+        packed = duration * fewest / waves if waves else duration
     else:
-        waiting = still = bound = math.nan
+        waiting = still = bound = waves = fewest = packed = math.nan
     return EpisodeResult(
         index=index,
         seed=seed,
@@ -374,4 +446,7 @@ def run_episode(env: Any, policy: Policy, index: int, seed: int, frame_sink: Fra
         waiting_s=waiting,
         still_s=still,
         bound_s=bound,
+        waves=float(waves),
+        fewest_waves=float(fewest),
+        fewest_waves_time_s=float(packed),
     )

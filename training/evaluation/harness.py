@@ -92,6 +92,9 @@ def episode_dict(ep: EpisodeResult) -> dict[str, Any]:
         "waiting_s": ep.waiting_s,
         "still_s": ep.still_s,
         "bound_s": ep.bound_s,
+        "waves": ep.waves,
+        "fewest_waves": ep.fewest_waves,
+        "fewest_waves_time_s": ep.fewest_waves_time_s,
         "goals": {name: list(goal) for name, goal in ep.goals.items()},
         "robots": {
             name: {
@@ -127,7 +130,9 @@ def summarise(episodes: Sequence[EpisodeResult], robots: Sequence[str]) -> dict[
     ``time_to_goal_s`` (over successful episodes), ``duration_s``,
     ``total_reward``, ``n_switches``, ``n_refused``, ``waiting_s`` and ``still_s``
     (over successful episodes; :func:`training.evaluation.episode.schedule_split`),
-    ``bound_s`` (over successful episodes; :func:`training.evaluation.episode.schedule_bound`)
+    ``bound_s`` (over successful episodes; :func:`training.evaluation.episode.schedule_bound`),
+    ``waves``, ``fewest_waves`` and ``fewest_waves_time_s`` (over successful episodes;
+    :func:`training.evaluation.episode.start_waves`, :func:`~training.evaluation.episode.fewest_waves`)
     (each ``{"mean", "std", "n"}``), and ``robots``: per robot ``distance_m``, ``n_switches``,
     ``mean_heading_error_deg``, ``final_heading_error_deg`` (mean/std) and
     ``moma``: :func:`moma_env.metrics.aggregate` of its runs (ME_f, its std,
@@ -151,6 +156,9 @@ def summarise(episodes: Sequence[EpisodeResult], robots: Sequence[str]) -> dict[
         "waiting_s": mean_std([ep.waiting_s for ep in episodes]),
         "still_s": mean_std([ep.still_s for ep in episodes]),
         "bound_s": mean_std([ep.bound_s for ep in episodes]),
+        "waves": mean_std([ep.waves for ep in episodes]),
+        "fewest_waves": mean_std([ep.fewest_waves for ep in episodes]),
+        "fewest_waves_time_s": mean_std([ep.fewest_waves_time_s for ep in episodes]),
     }
     per_robot = {}
     for name in robots:

@@ -18,10 +18,15 @@ policy's mean over its own successes.
 (:func:`training.evaluation.episode.schedule_split`): success, time to goal, and the
 part of it the last robot to arrive spent moving, waiting (standing while another
 robot moved) and still (no robot moving), means over the successful episodes, so a
-row's three parts add up to its time to goal; and the schedule bound
+row's three parts add up to its time to goal; the schedule bound
 (:func:`training.evaluation.episode.schedule_bound`: the soonest any order of the same
-moves could arrive). Sweeps written before those were
-recorded are refused with ``--schedule``.
+moves could arrive, switch windows and dwells left out); and the waves of starts
+(:func:`training.evaluation.episode.start_waves`: the starts no stop separates, so each
+wave ends in a dwell), the fewest waves the same legs allow
+(:func:`training.evaluation.episode.fewest_waves`) and the time to goal scaled by their
+ratio (each wave saved worth the episode's mean wave: an estimate of what a better order
+of the same legs could gain). Sweeps written before those were recorded are refused
+with ``--schedule``.
 
 ``--paired BASE`` compares every other policy of the scenario with policy ``BASE``
 seed by seed instead, from the sweep's ``results.csv`` (:func:`paired_table`): over the
@@ -81,9 +86,12 @@ SCHEDULE_COLUMNS: Mapping[str, tuple[str, str, float]] = {
     "waiting s": ("waiting_s", "mean", 1.0),
     "team still s": ("still_s", "mean", 1.0),
     "bound s": ("bound_s", "mean", 1.0),
+    "waves": ("waves", "mean", 1.0),
+    "fewest waves": ("fewest_waves", "mean", 1.0),
+    "at fewest waves s": ("fewest_waves_time_s", "mean", 1.0),
 }
 
-_DIGITS = {"success": 0, "lost track": 0, "ME_f cm": 2, "ME cm": 2}
+_DIGITS = {"success": 0, "lost track": 0, "ME_f cm": 2, "ME cm": 2, "waves": 2, "fewest waves": 2}
 
 
 class CompareError(ValueError):
@@ -383,7 +391,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seeds", action="append", default=[], metavar="TEXT=POLICY,POLICY,...",
                         help="a row TEXT pooling these policies (training seeds) with a 95 %% t interval (default: none)")
     parser.add_argument("--schedule", action="store_true",
-                        help="where the time to goal went (moving, waiting, still) instead of the default columns")
+                        help="where the time to goal went (moving, waiting, still), its schedule bound and its waves of starts "
+                             "instead of the default columns")
     parser.add_argument("--paired", default=None, metavar="BASE",
                         help="every other policy against policy BASE, seed by seed over the seeds both reached every goal "
                              "(from results.csv) instead of the default columns")

@@ -83,7 +83,9 @@ def summarise_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     successes), ``duration_s``, ``steps``, ``total_reward``, ``n_switches``,
     ``n_refused``, ``waiting_s`` and ``still_s`` (over successes:
     :func:`training.evaluation.episode.schedule_split`), ``bound_s`` (over successes:
-    :func:`training.evaluation.episode.schedule_bound`), ``me_m`` and ``e_f_m`` (each
+    :func:`training.evaluation.episode.schedule_bound`), ``waves``, ``fewest_waves`` and
+    ``fewest_waves_time_s`` (over successes: :func:`training.evaluation.episode.start_waves`),
+    ``me_m`` and ``e_f_m`` (each
     episode's mean over its robots)."""
     groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
     for row in rows:
@@ -100,7 +102,8 @@ def summarise_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
         }
         for key in ("time_to_goal_s", "duration_s", "steps", "total_reward", "n_switches", "n_refused"):
             entry[key] = mean_std([float(r[key]) for r in group])
-        for key in ("waiting_s", "still_s", "bound_s"):  # absent from rows written before they were recorded
+        # absent from rows written before they were recorded
+        for key in ("waiting_s", "still_s", "bound_s", "waves", "fewest_waves", "fewest_waves_time_s"):
             entry[key] = mean_std([float(r[key]) if r.get(key) is not None else math.nan for r in group])
         entry["me_m"] = mean_std([_robot_mean(r, "_ME_m") for r in group])
         entry["e_f_m"] = mean_std([_robot_mean(r, "_E_f_m") for r in group])
