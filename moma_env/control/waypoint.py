@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from moma_env.config import check_positive
+from moma_env.config import ConfigError, check_positive
 from moma_env.geometry import wrap_angle
 
 __all__ = ["WaypointFollowerConfig", "WaypointFollower"]
@@ -35,6 +35,13 @@ class WaypointFollowerConfig:
             (rad); the authors used 0.04 rad.
         min_speed: speed floor while outside the tolerance (m/s), so that the
             proportional law does not stall just outside it.
+        hold_m: once the position has been within ``position_tolerance`` of a
+            waypoint, it counts as reached while the estimate stays within this
+            distance (m, at least ``position_tolerance``), so that the robot turns
+            in place instead of chasing the noise of its estimate back and forth
+            across the tolerance; the caller says whether the position was reached
+            (the ``held`` argument of :meth:`WaypointFollower.command`). None (the
+            default): only within ``position_tolerance``, the authors' follower.
     """
 
     max_speed: float = 0.25
@@ -44,10 +51,17 @@ class WaypointFollowerConfig:
     position_tolerance: float = 0.02
     yaw_tolerance: float = 0.04
     min_speed: float = 0.02
+    hold_m: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("max_speed", "max_yaw_rate", "position_gain", "yaw_gain", "position_tolerance", "yaw_tolerance", "min_speed"):
             check_positive(f"follower.{name}", getattr(self, name))
+        if self.hold_m is not None:
+            check_positive("follower.hold_m", self.hold_m)
+            if self.hold_m < self.position_tolerance:
+                raise ConfigError(
+                    "follower.hold_m", f"must be at least position_tolerance ({self.position_tolerance} m), got {self.hold_m}"
+                )
 
 
 class WaypointFollower:
@@ -56,23 +70,31 @@ class WaypointFollower:
     def __init__(self, config: WaypointFollowerConfig | None = None):
         self.config = config or WaypointFollowerConfig()
 
-    def reached(self, pose: tuple[float, float, float], waypoint: tuple[float, float, float]) -> bool:
-        """True when ``pose`` is within both tolerances of ``waypoint``."""
-        x, y, yaw = pose
-        gx, gy, gyaw = waypoint
+    def position_reached(self, pose: tuple[float, float, float], waypoint: tuple[float, float, float], held: bool = False) -> bool:
+        """True when the position of ``pose`` counts as at ``waypoint``'s: within
+        ``position_tolerance``, or, when ``held`` (the caller saw it reached since the
+        waypoint was set) and ``hold_m`` is set, within ``hold_m``."""
+        c = self.config
+        dist = math.hypot(waypoint[0] - pose[0], waypoint[1] - pose[1])
+        return dist <= c.position_tolerance or (held and c.hold_m is not None and dist <= c.hold_m)
+
+    def reached(self, pose: tuple[float, float, float], waypoint: tuple[float, float, float], held: bool = False) -> bool:
+        """True when ``pose`` is within both tolerances of ``waypoint`` (the position as
+        :meth:`position_reached` counts it)."""
         return (
-            math.hypot(gx - x, gy - y) <= self.config.position_tolerance
-            and abs(wrap_angle(gyaw - yaw)) <= self.config.yaw_tolerance
+            self.position_reached(pose, waypoint, held)
+            and abs(wrap_angle(waypoint[2] - pose[2])) <= self.config.yaw_tolerance
         )
 
-    def command(self, pose: tuple[float, float, float], waypoint: tuple[float, float, float]) -> np.ndarray:
-        """Body-frame velocity ``(vx, vy, omega)`` that drives ``pose`` to ``waypoint``."""
+    def command(self, pose: tuple[float, float, float], waypoint: tuple[float, float, float], held: bool = False) -> np.ndarray:
+        """Body-frame velocity ``(vx, vy, omega)`` that drives ``pose`` to ``waypoint``: towards
+        its position until :meth:`position_reached` (``held``: see there), then turning in place."""
         c = self.config
         x, y, yaw = pose
         gx, gy, gyaw = waypoint
         dx, dy = gx - x, gy - y
         dist = math.hypot(dx, dy)
-        if dist > c.position_tolerance:
+        if dist > c.position_tolerance and not (held and c.hold_m is not None and dist <= c.hold_m):
             speed = min(c.max_speed, max(c.min_speed, c.position_gain * dist))
             wx, wy = dx / dist * speed, dy / dist * speed
             cos_y, sin_y = math.cos(yaw), math.sin(yaw)

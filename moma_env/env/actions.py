@@ -31,8 +31,11 @@ from moma_env.estimator import Status
 from moma_env.geometry import wrap_angle
 from moma_env.sim import Frame, Simulation, Switch
 
-__all__ = ["ACTION_MODE_TYPES", "ActionMode", "EventLog", "SwitchingActions", "VelocityActions", "action_mode"]
+__all__ = ["ACTION_MODE_TYPES", "ActionMode", "EventLog", "LEG_POSITION_TOLERANCE_M", "SwitchingActions", "VelocityActions", "action_mode"]
 
+#: How close (m) a switching-mode robot's estimate must come to the end of its leg for the
+#: leg's position to count as reached (``EnvConfig.follower_hold_m`` is at least this).
+LEG_POSITION_TOLERANCE_M = 0.02
 #: A reeled sled whose rope has not shortened for this long (s) is declared static.
 _REEL_STALL_S = 1.0
 #: A leg of the switching mode whose robot has come no closer to the leg's end for this
@@ -186,6 +189,13 @@ class SwitchingActions(ActionMode):
     allows only ``advance``; a robot whose estimate is not localised (it waits for
     it) can still be held. The leg still ends early when it is blocked.
 
+    With ``follower_hold_m`` (``EnvConfig.follower_hold_m``, m), a robot whose estimate
+    has come within the leg's position tolerance turns in place to the leg's heading
+    while its estimate stays within that distance of the leg's end, instead of driving
+    back whenever the estimate's noise carries it out of the tolerance
+    (:attr:`~moma_env.control.WaypointFollowerConfig.hold_m`); the leg ends when the
+    heading is reached with the position so held.
+
     With ``leg_lengths`` (``EnvConfig.leg_lengths``, K lengths in m), a UGV chooses how
     far each leg goes: ``Discrete(1 + K)``, 0 holds and ``k`` (1 to K) advances a leg of
     ``leg_lengths[k - 1]`` m instead of the scenario's ``leg_length``; a towing robot's
@@ -207,6 +217,7 @@ class SwitchingActions(ActionMode):
         max_speeds: Mapping[str, tuple[float, float]],
         commit_legs: bool = False,
         leg_lengths: tuple[float, ...] | None = None,
+        follower_hold_m: float | None = None,
     ):
         super().__init__(tows, max_speeds)
         self.commit_legs = commit_legs
@@ -218,8 +229,11 @@ class SwitchingActions(ActionMode):
         self.reel = 1 + self.n_advances
         self._chosen: dict[str, float] = {}  # robot -> leg length (m) of the advance it asked for this step
         self.committed: set[str] = set()  # with commit_legs: robots driving a leg on a localised estimate
-        self.follower = WaypointFollower(WaypointFollowerConfig(max_speed=0.3, position_tolerance=0.02, yaw_tolerance=0.04))
+        self.follower = WaypointFollower(
+            WaypointFollowerConfig(max_speed=0.3, position_tolerance=LEG_POSITION_TOLERANCE_M, yaw_tolerance=0.04, hold_m=follower_hold_m)
+        )
         self.legs: dict[str, tuple[float, float, float]] = {}
+        self.held: set[str] = set()  # with follower_hold_m: robots whose leg's position was reached
         self.reeling: set[str] = set()
         self._reel_progress: dict[str, tuple[float, float]] = {}  # sled -> (shortest rope m, when s)
         self._leg_progress: dict[str, tuple[float, float, float]] = {}  # robot -> (closest m, rad, when s)
@@ -238,6 +252,7 @@ class SwitchingActions(ActionMode):
         self.legs = {}
         self.reeling = set()
         self.committed = set()
+        self.held = set()
         self._reel_progress = {}
         self._leg_progress = {}
         scenario = simulation.scenario
@@ -283,10 +298,12 @@ class SwitchingActions(ActionMode):
                 else:
                     length = self._chosen.get(device, simulation.scenario.leg_length)
                     self.legs[device] = self._next_leg(device, simulation, length)
+                    self.held.discard(device)
                     self._leg_progress[device] = (math.inf, math.inf, t)
 
     def _stopped(self, device: str) -> None:
         self.committed.discard(device)
+        self.held.discard(device)
         self.legs.pop(device, None)
         self._leg_progress.pop(device, None)
         self.reeling.discard(device)
@@ -341,7 +358,8 @@ class SwitchingActions(ActionMode):
                 closest, aligned, _ = self._leg_progress[device]
                 self._leg_progress[device] = (closest, aligned, t)  # waiting is not being blocked
                 continue
-            if self.follower.reached(pose, leg):
+            held = device in self.held
+            if self.follower.reached(pose, leg, held):
                 self._declare_static(device, simulation)
                 note(device, f"leg_done:{device}")
                 commands[device] = np.zeros(3)
@@ -352,7 +370,12 @@ class SwitchingActions(ActionMode):
             else:
                 if self.commit_legs:
                     self.committed.add(device)
-                commands[device] = self.follower.command(pose, leg)
+                commands[device] = self.follower.command(pose, leg, held)
+                if self.follower.config.hold_m is not None:
+                    if self.follower.position_reached(pose, leg, held):
+                        self.held.add(device)
+                    else:
+                        self.held.discard(device)
         return commands
 
     def after_step(self, simulation: Simulation, note: EventLog) -> bool:
@@ -439,15 +462,16 @@ def action_mode(
     max_speeds: Mapping[str, tuple[float, float]],
     commit_legs: bool = False,
     leg_lengths: tuple[float, ...] | None = None,
+    follower_hold_m: float | None = None,
 ) -> ActionMode:
-    """The action mode called ``name`` (one of :data:`ACTION_MODE_TYPES`); ``commit_legs``
-    and ``leg_lengths`` are :class:`SwitchingActions`'s (switching mode only)."""
+    """The action mode called ``name`` (one of :data:`ACTION_MODE_TYPES`); ``commit_legs``,
+    ``leg_lengths`` and ``follower_hold_m`` are :class:`SwitchingActions`'s (switching mode only)."""
     try:
         cls = ACTION_MODE_TYPES[name]
     except KeyError:
         raise ValueError(f"unknown action mode {name!r}; known: {sorted(ACTION_MODE_TYPES)}") from None
     if cls is SwitchingActions:
-        return SwitchingActions(tows, max_speeds, commit_legs=commit_legs, leg_lengths=leg_lengths)
-    if commit_legs or leg_lengths is not None:
-        raise ValueError(f"commit_legs and leg_lengths exist only in switching mode, not {name!r}")
+        return SwitchingActions(tows, max_speeds, commit_legs=commit_legs, leg_lengths=leg_lengths, follower_hold_m=follower_hold_m)
+    if commit_legs or leg_lengths is not None or follower_hold_m is not None:
+        raise ValueError(f"commit_legs, leg_lengths and follower_hold_m exist only in switching mode, not {name!r}")
     return cls(tows, max_speeds)

@@ -27,6 +27,7 @@ from moma_env.config import (
     check_positive,
 )
 from moma_env.control import TrackingControllerConfig
+from moma_env.env.actions import LEG_POSITION_TOLERANCE_M
 from moma_env.estimator.registry import check_estimator_name, resolve_localiser
 
 __all__ = ["ACTION_MODES", "TEAM_ACTIONS", "RewardConfig", "EnvConfig", "checked_max_cycles"]
@@ -121,6 +122,13 @@ class EnvConfig:
             chooses its legs from: action ``k`` (1 to K) advances ``leg_lengths[k - 1]``
             m, 0 holds (see :class:`moma_env.env.actions.SwitchingActions`). None (the
             default): one advance, of the scenario's ``leg_length``.
+        follower_hold_m: in ``switching`` mode, once a robot's estimate has come within
+            the leg's position tolerance (2 cm) of the leg's end, the position stays
+            reached while the estimate stays within this distance (m, at least 0.02),
+            so the robot turns in place to the leg's heading instead of driving back
+            whenever its estimate's noise leaves the tolerance (see
+            :class:`moma_env.env.actions.SwitchingActions`). None (the default): only
+            within the tolerance, the authors' follower.
         pad_observations: pad every agent's vector observation with zeros to
             the longest one, and give every agent one observation space (the
             union of their bounds), so that parameter-sharing wrappers (SuperSuit's
@@ -166,6 +174,7 @@ class EnvConfig:
     action_masks: bool = False
     commit_legs: bool = False
     leg_lengths: tuple[float, ...] | None = None
+    follower_hold_m: float | None = None
     pad_observations: bool = False
     localiser: Callable[[Any], Any] | None = None
     switch_horizon_s: float = DEFAULT_SWITCH_HORIZON_S
@@ -229,6 +238,16 @@ class EnvConfig:
             if len(set(lengths)) != len(lengths):
                 raise ConfigError("env.leg_lengths", f"must be distinct, got {list(lengths)}")
             object.__setattr__(self, "leg_lengths", lengths)
+        if self.follower_hold_m is not None:
+            if self.action_mode != "switching":
+                raise ConfigError("env.follower_hold_m", "exists only for the legs of action_mode='switching'")
+            check_positive("env.follower_hold_m", self.follower_hold_m)
+            if self.follower_hold_m < LEG_POSITION_TOLERANCE_M:
+                raise ConfigError(
+                    "env.follower_hold_m",
+                    f"must be at least the legs' position tolerance ({LEG_POSITION_TOLERANCE_M} m), got {self.follower_hold_m}",
+                )
+            object.__setattr__(self, "follower_hold_m", float(self.follower_hold_m))
         check_choice("env.team_action", self.team_action, TEAM_ACTIONS)
         if self.team_action == "one_start":
             if not self.commit_legs:

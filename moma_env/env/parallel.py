@@ -347,6 +347,7 @@ class MomaParallelEnv(ParallelEnv):
             {u.name: (u.max_speed, u.max_yaw_rate) for u in wc.ugvs},
             commit_legs=self.config.commit_legs,
             leg_lengths=self.config.leg_lengths,
+            follower_hold_m=self.config.follower_hold_m,
         )
         self._reward = TeamReward(scenario, self._ugvs, self.config.rewards)
         self._max_cycles = self._max_cycles_set or self.config.max_cycles or scenario.max_cycles
