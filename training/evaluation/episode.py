@@ -340,8 +340,11 @@ def fewest_waves(starts: Mapping[str, int]) -> int:
     """The fewest waves of starts (:func:`start_waves`) in which robot ``r`` can start
     ``starts[r]`` legs: a wave holds at most one start of each robot (its leg must stop
     before it starts again, and a stop ends the wave) and, with ``n`` robots, at most
-    ``n - 1`` starts (one robot at least stands: the motion rules' static reference), so
-    ``max(max(starts), ceil(sum(starts) / (n - 1)))``; with one robot, its starts.
+    ``n - 1`` starts (one robot at least stands: the motion rules' static reference, with
+    the robots as the references, as :func:`schedule_bound` takes them), so
+    ``max(max(starts), ceil(sum(starts) / (n - 1)))``; with one robot, its starts. It
+    counts no other rule: where the cameras' views forbid some robots to move together
+    (a file of robots, each seeing the one ahead), fewer waves may not be reachable.
 
     Raises:
         ValueError: no robots, or a count that is negative or not an integer.
