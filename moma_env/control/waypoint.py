@@ -74,9 +74,13 @@ class WaypointFollower:
         """True when the position of ``pose`` counts as at ``waypoint``'s: within
         ``position_tolerance``, or, when ``held`` (the caller saw it reached since the
         waypoint was set) and ``hold_m`` is set, within ``hold_m``."""
-        c = self.config
         dist = math.hypot(waypoint[0] - pose[0], waypoint[1] - pose[1])
-        return dist <= c.position_tolerance or (held and c.hold_m is not None and dist <= c.hold_m)
+        return dist <= self.config.position_tolerance or self._held_within(dist, held)
+
+    def _held_within(self, dist: float, held: bool) -> bool:
+        """Whether a position ``dist`` m from the waypoint's, ``held`` by the caller, counts as reached by ``hold_m``."""
+        hold = self.config.hold_m
+        return held and hold is not None and dist <= hold
 
     def reached(self, pose: tuple[float, float, float], waypoint: tuple[float, float, float], held: bool = False) -> bool:
         """True when ``pose`` is within both tolerances of ``waypoint`` (the position as
@@ -94,7 +98,7 @@ class WaypointFollower:
         gx, gy, gyaw = waypoint
         dx, dy = gx - x, gy - y
         dist = math.hypot(dx, dy)
-        if dist > c.position_tolerance and not (held and c.hold_m is not None and dist <= c.hold_m):
+        if dist > c.position_tolerance and not self._held_within(dist, held):
             speed = min(c.max_speed, max(c.min_speed, c.position_gain * dist))
             wx, wy = dx / dist * speed, dy / dist * speed
             cos_y, sin_y = math.cos(yaw), math.sin(yaw)

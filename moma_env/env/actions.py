@@ -350,6 +350,8 @@ class SwitchingActions(ActionMode):
         commands: dict[str, np.ndarray] = {}
         frame: Frame = simulation.frame
         t = simulation.time
+        follower = self.follower
+        holds = follower.config.hold_m is not None
         for device, leg in list(self.legs.items()):
             pose = frame.usable_pose(device)
             if pose is None or frame.estimates[device].status is not Status.LOCALISED:
@@ -358,8 +360,8 @@ class SwitchingActions(ActionMode):
                 closest, aligned, _ = self._leg_progress[device]
                 self._leg_progress[device] = (closest, aligned, t)  # waiting is not being blocked
                 continue
-            held = device in self.held
-            if self.follower.reached(pose, leg, held):
+            held = holds and device in self.held
+            if follower.reached(pose, leg, held):
                 self._declare_static(device, simulation)
                 note(device, f"leg_done:{device}")
                 commands[device] = np.zeros(3)
@@ -370,9 +372,9 @@ class SwitchingActions(ActionMode):
             else:
                 if self.commit_legs:
                     self.committed.add(device)
-                commands[device] = self.follower.command(pose, leg, held)
-                if self.follower.config.hold_m is not None:
-                    if self.follower.position_reached(pose, leg, held):
+                commands[device] = follower.command(pose, leg, held)
+                if holds:
+                    if follower.position_reached(pose, leg, held):
                         self.held.add(device)
                     else:
                         self.held.discard(device)
