@@ -28,9 +28,24 @@ from moma_env.config import (
 )
 from moma_env.control import TrackingControllerConfig
 from moma_env.env.actions import LEG_POSITION_TOLERANCE_M
+from moma_env.env.info_keys import INFO_KEYS
 from moma_env.estimator.registry import check_estimator_name, resolve_localiser
 
-__all__ = ["ACTION_MODES", "TEAM_ACTIONS", "RewardConfig", "EnvConfig", "checked_max_cycles"]
+__all__ = ["ACTION_MODES", "TEAM_ACTIONS", "RewardConfig", "EnvConfig", "checked_info_keys", "checked_max_cycles"]
+
+
+def checked_info_keys(name: str, value: object) -> tuple[str, ...]:
+    """``value`` as a choice of info keys: a sequence (not a string) of distinct keys of
+    :data:`~moma_env.env.info_keys.INFO_KEYS`, as a tuple; ConfigError naming ``name`` otherwise."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence):
+        raise ConfigError(name, f"must be None (every key) or a sequence of info keys, got {value!r}")
+    keys = tuple(value)
+    for key in keys:
+        if key not in INFO_KEYS:
+            raise ConfigError(name, f"unknown info key {key!r}; known: {list(INFO_KEYS)}")
+    if len(set(keys)) != len(keys):
+        raise ConfigError(name, f"must be distinct, got {list(keys)}")
+    return keys
 
 
 def checked_max_cycles(name: str, value: object) -> int:
@@ -129,6 +144,11 @@ class EnvConfig:
             whenever its estimate's noise leaves the tolerance (see
             :class:`moma_env.env.actions.SwitchingActions`). None (the default): only
             within the tolerance, the authors' follower.
+        info_keys: the keys every agent's ``infos`` entry keeps, of
+            :data:`moma_env.env.info_keys.INFO_KEYS` (each agent gets those of them it
+            has, in their usual order, and the env builds no other), or None (the
+            default): every key. ``("static", "action_mask")`` is what the training
+            adapters read (:mod:`training.train.team_slots`).
         pad_observations: pad every agent's vector observation with zeros to
             the longest one, and give every agent one observation space (the
             union of their bounds), so that parameter-sharing wrappers (SuperSuit's
@@ -175,6 +195,7 @@ class EnvConfig:
     commit_legs: bool = False
     leg_lengths: tuple[float, ...] | None = None
     follower_hold_m: float | None = None
+    info_keys: tuple[str, ...] | None = None
     pad_observations: bool = False
     localiser: Callable[[Any], Any] | None = None
     switch_horizon_s: float = DEFAULT_SWITCH_HORIZON_S
@@ -248,6 +269,8 @@ class EnvConfig:
                     f"must be at least the legs' position tolerance ({LEG_POSITION_TOLERANCE_M} m), got {self.follower_hold_m}",
                 )
             object.__setattr__(self, "follower_hold_m", float(self.follower_hold_m))
+        if self.info_keys is not None:
+            object.__setattr__(self, "info_keys", checked_info_keys("env.info_keys", self.info_keys))
         check_choice("env.team_action", self.team_action, TEAM_ACTIONS)
         if self.team_action == "one_start":
             if not self.commit_legs:

@@ -11,7 +11,7 @@ reset from the env's seeded generator (:class:`RandomScenarios`).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import fields, replace
 from typing import Any
 
@@ -197,6 +197,7 @@ def env_config(
     commit_legs: bool = False,
     leg_lengths: tuple[float, ...] | None = None,
     follower_hold_m: float | None = None,
+    info_keys: Sequence[str] | None = None,
     pad_observations: bool = False,
     localiser: Any = None,
     switch_horizon_s: float = DEFAULT_SWITCH_HORIZON_S,
@@ -235,6 +236,7 @@ def env_config(
         commit_legs=commit_legs,
         leg_lengths=leg_lengths,
         follower_hold_m=follower_hold_m,
+        info_keys=info_keys,
         pad_observations=pad_observations,
         localiser=localiser,
         switch_horizon_s=switch_horizon_s,
@@ -267,7 +269,7 @@ def configuration_env(
         **options: the env's options, the :class:`EnvConfig` fields (``action_mode``,
             ``max_cycles``, ``rewards``, ``camera_backend``, ``render``, ``floor``,
             ``observer_image``, ``action_masks``, ``commit_legs``, ``leg_lengths``,
-            ``pad_observations``, ``localiser``, ``switch_horizon_s``, ``team_action``,
+            ``follower_hold_m``, ``info_keys``, ``pad_observations``, ``localiser``, ``switch_horizon_s``, ``team_action``,
             ``tracking``, ``observer_agent``: :func:`env_config`, where ``rewards``,
             ``render``, ``floor`` and ``tracking`` may be mappings of their fields), and
             any other keyword a field of the configuration's dataclass.

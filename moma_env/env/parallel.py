@@ -54,6 +54,7 @@ from moma_env.env.actions import ActionMode, SwitchingActions, action_mode, pars
 from moma_env.env.agent_names import OBSERVER, observer_agent_names
 from moma_env.env.cameras import build_cameras, floor_for
 from moma_env.env.config import EnvConfig, checked_max_cycles
+from moma_env.env.info_keys import OBSERVER_INFO_KEYS
 from moma_env.env.observations import ObservationLayout, device_table, padded
 from moma_env.env.pixels import observation_spaces, observer_observation
 from moma_env.env.rewards import TeamReward
@@ -65,6 +66,8 @@ from moma_env.sim import Frame, Simulation, measured
 __all__ = ["MEASUREMENT", "MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep", "STEP_PHASES", "run_phases"]
 
 #: Status -> its name in infos (``"localised"``, ...): read from a table, not from the enum's ``name`` each time.
+#: The UGV info keys :meth:`MomaParallelEnv._chosen_infos` gives without building a UGV's whole info.
+_CHEAP_UGV_KEYS = frozenset({"static", "action_mask"})
 _STATUS_NAMES: Mapping[Status, str] = MappingProxyType({status: status.name.lower() for status in Status})
 
 ScenarioFactory = Callable[[np.random.Generator | None], Scenario]
@@ -679,40 +682,76 @@ class MomaParallelEnv(ParallelEnv):
         """Every agent's info (``events`` by agent, none if left out; ``terms``: the step's
         weighted reward terms, none at reset), with the UGVs' action masks when
         ``EnvConfig.action_masks`` is on."""
+        chosen = self.config.info_keys
+        if chosen is not None:
+            return self._chosen_infos(frame, events, terms, collisions, chosen)
         observers = self._observers
-        # The frame's and the episode's values, read once for every agent.
-        truth, estimated, estimates = frame.truth, frame.estimated, frame.estimates
-        mobile = frame.mobile
-        reached = self._reward.reached
-        switches_total = self._switches_total
-        tows = self._tows
         infos: dict[str, dict] = {}
         for agent in self.agents:
             agent_events = events.get(agent, [])
             uav = observers.get(agent)
             if uav is not None:
                 infos[agent] = self._observer_info(frame, uav, agent_events, dict(terms))
-                continue
-            e = estimates[agent]
-            info = infos[agent] = {
-                "truth": truth[agent],
-                "estimate": estimated[agent],
-                "covariance": e.covariance,
-                "localisation_error": frame.error(agent),
-                "status": _STATUS_NAMES[e.status],
-                "static": agent not in mobile,
-                "events": agent_events,
-                "refused": [ev.split(":", 2)[2] for ev in agent_events if ev.startswith("refused:")] if agent_events else [],
-                "reached_goal": agent in reached,
-                "collisions": collisions,
-                "switches_total": switches_total,
-                "reward_terms": dict(terms),
-            }
-            sled = tows.get(agent)
-            if sled is not None:
-                info["sled_truth"] = truth[sled]
-                info["sled_localisation_error"] = frame.error(sled)
+            else:
+                infos[agent] = self._ugv_info(frame, agent, agent_events, terms, collisions)
         if self.config.action_masks:
+            masks = self.action_masks()
+            for agent in self.agents:
+                if agent not in observers:
+                    infos[agent]["action_mask"] = masks[agent]
+        return infos
+
+    def _ugv_info(self, frame: Frame, agent: str, events: list[str], terms: Mapping[str, float], collisions: int) -> dict:
+        """The info of UGV ``agent`` but its action mask (:data:`~moma_env.env.info_keys.UGV_INFO_KEYS`)."""
+        e = frame.estimates[agent]
+        info = {
+            "truth": frame.truth[agent],
+            "estimate": frame.estimated[agent],
+            "covariance": e.covariance,
+            "localisation_error": frame.error(agent),
+            "status": _STATUS_NAMES[e.status],
+            "static": agent not in frame.mobile,
+            "events": events,
+            "refused": [ev.split(":", 2)[2] for ev in events if ev.startswith("refused:")] if events else [],
+            "reached_goal": agent in self._reward.reached,
+            "collisions": collisions,
+            "switches_total": self._switches_total,
+            "reward_terms": dict(terms),
+        }
+        sled = self._tows.get(agent)
+        if sled is not None:
+            info["sled_truth"] = frame.truth[sled]
+            info["sled_localisation_error"] = frame.error(sled)
+        return info
+
+    def _chosen_infos(
+        self, frame: Frame, events: Mapping[str, list[str]], terms: Mapping[str, float], collisions: int, chosen: tuple[str, ...]
+    ) -> dict[str, dict]:
+        """:meth:`_infos` with only the keys ``chosen`` (``EnvConfig.info_keys``) that each
+        agent has, in their usual order; what no chosen key needs is not built (a UGV's
+        whole info only for a key other than ``"static"`` and ``"action_mask"``, the masks
+        only for ``"action_mask"``)."""
+        observers = self._observers
+        keep = frozenset(chosen)
+        observer_keys = [key for key in OBSERVER_INFO_KEYS if key in keep]
+        whole = not keep <= _CHEAP_UGV_KEYS
+        static = "static" in keep
+        mobile = frame.mobile
+        infos: dict[str, dict] = {}
+        for agent in self.agents:
+            uav = observers.get(agent)
+            if uav is not None:
+                if observer_keys:
+                    info = self._observer_info(frame, uav, events.get(agent, []), dict(terms))
+                    infos[agent] = {key: info[key] for key in observer_keys}
+                else:
+                    infos[agent] = {}
+            elif whole:
+                info = self._ugv_info(frame, agent, events.get(agent, []), terms, collisions)
+                infos[agent] = {key: value for key, value in info.items() if key in keep}
+            else:
+                infos[agent] = {"static": agent not in mobile} if static else {}
+        if self.config.action_masks and "action_mask" in keep:
             masks = self.action_masks()
             for agent in self.agents:
                 if agent not in observers:

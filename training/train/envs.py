@@ -23,7 +23,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from training.train.config import TrainConfig
 from training.train.shared_vec_env import SharedPolicyVecEnv, TeamVecEnv
-from training.train.team_slots import EnvSpec
+from training.train.team_slots import SLOT_INFO_KEYS, EnvSpec
 
 __all__ = ["env_spec", "make_vec_env", "wrap_normalisation"]
 
@@ -34,9 +34,17 @@ def env_spec(config: TrainConfig) -> EnvSpec:
 
 
 def make_vec_env(config: TrainConfig, seed: int) -> VecEnv:
-    """The run's K env copies through its route, seeded with ``seed`` (without normalisation)."""
+    """The run's K env copies through its route, seeded with ``seed`` (without normalisation).
+
+    The copies' infos carry only what the slots read (:data:`~training.train.team_slots.SLOT_INFO_KEYS`:
+    the action masks and the robots' static flags; SB3's own keys are added to them): the
+    rest of a copy's infos (truth, estimates, covariances, events, reward terms) is not
+    built nor sent from the worker processes. What is learned is the same, bit for bit.
+    """
     adapter = SharedPolicyVecEnv if config.route == "shared" else TeamVecEnv
-    venv: VecEnv = adapter(env_spec(config), config.envs, subproc=config.subproc, workers=config.workers)
+    spec = env_spec(config)
+    spec = EnvSpec(spec.configuration, {**spec.options, "info_keys": SLOT_INFO_KEYS})
+    venv: VecEnv = adapter(spec, config.envs, subproc=config.subproc, workers=config.workers)
     venv.seed(seed)
     return venv
 

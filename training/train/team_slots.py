@@ -44,7 +44,16 @@ from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.vector import make
 
-__all__ = ["EnvSpec", "SLOT_LAYOUTS", "TeamSlot", "UGVSlots", "VectorSlots", "slot_spaces", "slot_infos", "env_command", "control_step"]
+__all__ = [
+    "EnvSpec", "SLOT_LAYOUTS", "SLOT_INFO_KEYS", "TeamSlot", "UGVSlots", "VectorSlots", "slot_spaces", "slot_infos", "env_command",
+    "control_step",
+]
+
+#: The info keys the slots read of a copy's infos (``EnvConfig.info_keys``): each UGV's
+#: action mask (the masked algorithms' masks come from the infos) and whether it is static
+#: (the centralised route's ``one_start`` team action). A training run's envs carry only
+#: these (:func:`training.train.envs.make_vec_env`): PPO reads nothing else of them.
+SLOT_INFO_KEYS = ("static", "action_mask")
 
 
 @dataclass(frozen=True)
