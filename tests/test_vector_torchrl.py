@@ -168,3 +168,20 @@ def test_importing_the_adapter_keeps_multiprocessings_start_method():
     bare = subprocess.run([sys.executable, "-c", "import multiprocessing as mp, torchrl; print(mp.get_start_method(allow_none=True))"],
                           capture_output=True, text=True, check=True).stdout.strip()
     assert bare == "spawn"  # what the adapter undoes
+
+
+def test_the_copies_build_only_the_masks_of_their_infos_and_give_the_same_data():
+    """The copies' infos are not TorchRL's data: by default they carry the masks alone
+    (``info_keys=("action_mask",)``), and a rollout is the one of copies with every key."""
+    lean = MomaTorchRLEnv("top_observer_team4", 2, seed=3, max_cycles=8)
+    full = MomaTorchRLEnv("top_observer_team4", 2, seed=3, max_cycles=8, info_keys=None)
+    assert [copy.config.info_keys for copy in lean.vector.envs] == [("action_mask",)] * 2
+    assert [copy.config.info_keys for copy in full.vector.envs] == [None] * 2
+    torch.manual_seed(0)
+    lean_rollout = lean.rollout(20, break_when_any_done=False)
+    torch.manual_seed(0)
+    full_rollout = full.rollout(20, break_when_any_done=False)
+    assert lean_rollout["next", "done"].any()
+    assert (lean_rollout == full_rollout).all()
+    lean.close()
+    full.close()

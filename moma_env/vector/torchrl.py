@@ -74,6 +74,8 @@ __all__ = ["MomaTorchRLEnv", "UGV_GROUP", "OBSERVER_GROUP"]
 UGV_GROUP = "ugv"
 #: Group name of the observer, when it is an agent.
 OBSERVER_GROUP = "observer"
+#: The info keys the env builds by default (``EnvConfig.info_keys``): the action masks it reads.
+MASKS_ONLY = ("action_mask",)
 
 
 def _group_specs(vector: BatchedEnv, agents: list[str], batch: torch.Size) -> tuple[Composite, Composite, bool]:
@@ -126,7 +128,11 @@ class MomaTorchRLEnv(EnvBase):
         device: the tensors' device.
         workers: None steps the copies in this process; ``W`` splits them over ``W``
             worker processes (:func:`moma_env.vector.make`; the same episodes).
-        options: options of :func:`moma_env.env.factory.parallel_env`.
+        options: options of :func:`moma_env.env.factory.parallel_env`. The copies'
+            infos are not part of TorchRL's data, so unless ``info_keys`` is given
+            they are built with ``info_keys=("action_mask",)`` (the masks this env
+            reads; ``EnvConfig.info_keys``): the same episodes, without the truth,
+            estimates and reward terms no one reads.
 
     Attributes:
         vector: the batched env stepped (:func:`moma_env.vector.make`).
@@ -146,6 +152,7 @@ class MomaTorchRLEnv(EnvBase):
         workers: int | None = None,
         **options: Any,
     ):
+        options.setdefault("info_keys", MASKS_ONLY)
         self.vector = make(configuration, num_envs, workers=workers, **options)
         super().__init__(device=device, batch_size=torch.Size([self.vector.num_envs]))
         agents = self.vector.possible_agents
