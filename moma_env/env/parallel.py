@@ -65,9 +65,9 @@ from moma_env.sim import Frame, Simulation, measured
 
 __all__ = ["MEASUREMENT", "MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep", "STEP_PHASES", "run_phases"]
 
-#: Status -> its name in infos (``"localised"``, ...): read from a table, not from the enum's ``name`` each time.
 #: The UGV info keys :meth:`MomaParallelEnv._chosen_infos` gives without building a UGV's whole info.
 _CHEAP_UGV_KEYS = frozenset({"static", "action_mask"})
+#: Status -> its name in infos (``"localised"``, ...): read from a table, not from the enum's ``name`` each time.
 _STATUS_NAMES: Mapping[Status, str] = MappingProxyType({status: status.name.lower() for status in Status})
 
 ScenarioFactory = Callable[[np.random.Generator | None], Scenario]
@@ -681,7 +681,8 @@ class MomaParallelEnv(ParallelEnv):
     def _infos(self, frame: Frame, events: Mapping[str, list[str]], terms: Mapping[str, float], collisions: int = 0) -> dict[str, dict]:
         """Every agent's info (``events`` by agent, none if left out; ``terms``: the step's
         weighted reward terms, none at reset), with the UGVs' action masks when
-        ``EnvConfig.action_masks`` is on."""
+        ``EnvConfig.action_masks`` is on; only the keys of ``EnvConfig.info_keys`` when it
+        chooses some (:meth:`_chosen_infos`)."""
         chosen = self.config.info_keys
         if chosen is not None:
             return self._chosen_infos(frame, events, terms, collisions, chosen)
