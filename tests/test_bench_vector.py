@@ -3,7 +3,7 @@
 import pytest
 
 from moma_env.env.parallel import MEASUREMENT, STEP_PHASES
-from training.bench_vector import CASES, format_vector_bench, run_vector_bench, target_lines, vector_memory
+from training.bench_vector import CASES, ONE_COPY_ROW, format_vector_bench, run_vector_bench, target_lines, vector_memory
 from training.cli import main
 
 
@@ -16,6 +16,8 @@ def test_the_vector_bench_reports_every_row_and_stage():
     # the sharded row only where there is a copy per worker
     assert len(result["rates"]["top_observer switching, 2 workers, num_envs=3"]) == 2
     assert not any(key.endswith("2 workers, num_envs=1") for key in result["rates"])
+    # the PettingZoo env itself, the one-copy target's row, in every round
+    assert len(result["rates"][ONE_COPY_ROW]) == 2 and all(r > 0 for r in result["rates"][ONE_COPY_ROW])
     stages = result["breakdown_ms"]
     assert set(stages) == {"batch step", *STEP_PHASES, MEASUREMENT, "gc", "rest"}
     assert_stages(stages)
@@ -74,6 +76,9 @@ def test_the_targets_are_judged_on_the_best_ratio_of_their_rows():
     ]
     # without MPE2 (no ratios) only the cost of added UGVs is judged
     assert target_lines({**result, "ratios": {}}) == lines[-1:]
+    # the one-copy target is the PettingZoo env's, when the run timed it
+    pettingzoo = {**result, "ratios": {**result["ratios"], "top_observer switching, PettingZoo env": [2.2, 2.4]}}
+    assert target_lines(pettingzoo)[2] == "target >= 2.5x MPE2 for one copy: top_observer switching, PettingZoo env: 2.40x (missed)"
 
 
 def test_a_second_breakdown_of_the_same_batch_times_its_stages_again():
