@@ -69,18 +69,21 @@ class MaskedObservations:
     def action_space(self, agent: str) -> spaces.Space:
         return self.env.action_space(agent)
 
-    def observe(self, observations: Mapping[str, Any]) -> dict[str, Any]:
-        """``observations`` of the wrapped env with the masked agents' current masks added."""
-        masks = self.env.action_masks()
+    def observe(self, observations: Mapping[str, Any], infos: Mapping[str, Mapping[str, Any]] | None = None) -> dict[str, Any]:
+        """``observations`` of the wrapped env with the masked agents' current masks added:
+        those ``infos`` (the same step's) carry (``EnvConfig.action_masks``), else computed."""
+        masks = None if infos is None else _masks_in(infos, [a for a in observations if a in self._masked])
+        if masks is None:
+            masks = self.env.action_masks()
         return {a: {OBS_KEY: o, MASK_KEY: masks[a].astype(np.float32)} if a in self._masked else o for a, o in observations.items()}
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         observations, infos = self.env.reset(seed=seed, options=options)
-        return self.observe(observations), infos
+        return self.observe(observations, infos), infos
 
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         observations, rewards, terminations, truncations, infos = self.env.step(actions)
-        return self.observe(observations), rewards, terminations, truncations, infos
+        return self.observe(observations, infos), rewards, terminations, truncations, infos
 
     def render(self) -> Any:
         return self.env.render()
@@ -90,6 +93,17 @@ class MaskedObservations:
 
     def close(self) -> None:
         self.env.close()
+
+
+def _masks_in(infos: Mapping[str, Mapping[str, Any]], agents: list[str]) -> dict[str, np.ndarray] | None:
+    """Each of ``agents``' ``"action_mask"`` in ``infos``; None if one has none."""
+    masks = {}
+    for agent in agents:
+        mask = infos.get(agent, {}).get("action_mask")  # the info key (EnvConfig.action_masks), not the observation's
+        if mask is None:
+            return None
+        masks[agent] = mask
+    return masks
 
 
 def _split_options(configuration: str, env_config: Mapping[str, Any]) -> tuple[dict[str, Any], bool]:

@@ -84,8 +84,8 @@ class BatchedMultiAgentEnv(VectorMultiAgentEnv):
         return copy.env if isinstance(copy, MaskedObservations) else copy
 
     @staticmethod
-    def _observe(copy: MomaParallelEnv | MaskedObservations, observations: Mapping[str, Any]) -> dict[str, Any]:
-        return copy.observe(observations) if isinstance(copy, MaskedObservations) else dict(observations)
+    def _observe(copy: MomaParallelEnv | MaskedObservations, observations: Mapping[str, Any], infos: Mapping[str, Any]) -> dict[str, Any]:
+        return copy.observe(observations, infos) if isinstance(copy, MaskedObservations) else dict(observations)
 
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict | None = None) -> tuple[list[dict], list[dict]]:
         if seed is None:
@@ -123,7 +123,7 @@ class BatchedMultiAgentEnv(VectorMultiAgentEnv):
                 stepping.append(i)
                 pending.append(self._raw(copy).begin_step(actions[i]))
         for i, (obs, rew, term, trunc, info) in zip(stepping, run_phases(pending, measure_copies), strict=True):
-            observations[i] = self._observe(self.copies[i], obs)
+            observations[i] = self._observe(self.copies[i], obs, info)
             rewards[i] = dict(rew)
             terminateds[i] = _done(term)
             truncateds[i] = _done(trunc)
