@@ -10,7 +10,9 @@ does not build the others (a caller that reads two keys does not pay for twelve)
 
 from __future__ import annotations
 
-__all__ = ["INFO_KEYS", "OBSERVER_INFO_KEYS", "UGV_INFO_KEYS"]
+from dataclasses import dataclass
+
+__all__ = ["INFO_KEYS", "InfoChoice", "OBSERVER_INFO_KEYS", "UGV_INFO_KEYS"]
 
 #: A UGV agent's info keys, in their order.
 UGV_INFO_KEYS = (
@@ -21,3 +23,35 @@ UGV_INFO_KEYS = (
 OBSERVER_INFO_KEYS = ("truth", "status", "covariance", "localisation_error", "events", "reward_terms")
 #: Every key an agent's info may carry.
 INFO_KEYS = UGV_INFO_KEYS
+#: The UGV keys given without building a UGV's whole info.
+_CHEAP_UGV_KEYS = frozenset({"static", "action_mask"})
+
+
+@dataclass(frozen=True, slots=True)
+class InfoChoice:
+    """What a choice of info keys needs built, worked out once per choice.
+
+    Attributes:
+        keys: the choice (``EnvConfig.info_keys``).
+        keep: its keys as a set.
+        observer_keys: an observer's keys among them, in their order.
+        whole_ugv: whether a UGV's whole info is built (a key other than ``"static"``
+            and ``"action_mask"`` is chosen), to keep the chosen keys of it.
+        static: whether ``"static"`` is chosen.
+        masks: whether ``"action_mask"`` is chosen.
+    """
+
+    keys: tuple[str, ...]
+    keep: frozenset[str]
+    observer_keys: tuple[str, ...]
+    whole_ugv: bool
+    static: bool
+    masks: bool
+
+    @classmethod
+    def of(cls, keys: tuple[str, ...]) -> InfoChoice:
+        keep = frozenset(keys)
+        return cls(
+            keys, keep, tuple(k for k in OBSERVER_INFO_KEYS if k in keep), not keep <= _CHEAP_UGV_KEYS, "static" in keep,
+            "action_mask" in keep,
+        )

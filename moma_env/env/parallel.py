@@ -54,7 +54,7 @@ from moma_env.env.actions import ActionMode, SwitchingActions, action_mode, pars
 from moma_env.env.agent_names import OBSERVER, observer_agent_names
 from moma_env.env.cameras import build_cameras, floor_for
 from moma_env.env.config import EnvConfig, checked_max_cycles
-from moma_env.env.info_keys import OBSERVER_INFO_KEYS
+from moma_env.env.info_keys import InfoChoice
 from moma_env.env.observations import ObservationLayout, device_table, padded
 from moma_env.env.pixels import observation_spaces, observer_observation
 from moma_env.env.rewards import TeamReward
@@ -65,8 +65,6 @@ from moma_env.sim import Frame, Simulation, measured
 
 __all__ = ["MEASUREMENT", "MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep", "STEP_PHASES", "run_phases"]
 
-#: The UGV info keys :meth:`MomaParallelEnv._chosen_infos` gives without building a UGV's whole info.
-_CHEAP_UGV_KEYS = frozenset({"static", "action_mask"})
 #: Status -> its name in infos (``"localised"``, ...): read from a table, not from the enum's ``name`` each time.
 _STATUS_NAMES: Mapping[Status, str] = MappingProxyType({status: status.name.lower() for status in Status})
 
@@ -312,6 +310,7 @@ class MomaParallelEnv(ParallelEnv):
         self._np_random = np.random.default_rng()
         self._seeded = False
         self._window = None
+        self._info_choice: InfoChoice | None = None  # EnvConfig.info_keys worked out (_infos)
 
     # ------------------------------------------------------------------ set-up
     @staticmethod
@@ -684,18 +683,24 @@ class MomaParallelEnv(ParallelEnv):
         ``EnvConfig.action_masks`` is on; only the keys of ``EnvConfig.info_keys`` when it
         chooses some (:meth:`_chosen_infos`)."""
         chosen = self.config.info_keys
-        if chosen is not None:
-            return self._chosen_infos(frame, events, terms, collisions, chosen)
         observers = self._observers
         infos: dict[str, dict] = {}
-        for agent in self.agents:
-            agent_events = events.get(agent, [])
-            uav = observers.get(agent)
-            if uav is not None:
-                infos[agent] = self._observer_info(frame, uav, agent_events, dict(terms))
-            else:
-                infos[agent] = self._ugv_info(frame, agent, agent_events, terms, collisions)
-        if self.config.action_masks:
+        if chosen is None:
+            for agent in self.agents:
+                agent_events = events.get(agent, [])
+                uav = observers.get(agent)
+                if uav is not None:
+                    infos[agent] = self._observer_info(frame, uav, agent_events, dict(terms))
+                else:
+                    infos[agent] = self._ugv_info(frame, agent, agent_events, terms, collisions)
+            masks_wanted = True
+        else:
+            choice = self._info_choice
+            if choice is None or choice.keys is not chosen:  # worked out once per choice
+                choice = self._info_choice = InfoChoice.of(chosen)
+            infos = self._chosen_infos(frame, events, terms, collisions, choice)
+            masks_wanted = choice.masks
+        if masks_wanted and self.config.action_masks:
             masks = self.action_masks()
             for agent in self.agents:
                 if agent not in observers:
@@ -726,17 +731,14 @@ class MomaParallelEnv(ParallelEnv):
         return info
 
     def _chosen_infos(
-        self, frame: Frame, events: Mapping[str, list[str]], terms: Mapping[str, float], collisions: int, chosen: tuple[str, ...]
+        self, frame: Frame, events: Mapping[str, list[str]], terms: Mapping[str, float], collisions: int, choice: InfoChoice
     ) -> dict[str, dict]:
-        """:meth:`_infos` with only the keys ``chosen`` (``EnvConfig.info_keys``) that each
-        agent has, in their usual order; what no chosen key needs is not built (a UGV's
-        whole info only for a key other than ``"static"`` and ``"action_mask"``, the masks
-        only for ``"action_mask"``)."""
+        """Every agent's info but its action mask, with only the keys of ``choice``
+        (``EnvConfig.info_keys``) that the agent has, in their usual order; what no chosen
+        key needs is not built (a UGV's whole info only for a key other than ``"static"``
+        and ``"action_mask"``)."""
         observers = self._observers
-        keep = frozenset(chosen)
-        observer_keys = [key for key in OBSERVER_INFO_KEYS if key in keep]
-        whole = not keep <= _CHEAP_UGV_KEYS
-        static = "static" in keep
+        observer_keys, keep = choice.observer_keys, choice.keep
         mobile = frame.mobile
         infos: dict[str, dict] = {}
         for agent in self.agents:
@@ -747,16 +749,11 @@ class MomaParallelEnv(ParallelEnv):
                     infos[agent] = {key: info[key] for key in observer_keys}
                 else:
                     infos[agent] = {}
-            elif whole:
+            elif choice.whole_ugv:
                 info = self._ugv_info(frame, agent, events.get(agent, []), terms, collisions)
                 infos[agent] = {key: value for key, value in info.items() if key in keep}
             else:
-                infos[agent] = {"static": agent not in mobile} if static else {}
-        if self.config.action_masks and "action_mask" in keep:
-            masks = self.action_masks()
-            for agent in self.agents:
-                if agent not in observers:
-                    infos[agent]["action_mask"] = masks[agent]
+                infos[agent] = {"static": agent not in mobile} if choice.static else {}
         return infos
 
     # ------------------------------------------------------------------ masks
