@@ -111,7 +111,6 @@ class _BoardSetGeometry:
     """Marker geometry of one sequence of board layouts, arranged for the kernels.
 
     The markers of all boards are stacked, board after board (no padding).
-    Arrays are read-only.
 
     Attributes:
         layouts: the layouts, in board order (holding them keeps their ids, the
@@ -132,9 +131,9 @@ class _BoardSetGeometry:
         corner_starts: (B + 1,) int64 ``4 * board_markers``: board ``b``'s rows of ``corner_rows``.
         corner_bounds: the same as a list of ints.
 
-    ``board_zeros``, ``corner_rows`` and ``corner_starts`` are never written but left
-    writable: the kernels are compiled for writable arrays (a read-only one is another
-    type to numba, so another compilation).
+    The arrays are never written but left writable: the kernels are compiled for writable
+    arrays, what a batch of frames stacks from them (a read-only one is another type to
+    numba, so another compilation of the kernel and of every kernel it calls).
     """
 
     __slots__ = (
@@ -155,8 +154,6 @@ class _BoardSetGeometry:
         self.board_markers = np.zeros(len(layouts) + 1, dtype=np.int64)
         np.cumsum(self.marker_counts, out=self.board_markers[1:])
         self.corners_m = np.ascontiguousarray(np.concatenate(parts), dtype=np.float64)
-        for array in (self.marker_counts, self.board_markers, self.corners_m):
-            array.setflags(write=False)
         self.boards = list(range(len(layouts)))
         self.board_zeros = np.zeros(len(layouts), dtype=np.int64)
         self.corner_rows = self.corners_m.reshape(-1, 3).copy()
@@ -208,8 +205,9 @@ class GeometricCamera:
             self._upright, self._sigma_px, cfg.pnp_sigma_floor_px, self._prior_rad, cfg.warm_max_rms_px
         )
         self._settings.setflags(write=False)
-        # The kernels' tables of one camera (a frame measured alone): one row each, made once.
-        self._parameter_rows, self._settings_rows = self._parameters[None], self._settings[None]
+        # The kernels' tables of one camera (a frame measured alone): one row each, made once,
+        # writable like the tables a batch of frames stacks (one compilation of the kernels).
+        self._parameter_rows, self._settings_rows = self._parameters[None].copy(), self._settings[None].copy()
         self._warm_start = cfg.pnp_warm_start and self._first_solver is None
         #: Frames measured together must agree on these (the solver; the kernels take each
         #: board's own camera parameters and settings).
@@ -320,15 +318,15 @@ class GeometricCamera:
             up_c = np.full(3, np.nan)
         elif up_c is None:
             raise ValueError("up_c (world up in C) is needed with up_m")
-        settings = self._settings
+        settings = self._settings_rows
         if sigma_px is not None:
-            settings = solve_settings(self._upright, float(sigma_px), self.config.pnp_sigma_floor_px, self._prior_rad)
+            settings = solve_settings(self._upright, float(sigma_px), self.config.pnp_sigma_floor_px, self._prior_rad)[None]
         up_rows = np.empty((n_boards, 3))
         up_rows[:] = up_c
         T = np.zeros((n_boards, 4, 4))
         rms, cov, _ = self._solve_boards(
             obj, px, starts, up_m, up_rows, np.zeros(n_boards, dtype=np.int8), T,
-            self._parameter_rows, settings[None], np.zeros(n_boards, dtype=np.int64),
+            self._parameter_rows, settings, np.zeros(n_boards, dtype=np.int64),
         )
         return T, rms, cov
 
