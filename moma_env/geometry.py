@@ -368,7 +368,7 @@ def project_to_rotation(M: np.ndarray) -> np.ndarray:
     the orthogonal polar factor of ``M``, found by a compiled Newton iteration
     (a few microseconds); otherwise, or if the iteration does not converge, by SVD.
     """
-    M = np.asarray(M, dtype=float)
+    M = np.ascontiguousarray(M, dtype=float)  # C-ordered, whatever it was: one compilation of the kernel
     R = np.empty((3, 3))
     if polar_rotation_kernel(M, R):
         return R

@@ -238,8 +238,9 @@ def window_mean_noise_into(Q_sum: np.ndarray, P_sum: np.ndarray, has_P: bool, n:
 #: Stand-ins for an absent matrix in the compiled calls (never read: a flag says so).
 NO_MATRIX = np.zeros((6, 6))
 NO_MATRIX.flags.writeable = False
+# No Jacobian: empty, so writable like the stacks of Jacobians covariance_kernel is otherwise
+# given (a read-only array is another type to numba, and another compilation).
 _NO_JACOBIANS = np.zeros((0, 6, 6))
-_NO_JACOBIANS.flags.writeable = False
 
 
 def matrix6_array(M: object, name: str = "matrix") -> np.ndarray:

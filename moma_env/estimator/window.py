@@ -41,7 +41,10 @@ def inlier_mask_kernel(rotations: np.ndarray, xyz: np.ndarray, k: float, floor_m
     library's acos.
     """
     n = rotations.shape[0]
-    mx, my, mz = _sorted_median(xyz[:, 0]), _sorted_median(xyz[:, 1]), _sorted_median(xyz[:, 2])
+    # Each column contiguous, like d_t and d_r: one compilation of _sorted_median.
+    mx = _sorted_median(np.ascontiguousarray(xyz[:, 0]))
+    my = _sorted_median(np.ascontiguousarray(xyz[:, 1]))
+    mz = _sorted_median(np.ascontiguousarray(xyz[:, 2]))
     d_t = np.empty(n)
     for i in range(n):
         dx, dy, dz = xyz[i, 0] - mx, xyz[i, 1] - my, xyz[i, 2] - mz
