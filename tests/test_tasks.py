@@ -9,6 +9,7 @@ import pytest
 
 from moma_env import vector
 from moma_env.config import ConfigError
+from moma_env.env.config import SWITCHING_ONLY_OPTIONS, EnvConfig
 from moma_env.env.factory import parallel_env
 from moma_env.scenarios.top_observer import MAX_GOAL_SPREAD, TopObserverConfig
 from moma_env.tasks import TASKS, task_options
@@ -31,6 +32,30 @@ def test_task_keywords_override_the_task_options():
     assert env.config.action_mode == "velocity"
     configuration, options = task_options("top_observer_team4", n_ugvs=5)
     assert configuration == "top_observer" and options["n_ugvs"] == 5 and options["goal_spread"] == 2.0
+
+
+@pytest.mark.parametrize("name", sorted(TASKS))
+def test_another_action_mode_names_every_switching_option_of_the_task_at_once(name):
+    own = [key for key in SWITCHING_ONLY_OPTIONS if TASKS[name].options.get(key) not in (None, False)]
+    assert own  # every task runs in switching mode with the masks and committed legs
+    with pytest.raises(ConfigError, match="action_mode: task") as error:
+        parallel_env(name, action_mode="velocity")
+    for key in own:
+        assert key in str(error.value)
+    off = {key: (False if isinstance(TASKS[name].options[key], bool) else None) for key in own}
+    # what the message says to pass is enough: the env builds in the other mode
+    assert parallel_env(name, action_mode="velocity", **off).config.action_mode == "velocity"
+    with pytest.raises(ConfigError, match="action_mode: task") as partial:
+        parallel_env(name, action_mode="velocity", **dict(list(off.items())[:1]))
+    assert own[0] not in str(partial.value).split("pass")[1]
+
+
+@pytest.mark.parametrize("key", SWITCHING_ONLY_OPTIONS)
+def test_each_switching_only_option_is_refused_in_velocity_mode(key):
+    on = {"action_masks": True, "commit_legs": True, "leg_lengths": (0.5, 1.0), "follower_hold_m": 0.2}[key]
+    EnvConfig(action_mode="switching", **{key: on})
+    with pytest.raises(ConfigError, match=f"env.{key}"):
+        EnvConfig(action_mode="velocity", **{key: on})
 
 
 def test_unknown_task_is_named():

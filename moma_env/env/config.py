@@ -31,7 +31,7 @@ from moma_env.env.actions import LEG_POSITION_TOLERANCE_M
 from moma_env.env.info_keys import INFO_KEYS
 from moma_env.estimator.registry import check_estimator_name, resolve_localiser
 
-__all__ = ["ACTION_MODES", "TEAM_ACTIONS", "RewardConfig", "EnvConfig", "checked_info_keys", "checked_max_cycles"]
+__all__ = ["ACTION_MODES", "SWITCHING_ONLY_OPTIONS", "TEAM_ACTIONS", "RewardConfig", "EnvConfig", "checked_info_keys", "checked_max_cycles"]
 
 
 def checked_info_keys(name: str, value: object) -> tuple[str, ...]:
@@ -58,6 +58,9 @@ def checked_max_cycles(name: str, value: object) -> int:
 #: ``velocity``: continuous body velocities plus a requested static/mobile state;
 #: ``switching``: discrete hold / advance per UGV, built-in controllers drive.
 ACTION_MODES = ("velocity", "switching")
+#: The ``EnvConfig`` fields that only ``switching`` mode takes (off: False or None); in
+#: ``velocity`` mode ``EnvConfig`` refuses each one set.
+SWITCHING_ONLY_OPTIONS = ("action_masks", "commit_legs", "leg_lengths", "follower_hold_m")
 #: What the centralised team's action is (``EnvConfig.team_action``).
 TEAM_ACTIONS = ("per_agent", "one_start")
 

@@ -22,7 +22,7 @@ from moma_env.camera import CameraConfig, FloorConfig, RenderConfig
 from moma_env.config import ConfigError, from_mapping
 from moma_env.control import TrackingControllerConfig
 from moma_env.env.centralised import CentralisedTeamEnv
-from moma_env.env.config import DEFAULT_SWITCH_HORIZON_S, EnvConfig, RewardConfig
+from moma_env.env.config import DEFAULT_SWITCH_HORIZON_S, SWITCHING_ONLY_OPTIONS, EnvConfig, RewardConfig
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.scenarios import SCENARIO_SPECS, Scenario, ScenarioConfig, ScenarioSpec
 from moma_env.tasks import TASKS, task_options
@@ -46,6 +46,28 @@ __all__ = [
 SETTABLE_ENV_OPTIONS = tuple(f.name for f in fields(EnvConfig) if f.name not in ("action_mode", "max_cycles"))
 #: Every env option :func:`configuration_env` hands to :func:`env_config`.
 _ENV_OPTIONS = tuple(f.name for f in fields(EnvConfig))
+
+
+def _task_options(task: str, overrides: Mapping[str, Any]) -> tuple[str, dict[str, Any]]:
+    """:func:`~moma_env.tasks.task_options` of ``task`` with ``overrides``, refusing in one
+    error an action mode the task's own switching-only options (:data:`SWITCHING_ONLY_OPTIONS`)
+    do not allow, so that a caller learns every option to turn off at once.
+
+    Raises:
+        ConfigError: naming ``action_mode``.
+    """
+    configuration, options = task_options(task, **overrides)
+    mode = options.get("action_mode", EnvConfig.action_mode)
+    if mode != "switching":
+        kept = [key for key in SWITCHING_ONLY_OPTIONS if key not in overrides and options.get(key) not in (None, False)]
+        if kept:
+            off = ", ".join(f"{key}={'False' if isinstance(options[key], bool) else 'None'}" for key in kept)
+            raise ConfigError(
+                "action_mode",
+                f"task {task!r} sets {', '.join(kept)}, which exist only in action_mode='switching'; "
+                f"for action_mode={mode!r} pass {off} as well",
+            )
+    return configuration, options
 
 
 def _spec(configuration: str) -> ScenarioSpec:
@@ -249,7 +271,7 @@ def parallel_env(configuration: str, **options: Any) -> MomaParallelEnv:
     """The PettingZoo parallel env of a configuration or of a task (:mod:`moma_env.tasks`,
     whose options ``options`` override); the options are :func:`configuration_env`'s."""
     if isinstance(configuration, str) and configuration in TASKS:
-        configuration, options = task_options(configuration, **options)
+        configuration, options = _task_options(configuration, options)
     return configuration_env(configuration, **options)
 
 
