@@ -8,6 +8,7 @@ import torch
 from gymnasium import spaces
 from stable_baselines3 import PPO
 
+from moma_env.config import ConfigError
 from moma_env.env.factory import parallel_env
 from moma_env.vector import MomaVectorEnv
 from training.fingerprint import serialise
@@ -167,6 +168,8 @@ def test_the_observer_agent_and_bad_sizes_are_refused():
         SharedPolicyVecEnv(EnvSpec("top_observer", {"action_mode": "velocity"}), 1)
     with pytest.raises(ValueError, match="n_copies"):
         SharedPolicyVecEnv(SPEC, 0)
+    with pytest.raises(ConfigError, match="autoreset_mode: the Stable-Baselines3 VecEnv reads the SameStep autoreset"):
+        SharedPolicyVecEnv(EnvSpec("top_observer", {"autoreset_mode": "Disabled"}), 1)
     venv = SharedPolicyVecEnv(SPEC, 1)
     try:
         venv.reset()

@@ -2,8 +2,10 @@
 
 import numpy as np
 import pytest
+from gymnasium.vector import AutoresetMode
 
 from moma_env import vector
+from moma_env.vector.env import FINAL_KEYS
 from moma_env.env.factory import parallel_env
 from serialised import text
 
@@ -84,3 +86,58 @@ def test_bad_batched_actions_name_the_agent_and_the_shape():
         velocity.step(ok | {"observer": nan})
     with pytest.raises(ValueError, match="num_envs must be an integer >= 1"):
         vector.make("top_observer", 0)
+
+
+@pytest.mark.parametrize("workers", [None, 2])
+def test_next_step_autoreset_resets_a_copy_the_step_after_its_end_and_keeps_its_episodes(workers):
+    k, steps, seed, cycles = 3, 40, 21, 9
+    envs = vector.make("top_observer", k, max_cycles=cycles, autoreset_mode="NextStep", workers=workers)
+    singles = [parallel_env("top_observer", max_cycles=cycles) for _ in range(k)]
+    observations, infos = envs.reset(seed=seed)
+    for i, single in enumerate(singles):
+        assert text(single.reset(seed=seed + i)) == text(({a: o[i] for a, o in observations.items()}, infos[i]))
+    envs.reset_at(1, seed=99)  # copy 1's episodes end three steps after the others'
+    singles[1].reset(seed=99)
+    plan = batch_actions(envs, steps, seed=4)
+    resets = 0
+    for t, joint in enumerate(plan):
+        if t == 2:
+            envs.reset_at(1, seed=99)
+            singles[1].reset(seed=99)
+        b_obs, b_rew, b_term, b_trunc, b_info = envs.step(joint)
+        for i, single in enumerate(singles):
+            if not single.agents:  # ended in the last step: this step resets it, its actions ignored
+                obs, info = single.reset()
+                rew = term = trunc = dict.fromkeys(single.possible_agents, 0)
+                resets += 1
+            else:
+                obs, rew, term, trunc, info = single.step({a: joint[a][i] for a in single.agents})
+                assert not any(key in b_info[i] for key in FINAL_KEYS)
+            assert text(({a: o[i] for a, o in b_obs.items()}, b_info[i])) == text((obs, info)), (t, i)
+            assert all(b_rew[a][i] == rew[a] and b_term[a][i] == term[a] and b_trunc[a][i] == trunc[a] for a in single.possible_agents)
+    assert resets >= 2 * k
+    envs.close()
+
+
+@pytest.mark.parametrize("workers", [None, 2])
+def test_disabled_autoreset_refuses_a_step_until_the_finished_copies_are_reset(workers):
+    envs = vector.make("top_observer", 3, max_cycles=4, autoreset_mode=AutoresetMode.DISABLED, workers=workers)
+    assert envs.autoreset_mode is AutoresetMode.DISABLED
+    envs.reset(seed=0)
+    joint = {a: np.ones(3, dtype=np.int64) for a in envs.agents}
+    envs.step(joint)
+    envs.reset_at(0)  # copies 0 and 1 end one step after copy 2 (the worker's, with two workers)
+    envs.reset_at(1)
+    for _ in range(3):
+        envs.step(joint)
+    with pytest.raises(RuntimeError, match=r"copies \[2\] ended their episodes and autoreset_mode is DISABLED"):
+        envs.step(joint)
+    envs.reset_at(2)
+    _, _, _, truncations, infos = envs.step(joint)
+    np.testing.assert_array_equal(truncations["ugv_0"], [True, True, False])
+    assert not any(key in info for info in infos for key in FINAL_KEYS)
+    with pytest.raises(RuntimeError, match=r"copies \[0, 1\]"):
+        envs.step(joint)
+    envs.reset()
+    envs.step(joint)
+    envs.close()

@@ -1,13 +1,15 @@
 """The centralised team as a Gymnasium VectorEnv (moma_env/vector/team.py): copy i of a
-batch seeded s is gymnasium.make(id) seeded s + i, infos as Gymnasium's SyncVectorEnv
-gives them in the SAME_STEP mode, registered as every id's vector_entry_point."""
+batch seeded s is gymnasium.make(id) seeded s + i, every output as Gymnasium's SyncVectorEnv
+gives it in each autoreset mode, registered as every id's vector_entry_point."""
 
 import gymnasium
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from gymnasium.vector.utils import batch_space
-from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
+from gymnasium.wrappers.vector import DictInfoToList, NormalizeObservation, RecordEpisodeStatistics
+
+from moma_env.config import ConfigError
 
 from moma_env.registration import GYMNASIUM_IDS
 from moma_env.scenarios import SCENARIO_SPECS
@@ -75,6 +77,65 @@ def test_copy_i_is_gymnasium_make_seeded_s_plus_i_and_infos_are_sync_vector_envs
             assert text(b_obs[i]) == text(obs), (i, t)
     envs.close()
     reference.close()
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.DISABLED])
+@pytest.mark.parametrize("name, options, workers", [
+    ("top_observer", {"action_mode": "switching"}, None),
+    ("caterpillar_sled", {"action_mode": "velocity"}, None),
+    ("top_observer", {"action_mode": "switching"}, 2),
+])
+def test_the_other_autoreset_modes_are_sync_vector_envs_step_for_step(mode, name, options, workers):
+    k, steps, seed = 3, 30, 11  # episodes of 7 to 9 steps: several ends per copy
+    options = options | {"max_cycles": 7}
+    envs = gymnasium.make_vec(ID[name], num_envs=k, autoreset_mode=mode.value, workers=workers, **options)
+    reference = gymnasium.make_vec(ID[name], num_envs=k, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, **options)
+    assert envs.metadata["autoreset_mode"] is mode is reference.metadata["autoreset_mode"]
+    assert text(envs.reset(seed=seed)) == text(reference.reset(seed=seed))
+    ends = partial = 0
+    for t, actions in enumerate(team_actions(envs.action_space, steps, seed)):
+        out = envs.step(actions)
+        assert text(out) == text(reference.step(actions)), t
+        ended = out[2] | out[3]
+        ends += int(ended.sum())
+        if mode is AutoresetMode.DISABLED and ended.any():
+            with pytest.raises(RuntimeError, match=rf"copies \[{np.flatnonzero(ended)[0]}.*autoreset_mode is DISABLED"):
+                envs.step(actions)
+            first = t + 100 * partial  # a seeded partial reset, then one continuing its generators
+            seeds = first if partial % 2 == 0 else None
+            partial += 1
+            assert text(envs.reset(seed=seeds, options={"reset_mask": ended})) == text(reference.reset(seed=seeds, options={"reset_mask": ended.copy()}))
+    assert ends >= 2 * k
+    assert partial >= 2 or mode is not AutoresetMode.DISABLED
+    envs.close()
+    reference.close()
+
+
+def test_a_partial_reset_is_checked_and_gymnasiums_observation_wrappers_take_next_step():
+    envs = TeamVectorEnv("top_observer", 3, max_cycles=5)
+    with pytest.raises(RuntimeError, match="call reset"):
+        envs.reset(options={"reset_mask": np.array([True, False, False])})
+    first, _ = envs.reset(seed=0)
+    for bad, message in [([True, False, False], "numpy bool array of shape \\(3,\\), got list"),
+                         (np.array([1, 0, 0]), "got ndarray int64"), (np.zeros(3, dtype=bool), "at least one copy"),
+                         (np.ones(2, dtype=bool), r"shape \(3,\), got ndarray bool \(2,\)")]:
+        with pytest.raises(ValueError, match=message):
+            envs.reset(options={"reset_mask": bad})
+    kept = first.copy()
+    observations, infos = envs.reset(seed=40, options={"reset_mask": np.array([False, True, False])})
+    np.testing.assert_array_equal(first, kept)  # the array returned before is not changed
+    np.testing.assert_array_equal(observations[[0, 2]], first[[0, 2]])
+    np.testing.assert_array_equal(observations[1], gymnasium.make(ID["top_observer"], max_cycles=5).reset(seed=41)[0])
+    np.testing.assert_array_equal(infos["_ugv_0"], [False, True, False])
+    with pytest.raises(ConfigError, match="autoreset_mode: must be a gymnasium.vector.AutoresetMode or one of"):
+        TeamVectorEnv("top_observer", 2, autoreset_mode="Sometimes")
+    with pytest.raises(AssertionError):  # Gymnasium's own check: its observation wrappers need NEXT_STEP or DISABLED
+        NormalizeObservation(TeamVectorEnv("top_observer", 2))
+    normalised = NormalizeObservation(TeamVectorEnv("top_observer", 2, autoreset_mode=AutoresetMode.NEXT_STEP, max_cycles=5))
+    normalised.reset(seed=0)
+    for _ in range(12):
+        observations, *_ = normalised.step(np.ones((2, 2), dtype=np.int64))
+    assert observations.shape == (2, 60) and np.isfinite(observations).all()
 
 
 def test_every_id_has_the_vector_entry_point_and_the_other_modes_still_work():
@@ -150,8 +211,6 @@ def test_bad_actions_and_resets_are_refused_naming_the_agent():
         envs.step(np.zeros((3, 2)))
     with pytest.raises(ValueError, match=r"num_envs=3 seeds, got 2"):
         envs.reset(seed=[1, 2])
-    with pytest.raises(ValueError, match="reset_mask"):
-        envs.reset(options={"reset_mask": np.array([True, False, False])})
     mixed = TeamVectorEnv("top_observer", 2, observer_agent=True)  # Box: UGV slots decoded by rounding
     mixed.reset(seed=0)
     nan = np.zeros((2, 6), dtype=np.float32)

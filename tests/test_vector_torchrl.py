@@ -16,6 +16,7 @@ from moma_env.vector.torchrl import MomaTorchRLEnv  # noqa: E402 - first: it kee
 import torch  # noqa: E402
 from torchrl.envs.utils import check_env_specs  # noqa: E402
 
+from moma_env.config import ConfigError  # noqa: E402
 from moma_env.env.factory import parallel_env  # noqa: E402
 
 CASES = [
@@ -155,6 +156,8 @@ def test_bad_actions_and_spaces_are_refused_naming_the_group_or_the_agent():
         velocity.step(td)
     with pytest.raises(ValueError, match="observer_image"):
         MomaTorchRLEnv("top_observer", 1, action_mode="velocity", camera_backend="rendered", observer_image=(32, 24))
+    with pytest.raises(ConfigError, match="autoreset_mode: MomaTorchRLEnv reads the SameStep autoreset .* got 'NextStep'"):
+        MomaTorchRLEnv("top_observer", 1, autoreset_mode="NextStep")
 
 
 def test_importing_the_adapter_keeps_multiprocessings_start_method():

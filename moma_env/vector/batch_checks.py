@@ -1,4 +1,4 @@
-"""The boundary checks every batched env shares: seeds, copy indices and action arrays.
+"""The boundary checks every batched env shares: seeds, copy indices, action arrays, the autoreset mode.
 
 :class:`~moma_env.vector.env.MomaVectorEnv` (copies in this process) and
 :class:`~moma_env.vector.sharded.ShardedVectorEnv` (copies in worker processes)
@@ -14,10 +14,15 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
 
+from moma_env.config import ConfigError
 from moma_env.env.parallel import checked_seed
 
-__all__ = ["checked_actions", "checked_count", "checked_index", "copy_options", "copy_seeds", "random_actions"]
+__all__ = [
+    "checked_actions", "checked_autoreset_mode", "checked_count", "checked_index", "checked_reset_mask", "copy_options", "copy_seeds",
+    "random_actions",
+]
 
 
 def checked_count(name: str, value: object) -> int:
@@ -25,6 +30,30 @@ def checked_count(name: str, value: object) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, Integral) or value < 1:
         raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
     return int(value)
+
+
+def checked_autoreset_mode(value: object) -> AutoresetMode:
+    """``value`` as a Gymnasium ``AutoresetMode`` (a member or its value, e.g. ``"NextStep"``),
+    else ConfigError naming ``autoreset_mode``."""
+    if isinstance(value, AutoresetMode):
+        return value
+    try:
+        return AutoresetMode(value)
+    except ValueError:
+        raise ConfigError(
+            "autoreset_mode", f"must be a gymnasium.vector.AutoresetMode or one of {[m.value for m in AutoresetMode]}, got {value!r}"
+        ) from None
+
+
+def checked_reset_mask(mask: object, num_envs: int) -> np.ndarray:
+    """Gymnasium's ``options["reset_mask"]``: a bool array ``(num_envs,)`` with a True, which
+    copies to reset (a copy of it); ValueError naming ``options['reset_mask']`` otherwise."""
+    if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (num_envs,):
+        got = f"{type(mask).__name__} {getattr(mask, 'dtype', '')} {getattr(mask, 'shape', '')}".strip()
+        raise ValueError(f"options['reset_mask'] must be a numpy bool array of shape ({num_envs},), got {got}")
+    if not mask.any():
+        raise ValueError("options['reset_mask'] must select at least one copy")
+    return mask.copy()
 
 
 def copy_seeds(seed: int | Sequence[int] | None, num_envs: int) -> list[int | None]:

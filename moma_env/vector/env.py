@@ -27,13 +27,23 @@ so copy ``i`` behaves bit for bit like ``parallel_env(...)`` reset with ``seed=s
 and then driven with the same actions; ``seed`` may also be a sequence of
 ``num_envs`` seeds. ``reset()`` without a seed continues every copy's generator.
 
-Autoreset (Gymnasium's ``SAME_STEP`` mode): a copy whose episode ends in a step is
-reset in that step; the step returns its first observation of the new episode, its
-flags and reward of the step that ended, and in ``infos[i]`` the keys
-``"final_observation"`` (agent -> the last observation), ``"final_info"`` (the
-last infos), ``"final_state"`` (the last ``state()``), ``"final_time"`` (the
-episode's simulated duration, s) and, in switching mode, ``"final_action_masks"``.
-:meth:`reset_at` resets one copy alone.
+Autoreset (``autoreset_mode``, one of Gymnasium's modes, ``gymnasium.vector.AutoresetMode``
+or its value; the episodes are the same in every mode, only when a step returns what differs):
+
+* ``SAME_STEP`` (the default): a copy whose episode ends in a step is reset in that
+  step; the step returns its first observation of the new episode, its flags and reward
+  of the step that ended, and in ``infos[i]`` the keys ``"final_observation"`` (agent ->
+  the last observation), ``"final_info"`` (the last infos), ``"final_state"`` (the last
+  ``state()``), ``"final_time"`` (the episode's simulated duration, s) and, in switching
+  mode, ``"final_action_masks"``.
+* ``NEXT_STEP`` (Gymnasium's default, what its vector wrappers expect): the step that ends
+  an episode returns its last observation, flags, reward and infos; the next step resets
+  that copy instead of stepping it (its row of actions is checked, then ignored) and
+  returns its first observation and infos, reward 0 and both flags False.
+* ``DISABLED``: a copy whose episode ended stays finished until :meth:`reset_at` (or
+  ``reset``) resets it; a step with a finished copy raises RuntimeError naming it.
+
+:meth:`reset_at` resets one copy alone, in every mode.
 
 Action masks (switching mode): ``action_masks()`` gives every UGV's mask for the next
 step. With ``EnvConfig.action_masks`` on, every UGV's infos carry that mask already, so
@@ -50,15 +60,19 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
 
+from moma_env.config import ConfigError
 from moma_env.env.factory import parallel_env
 from moma_env.env.agent_names import is_observer_agent
 from moma_env.env.parallel import STEP_PHASES, MomaParallelEnv, checked_seed, run_phases
 from moma_env.vector.collection import deferred_collection
-from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
+from moma_env.vector.batch_checks import (
+    checked_actions, checked_autoreset_mode, checked_count, checked_index, copy_options, copy_seeds, random_actions,
+)
 from moma_env.camera import MeasureRequest, measure_batch
 
-__all__ = ["FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "PHASE_CHUNK", "masks_in_infos"]
+__all__ = ["FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "PHASE_CHUNK", "finished_copies_message", "masks_in_infos", "require_same_step"]
 
 #: The keys the autoreset adds to a copy's infos (see the module docstring).
 FINAL_KEYS = ("final_observation", "final_info", "final_state", "final_time", "final_action_masks")
@@ -151,11 +165,18 @@ class MomaVectorEnv:
     Args:
         name: configuration name (``"top_observer"``, ...).
         num_envs: number of copies (>= 1).
+        autoreset_mode: when a finished copy resets (see the module docstring).
         options: options of :func:`moma_env.env.factory.parallel_env`.
+
+    Attributes:
+        autoreset_mode: the ``gymnasium.vector.AutoresetMode`` followed.
     """
 
-    def __init__(self, name: str, num_envs: int, **options: Any):
+    def __init__(self, name: str, num_envs: int, *, autoreset_mode: AutoresetMode | str = AutoresetMode.SAME_STEP, **options: Any):
         self.num_envs = checked_count("num_envs", num_envs)
+        self.autoreset_mode = checked_autoreset_mode(autoreset_mode)
+        # NEXT_STEP and DISABLED: the copies whose episode ended in the last step, not reset since.
+        self._ended = [False] * self.num_envs
         self.envs: tuple[MomaParallelEnv, ...] = tuple(parallel_env(name, **options) for _ in range(self.num_envs))
         first = self.envs[0]
         self.possible_agents = list(first.possible_agents)
@@ -204,6 +225,7 @@ class MomaVectorEnv:
         seeds, per_copy = copy_seeds(seed, self.num_envs), copy_options(options, self.num_envs)
         self._latest_masks.drop()
         results = [env.reset(seed=s, options=o) for env, s, o in zip(self.envs, seeds, per_copy)]
+        self._ended = [False] * self.num_envs
         self._started = True
         observations = {a: _stack([obs[a] for obs, _ in results]) for a in self.possible_agents}
         infos = tuple(infos for _, infos in results)
@@ -216,7 +238,9 @@ class MomaVectorEnv:
         index = checked_index(index, self.num_envs)
         seed = checked_seed(seed)
         self._latest_masks.stale(index)
-        return self.envs[index].reset(seed=seed, options=options)
+        result = self.envs[index].reset(seed=seed, options=options)
+        self._ended[index] = False
+        return result
 
     # ------------------------------------------------------------------ step
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
@@ -230,6 +254,8 @@ class MomaVectorEnv:
         returned for this batch (what a sharded batch's caller checked once for all shards)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
+        if self.autoreset_mode is AutoresetMode.DISABLED and any(self._ended):
+            raise RuntimeError(finished_copies_message([i for i, ended in enumerate(self._ended) if ended]))
         self._latest_masks.drop()
         with deferred_collection():
             out = self._step(checked)
@@ -247,24 +273,39 @@ class MomaVectorEnv:
             column = checked[a]
             columns.append((a, column.tolist() if column.ndim == 1 else column))
         seconds = self.phase_seconds
+        same_step = self.autoreset_mode is AutoresetMode.SAME_STEP
+        ended = self._ended
+        # The copies stepped: all but, in NEXT_STEP mode, those that ended in the last step.
+        indices = [i for i in range(len(envs)) if not ended[i]] if any(ended) else range(len(envs))
         stepped: list[tuple] = []
-        for first in range(0, len(envs), PHASE_CHUNK):
+        for first in range(0, len(indices), PHASE_CHUNK):
             start = time.perf_counter() if seconds is not None else 0.0
-            pending = [env.begin_step({a: column[i] for a, column in columns}) for i, env in enumerate(envs[first : first + PHASE_CHUNK], first)]
+            pending = [envs[i].begin_step({a: column[i] for a, column in columns}) for i in indices[first : first + PHASE_CHUNK]]
             if seconds is not None:
                 seconds[STEP_PHASES[0]] = seconds.get(STEP_PHASES[0], 0.0) + time.perf_counter() - start
             stepped.extend(run_phases(pending, self.measure, seconds))
         # Each copy's (observations, rewards, terminations, truncations, infos).
-        results = []
-        for env, result in zip(envs, stepped, strict=True):
-            if not env.agents:
-                obs, rew, term, trunc, info = result
-                final = {"final_observation": obs, "final_info": info, "final_state": env.state(), "final_time": env.frame.time}
-                if self._masks:
-                    final["final_action_masks"] = env.action_masks()
+        results: list[tuple] = []
+        stepped_results = iter(stepped)
+        now_ended = [False] * len(envs)
+        for i, env in enumerate(envs):
+            if ended[i]:  # NEXT_STEP: the copy resets instead of stepping
                 obs, info = env.reset()
-                result = (obs, rew, term, trunc, dict(info) | final)
+                results.append((obs, dict.fromkeys(agents, 0.0), dict.fromkeys(agents, False), dict.fromkeys(agents, False), info))
+                continue
+            result = next(stepped_results)
+            if not env.agents:
+                if same_step:
+                    obs, rew, term, trunc, info = result
+                    final = {"final_observation": obs, "final_info": info, "final_state": env.state(), "final_time": env.frame.time}
+                    if self._masks:
+                        final["final_action_masks"] = env.action_masks()
+                    obs, info = env.reset()
+                    result = (obs, rew, term, trunc, dict(info) | final)
+                else:
+                    now_ended[i] = True
             results.append(result)
+        self._ended = now_ended
         observations = {a: _stack([r[0][a] for r in results]) for a in agents}
         # Rewards and flags: one (agents, num_envs) array each, an agent's row its (num_envs,) array.
         rewards = np.array([[r[1][a] for r in results] for a in agents], dtype=np.float64)
@@ -312,6 +353,23 @@ class MomaVectorEnv:
     def close(self) -> None:
         for env in self.envs:
             env.close()
+
+
+def require_same_step(options: Mapping[str, Any], adapter: str) -> None:
+    """ConfigError naming ``autoreset_mode`` unless the batched env of ``options`` (what
+    :func:`~moma_env.vector.make` takes) resets a finished copy in the step that ends its
+    episode, the only mode ``adapter`` reads; checked before anything is built."""
+    mode = checked_autoreset_mode(options.get("autoreset_mode", AutoresetMode.SAME_STEP))
+    if mode is not AutoresetMode.SAME_STEP:
+        raise ConfigError(
+            "autoreset_mode", f"{adapter} reads the SameStep autoreset (final observations in the infos), got {mode.value!r}"
+        )
+
+
+def finished_copies_message(copies: Sequence[int]) -> str:
+    """The error of a step with finished copies under ``AutoresetMode.DISABLED``."""
+    return (f"copies {list(copies)} ended their episodes and autoreset_mode is DISABLED: reset them first "
+            "(reset_at(i), or reset(options={'reset_mask': mask}) on the Gymnasium adapter)")
 
 
 def measure_copies(requests: Sequence[Sequence[MeasureRequest]]) -> list[list[Any]]:

@@ -41,11 +41,12 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
 
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.vector.collection import deferred_collection
-from moma_env.vector.env import LatestMasks, MomaVectorEnv
+from moma_env.vector.env import LatestMasks, MomaVectorEnv, finished_copies_message
 from moma_env.vector.info_arrays import lift_arrays, put_arrays
 
 __all__ = ["ShardedVectorEnv", "copy_action_masks", "default_start_method", "send_reply", "shard_sizes"]
@@ -304,6 +305,11 @@ class ShardedVectorEnv:
         self._started = False
         self._masks_in_infos = self.spec_env.config.action_masks  # every UGV's infos carry its mask
         self._latest_masks = LatestMasks()
+        #: The ``gymnasium.vector.AutoresetMode`` every shard follows (:class:`MomaVectorEnv`).
+        self.autoreset_mode: AutoresetMode = local.vector.autoreset_mode
+        # DISABLED: the copies whose episode ended and that were not reset since (checked here,
+        # so that the error names the batch's indices, not a shard's).
+        self._ended = np.zeros(self.num_envs, dtype=bool)
 
     # ------------------------------------------------------------------ spaces
     def single_observation_space(self, agent: str) -> spaces.Space:
@@ -355,6 +361,7 @@ class ShardedVectorEnv:
         per_copy = self._rows(copy_options(options, self.num_envs))
         self._latest_masks.drop()
         results = self._broadcast("reset", list(zip(seeds, per_copy)))
+        self._ended[:] = False
         self._started = True
         observations = {a: _join([obs[a] for obs, _ in results]) for a in self.possible_agents}
         infos = tuple(info for _, infos in results for info in infos)
@@ -366,13 +373,17 @@ class ShardedVectorEnv:
         """Reset copy ``index`` alone; its observations (agent -> one copy's observation) and infos."""
         seed = checked_seed(seed)
         self._latest_masks.stale(checked_index(index, self.num_envs))
-        return self._at(index, "reset_at", lambda local: (local, seed, options))
+        result = self._at(index, "reset_at", lambda local: (local, seed, options))
+        self._ended[index] = False
+        return result
 
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
         """Step every copy with its row of ``actions`` (the shards at the same time); autoreset as
-        :class:`MomaVectorEnv` (``SAME_STEP``)."""
+        :class:`MomaVectorEnv` (:attr:`autoreset_mode`)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
+        if self.autoreset_mode is AutoresetMode.DISABLED and self._ended.any():
+            raise RuntimeError(finished_copies_message(np.flatnonzero(self._ended).tolist()))
         # The workers' replies (every copy's infos, unpickled here) live until the next step,
         # like the local shard's: the collector waits for the end of the batch step for both.
         self._latest_masks.drop()
@@ -386,6 +397,8 @@ class ShardedVectorEnv:
             infos = tuple(info for r in results for info in r[4])
             if self._masks_in_infos:
                 self._latest_masks.take(infos, agents)
+            if self.autoreset_mode is AutoresetMode.DISABLED:
+                self._ended = np.any([terminations[a] | truncations[a] for a in agents], axis=0)
             return observations, rewards, terminations, truncations, infos
 
     def sample_actions(self, rng: np.random.Generator) -> dict[str, np.ndarray]:

@@ -24,13 +24,26 @@ Shapes (``K = num_envs``, ``D`` the team observation size, ``A`` the team action
 Seeding: ``reset(seed=s)`` seeds copy ``i`` with ``s + i`` (or ``seed`` is a list of
 ``K`` seeds); ``reset()`` continues every copy's generator.
 
-Autoreset (``metadata["autoreset_mode"] == AutoresetMode.SAME_STEP``): a copy whose
-episode ends in a step is reset within that step; the step returns its new
-episode's first observation and infos, and the reward, ``terminated`` and
-``truncated`` of the step that ended the episode, with ``infos["final_obs"]`` (an
-object array: the last team observation, ``(D,)``, where ``infos["_final_obs"]``
-is True) and ``infos["final_info"]`` (the last infos, batched the same way),
-as Gymnasium's ``SyncVectorEnv`` does in this mode.
+Autoreset: ``autoreset_mode`` (``gymnasium.make_vec(id, num_envs, autoreset_mode=...)``),
+any of Gymnasium's modes, each as Gymnasium's ``SyncVectorEnv`` follows it (the
+episodes are the same in every mode; :mod:`moma_env.vector.env`):
+
+* ``AutoresetMode.SAME_STEP`` (the default): a copy whose episode ends in a step is
+  reset within that step; the step returns its new episode's first observation and
+  infos, and the reward, ``terminated`` and ``truncated`` of the step that ended the
+  episode, with ``infos["final_obs"]`` (an object array: the last team observation,
+  ``(D,)``, where ``infos["_final_obs"]`` is True) and ``infos["final_info"]`` (the last
+  infos, batched the same way).
+* ``AutoresetMode.NEXT_STEP`` (Gymnasium's default, which its vector observation
+  wrappers such as ``NormalizeObservation`` require): the step after the one that ended
+  an episode resets that copy, ignoring its actions, and returns reward 0 and both flags
+  False for it.
+* ``AutoresetMode.DISABLED``: a finished copy waits for ``reset(options={"reset_mask":
+  mask})`` (or :meth:`TeamVectorEnv.reset_at`); stepping it first raises RuntimeError.
+
+``reset(seed=s, options={"reset_mask": mask})`` resets only the copies of the bool mask
+``(K,)`` (in every mode), copy ``i`` with seed ``s + i``, and returns every copy's
+observation (the others' as last returned) and the reset copies' infos.
 """
 
 from __future__ import annotations
@@ -43,6 +56,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from moma_env.env.centralised import TeamLayout
+from moma_env.vector.batch_checks import checked_reset_mask, copy_seeds
 from moma_env.vector.env import FINAL_KEYS
 from moma_env.vector.make import make
 
@@ -56,6 +70,7 @@ class TeamVectorEnv(VectorEnv):
         num_envs: number of copies ``K`` >= 1.
         workers: None steps the copies in this process; ``W`` splits them over ``W``
             worker processes (:func:`moma_env.vector.make`; the same episodes).
+        autoreset_mode: a ``gymnasium.vector.AutoresetMode`` or its value (see the module docstring).
         options: options of :func:`moma_env.env.factory.parallel_env` (env options
             and configuration fields), as ``gymnasium.make(id, **options)`` takes.
 
@@ -72,8 +87,11 @@ class TeamVectorEnv(VectorEnv):
         ValueError: ``num_envs`` < 1, or an observation that is not a vector (``observer_image``).
     """
 
-    def __init__(self, configuration: str, num_envs: int = 1, *, workers: int | None = None, **options: Any):
-        self.vector = make(configuration, num_envs, workers=workers, **options)
+    def __init__(
+        self, configuration: str, num_envs: int = 1, *, workers: int | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.SAME_STEP, **options: Any,
+    ):
+        self.vector = make(configuration, num_envs, workers=workers, autoreset_mode=autoreset_mode, **options)
         self.num_envs = self.vector.num_envs
         first = self.vector.spec_env
         self.layout = TeamLayout.of(first)
@@ -84,30 +102,47 @@ class TeamVectorEnv(VectorEnv):
         self.metadata = {
             "render_modes": first.metadata["render_modes"],
             "render_fps": first.metadata["render_fps"],
-            "autoreset_mode": AutoresetMode.SAME_STEP,
+            "autoreset_mode": self.vector.autoreset_mode,
         }
         self.render_mode = self.vector.render_mode
         # each copy's latest PettingZoo infos (the one-start action reads which robots move)
         self._copy_infos: tuple[dict, ...] | None = None
+        # the team observations last returned, (K, D): a partial reset returns the others' as they were
+        self._observations: np.ndarray | None = None
 
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every copy: ``(observations (K, D) float32, infos)``; copy ``i`` gets seed ``s + i``.
+        With ``options["reset_mask"]`` (a bool array ``(K,)``, Gymnasium's partial reset) only
+        those copies, with the other options (see the module docstring).
 
         Raises:
-            ValueError: ``options["reset_mask"]`` (Gymnasium's partial reset, for
-                ``AutoresetMode.DISABLED``): these copies reset themselves.
+            ValueError: a ``reset_mask`` that is not a bool array ``(K,)`` with a True.
+            RuntimeError: a partial reset before the first :meth:`reset`.
         """
         if options is not None and "reset_mask" in options:
-            raise ValueError(
-                "options['reset_mask'] is for AutoresetMode.DISABLED; this env resets a finished copy in the same step "
-                "(AutoresetMode.SAME_STEP): reset() resets every copy, reset_at(i) one"
-            )
+            return self._reset_masked(seed, options)
         observations, copy_infos = self.vector.reset(seed=seed, options=options)
         self._copy_infos = copy_infos
         infos: dict[str, Any] = {}
         for i, info in enumerate(copy_infos):
             infos = self._add_info(infos, dict(info), i)
-        return self.layout.observation(observations), infos
+        self._observations = self.layout.observation(observations)
+        return self._observations, infos
+
+    def _reset_masked(self, seed: int | Sequence[int] | None, options: dict[str, Any]) -> tuple[np.ndarray, dict[str, Any]]:
+        """:meth:`reset` of the copies of ``options["reset_mask"]`` alone."""
+        mask = checked_reset_mask(options["reset_mask"], self.num_envs)
+        if self._observations is None:
+            raise RuntimeError("call reset() before resetting some copies (options['reset_mask'])")
+        seeds = copy_seeds(seed, self.num_envs)
+        rest = {key: value for key, value in options.items() if key != "reset_mask"} or None
+        observations = self._observations.copy()
+        infos: dict[str, Any] = {}
+        for i in np.flatnonzero(mask).tolist():
+            observations[i], info = self.reset_at(i, seed=seeds[i], options=rest)
+            infos = self._add_info(infos, info, i)
+        self._observations = observations
+        return observations, infos
 
     def reset_at(self, index: int, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset copy ``index`` alone: its team observation ``(D,)`` float32 and its centralised
@@ -125,7 +160,11 @@ class TeamVectorEnv(VectorEnv):
         copy_infos = list(self._copy_infos)
         copy_infos[index] = info
         self._copy_infos = tuple(copy_infos)
-        return self.layout.observation(observations), dict(info)
+        observation = self.layout.observation(observations)
+        if self._observations is not None:
+            self._observations = self._observations.copy()  # the array last returned stays as it was
+            self._observations[index] = observation
+        return observation, dict(info)
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """One step of every copy with its row of ``actions`` (``(K, A)``); see the module docstring.
@@ -147,7 +186,8 @@ class TeamVectorEnv(VectorEnv):
                 infos = self._add_info(infos, final, i)
             infos = self._add_info(infos, {k: v for k, v in info.items() if k not in FINAL_KEYS}, i)
         reward = np.asarray(self.layout.reward(rewards), dtype=np.float64)
-        return self.layout.observation(observations), reward, terminated, truncated, infos
+        self._observations = self.layout.observation(observations)
+        return self._observations, reward, terminated, truncated, infos
 
     def action_masks(self) -> np.ndarray:
         """``(K, sum n)`` bool: each copy's :meth:`CentralisedTeamEnv.action_masks` (switching mode).

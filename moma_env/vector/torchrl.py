@@ -66,6 +66,7 @@ if multiprocessing.get_start_method(allow_none=True) != _START_METHOD_BEFORE:
     multiprocessing.set_start_method(_START_METHOD_BEFORE, force=True)
 
 from moma_env.env.agent_names import is_observer_agent
+from moma_env.vector.env import require_same_step
 from moma_env.vector.make import BatchedEnv, make
 
 __all__ = ["MomaTorchRLEnv", "UGV_GROUP", "OBSERVER_GROUP"]
@@ -153,6 +154,7 @@ class MomaTorchRLEnv(EnvBase):
         **options: Any,
     ):
         options.setdefault("info_keys", MASKS_ONLY)
+        require_same_step(options, "MomaTorchRLEnv")
         self.vector = make(configuration, num_envs, workers=workers, **options)
         super().__init__(device=device, batch_size=torch.Size([self.vector.num_envs]))
         agents = self.vector.possible_agents

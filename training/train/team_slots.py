@@ -43,6 +43,7 @@ from moma_env.env.centralised import TeamLayout
 from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.vector import make
+from moma_env.vector.env import require_same_step
 
 __all__ = [
     "EnvSpec", "SLOT_LAYOUTS", "SLOT_INFO_KEYS", "TeamSlot", "UGVSlots", "VectorSlots", "slot_spaces", "slot_infos", "env_command",
@@ -250,6 +251,7 @@ class VectorSlots:
     def __init__(self, spec: EnvSpec, n_copies: int, workers: int | None = None, start_method: str | None = None, slots: str = "ugv"):
         if slots not in SLOT_LAYOUTS:
             raise ValueError(f"slots must be one of {sorted(SLOT_LAYOUTS)}, got {slots!r}")
+        require_same_step(spec.options, "the Stable-Baselines3 VecEnv")
         self.vector = make(spec.configuration, n_copies, workers=workers, start_method=start_method, **spec.options)
         self.layout = SLOT_LAYOUTS[slots](self.vector.spec_env)
         self.agents = self.layout.agents
