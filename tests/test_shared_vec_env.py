@@ -7,13 +7,14 @@ import pytest
 import torch
 from gymnasium import spaces
 from stable_baselines3 import PPO
+from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor
 
 from moma_env.config import ConfigError
 from moma_env.env.factory import parallel_env
 from moma_env.vector import MomaVectorEnv
 from training.fingerprint import serialise
 from training.train.models import training_logger
-from training.train.shared_vec_env import SharedPolicyVecEnv
+from training.train.shared_vec_env import SharedPolicyVecEnv, TeamVecEnv
 from training.train.team_slots import EnvSpec
 
 SPEC = EnvSpec("top_observer", {"max_cycles": 12, "random_scenarios": True, "observer_agent": False})
@@ -161,6 +162,25 @@ def test_infos_and_episode_ends_follow_the_vecenv_contract():
         assert not dones.any() and "terminal_observation" not in infos[0]
     finally:
         venv.close()
+
+
+@pytest.mark.parametrize("vec_env", [SharedPolicyVecEnv, TeamVecEnv])
+def test_sb3s_vec_wrappers_take_the_adapters(vec_env):
+    """VecMonitor reads ``venv.spec.id`` when ``venv.spec`` is set, as a Gymnasium EnvSpec: the
+    adapters keep how a copy is built as ``env_spec``. VecFrameStack stacks the terminal observations."""
+    venv = vec_env(SPEC, 2)
+    assert venv.env_spec is SPEC and getattr(venv, "spec", None) is None
+    wrapped = VecFrameStack(VecMonitor(venv), 2)
+    try:
+        obs = wrapped.reset()
+        assert obs.shape == (venv.num_envs, 2 * venv.observation_space.shape[0])
+        hold = np.zeros((venv.num_envs, *venv.action_space.shape), dtype=np.int64)
+        for _ in range(12):
+            obs, rewards, dones, infos = wrapped.step(hold)
+        assert dones.all() and all(info["episode"]["l"] == 12 for info in infos)
+        assert infos[0]["terminal_observation"].shape == obs.shape[1:]
+    finally:
+        wrapped.close()
 
 
 def test_the_observer_agent_and_bad_sizes_are_refused():

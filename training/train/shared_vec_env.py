@@ -69,6 +69,8 @@ class SlotVecEnv(VecEnv):
             (:data:`training.train.team_slots.SLOT_LAYOUTS`).
 
     Attributes:
+        env_spec: ``spec``, how a copy is built. (Not ``spec``: SB3's wrappers, ``VecMonitor``
+            among them, read ``venv.spec`` as a Gymnasium ``EnvSpec``; this VecEnv has none.)
         engine: the :class:`VectorSlots` over the batched env (its ``vector``).
     """
 
@@ -85,7 +87,7 @@ class SlotVecEnv(VecEnv):
             raise ValueError(f"n_copies must be an integer >= 1, got {n_copies!r}")
         if subproc and workers is not None:
             raise ValueError("subproc (a process per copy) and workers (the batch split over processes) exclude each other")
-        self.spec = spec
+        self.env_spec = spec
         self.subproc = subproc
         self.engine = VectorSlots(spec, n_copies, n_copies if subproc else workers, start_method=start_method, slots=slots)
         self._closed = False
