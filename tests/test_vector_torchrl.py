@@ -188,3 +188,19 @@ def test_the_copies_build_only_the_masks_of_their_infos_and_give_the_same_data()
     assert (lean_rollout == full_rollout).all()
     lean.close()
     full.close()
+
+
+def test_torchrls_pettingzoo_wrapper_takes_the_parallel_env_with_numeric_infos():
+    """What docs/vector.md shows for TorchRL's own wrapper of the PettingZoo env."""
+    from torchrl.envs import PettingZooWrapper
+
+    keys = ("action_mask", "static", "localisation_error")
+    env = PettingZooWrapper(env=parallel_env("top_observer", n_ugvs=3, action_masks=True, info_keys=keys, max_cycles=12),
+                            use_mask=True, categorical_actions=True, seed=3)
+    check_env_specs(env)
+    rollout = env.rollout(30, break_when_any_done=False)
+    assert rollout["ugv", "action_mask"].shape == (30, 3, 2) and rollout["next", "ugv", "reward"].shape == (30, 3, 1)
+    # the masks it reads are the env's own: every action taken was allowed
+    assert not rollout["ugv", "action_mask"].all()  # some starts were refused by the rules
+    taken = rollout["ugv", "action"].unsqueeze(-1)
+    assert rollout["ugv", "action_mask"].gather(-1, taken).all()
