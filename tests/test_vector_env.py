@@ -141,3 +141,28 @@ def test_disabled_autoreset_refuses_a_step_until_the_finished_copies_are_reset(w
     envs.reset()
     envs.step(joint)
     envs.close()
+
+
+@pytest.mark.parametrize("workers, options", [(None, {}), (2, {}), (None, {"action_mode": "velocity", "camera_backend": "rendered", "observer_image": (16, 12)})])
+def test_a_partial_reset_resets_the_masked_copies_with_their_seeds_and_keeps_the_others(workers, options):
+    envs = vector.make("top_observer", 3, random_scenarios=True, workers=workers, **options)
+    with pytest.raises(RuntimeError, match="call reset"):
+        envs.reset(options={"reset_mask": np.array([True, False, False])})
+    envs.reset(seed=0)
+    before, _, _, _, _ = envs.step(envs.sample_actions(np.random.default_rng(0)))
+    kept = text(before)
+    observations, infos = envs.reset(seed=50, options={"reset_mask": np.array([False, True, True])})
+    assert text(before) == kept  # what the batch returned before is not changed
+    assert infos[0] == {} and all(infos[i] for i in (1, 2))
+    for i in range(3):
+        row = {a: ({k: v[i] for k, v in o.items()} if isinstance(o, dict) else o[i]) for a, o in observations.items()}
+        old = {a: ({k: v[i] for k, v in o.items()} if isinstance(o, dict) else o[i]) for a, o in before.items()}
+        if i == 0:
+            assert text(row) == text(old)
+        else:  # as the single env reset with the seed copy i gets, 50 + i
+            single = parallel_env("top_observer", random_scenarios=True, **options)
+            obs, info = single.reset(seed=50 + i)
+            assert text(row) == text(obs) and text(infos[i]) == text(info)
+    with pytest.raises(ValueError, match=r"reset_mask'\] must be a numpy bool array of shape \(3,\)"):
+        envs.reset(options={"reset_mask": [True, True, True]})
+    envs.close()

@@ -43,7 +43,11 @@ or its value; the episodes are the same in every mode, only when a step returns 
 * ``DISABLED``: a copy whose episode ended stays finished until :meth:`reset_at` (or
   ``reset``) resets it; a step with a finished copy raises RuntimeError naming it.
 
-:meth:`reset_at` resets one copy alone, in every mode.
+:meth:`reset_at` resets one copy alone, in every mode, and ``reset(seed=s, options={"reset_mask":
+mask, ...})`` (Gymnasium's partial reset; ``mask`` a bool array ``(num_envs,)``) the copies of
+``mask``, copy ``i`` with seed ``s + i`` and the other options: it returns every copy's
+observations (the others' as the batch last returned them) and ``infos`` with ``{}`` for the
+copies it did not reset (:func:`partial_reset`).
 
 Action masks (switching mode): ``action_masks()`` gives every UGV's mask for the next
 step. With ``EnvConfig.action_masks`` on, every UGV's infos carry that mask already, so
@@ -68,11 +72,11 @@ from moma_env.env.agent_names import is_observer_agent
 from moma_env.env.parallel import STEP_PHASES, MomaParallelEnv, checked_seed, run_phases
 from moma_env.vector.collection import deferred_collection
 from moma_env.vector.batch_checks import (
-    checked_actions, checked_autoreset_mode, checked_count, checked_index, copy_options, copy_seeds, random_actions,
+    checked_actions, checked_autoreset_mode, checked_count, checked_index, checked_reset_mask, copy_options, copy_seeds, random_actions,
 )
 from moma_env.camera import MeasureRequest, measure_batch
 
-__all__ = ["FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "PHASE_CHUNK", "finished_copies_message", "masks_in_infos", "require_same_step"]
+__all__ = ["FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "PHASE_CHUNK", "finished_copies_message", "masks_in_infos", "partial_reset", "require_same_step"]
 
 #: The keys the autoreset adds to a copy's infos (see the module docstring).
 FINAL_KEYS = ("final_observation", "final_info", "final_state", "final_time", "final_action_masks")
@@ -177,6 +181,8 @@ class MomaVectorEnv:
         self.autoreset_mode = checked_autoreset_mode(autoreset_mode)
         # NEXT_STEP and DISABLED: the copies whose episode ended in the last step, not reset since.
         self._ended = [False] * self.num_envs
+        # the observations last returned (agent -> batch array), for a partial reset
+        self._observations: dict[str, Any] | None = None
         self.envs: tuple[MomaParallelEnv, ...] = tuple(parallel_env(name, **options) for _ in range(self.num_envs))
         first = self.envs[0]
         self.possible_agents = list(first.possible_agents)
@@ -221,7 +227,11 @@ class MomaVectorEnv:
         self, seed: int | Sequence[int] | None = None, options: dict | Sequence[dict | None] | None = None
     ) -> tuple[dict[str, Any], tuple[dict, ...]]:
         """Reset every copy (see the module docstring for the seeds); ``options``: one dict for
-        every copy or a sequence of ``num_envs``, one per copy."""
+        every copy or a sequence of ``num_envs``, one per copy; with ``"reset_mask"`` in the dict,
+        only those copies (:func:`partial_reset`)."""
+        if isinstance(options, Mapping) and "reset_mask" in options:
+            self._observations, infos = partial_reset(self, self._observations, seed, options)
+            return self._observations, infos
         seeds, per_copy = copy_seeds(seed, self.num_envs), copy_options(options, self.num_envs)
         self._latest_masks.drop()
         results = [env.reset(seed=s, options=o) for env, s, o in zip(self.envs, seeds, per_copy)]
@@ -231,6 +241,7 @@ class MomaVectorEnv:
         infos = tuple(infos for _, infos in results)
         if self._masks_in_infos:
             self._latest_masks.take(infos, self.possible_agents)
+        self._observations = observations
         return observations, infos
 
     def reset_at(self, index: int, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, Any], dict]:
@@ -259,6 +270,7 @@ class MomaVectorEnv:
         self._latest_masks.drop()
         with deferred_collection():
             out = self._step(checked)
+            self._observations = out[0]
             if self._masks_in_infos:
                 self._latest_masks.take(out[4], self.possible_agents)
         return out
@@ -364,6 +376,36 @@ def require_same_step(options: Mapping[str, Any], adapter: str) -> None:
         raise ConfigError(
             "autoreset_mode", f"{adapter} reads the SameStep autoreset (final observations in the infos), got {mode.value!r}"
         )
+
+
+def partial_reset(
+    env: Any, observations: Mapping[str, Any] | None, seed: int | Sequence[int] | None, options: Mapping[str, Any]
+) -> tuple[dict[str, Any], tuple[dict, ...]]:
+    """Gymnasium's partial reset of a batched env ``env`` (its ``reset_at``): the copies of
+    ``options["reset_mask"]`` (:func:`~moma_env.vector.batch_checks.checked_reset_mask`), copy
+    ``i`` with the seed :func:`~moma_env.vector.batch_checks.copy_seeds` gives it and the other
+    options. Returns every copy's observations, new arrays (the others' rows from
+    ``observations``, what the batch last returned) and the infos, ``{}`` for the copies not reset.
+
+    Raises:
+        ValueError: a bad mask. RuntimeError: before the first full reset (no ``observations``).
+    """
+    mask = checked_reset_mask(options["reset_mask"], env.num_envs)
+    if observations is None:
+        raise RuntimeError("call reset() before resetting some copies (options['reset_mask'])")
+    seeds = copy_seeds(seed, env.num_envs)
+    rest = {key: value for key, value in options.items() if key != "reset_mask"} or None
+    out = {a: {k: v.copy() for k, v in o.items()} if isinstance(o, dict) else o.copy() for a, o in observations.items()}
+    infos: list[dict] = [{} for _ in range(env.num_envs)]
+    for i in np.flatnonzero(mask).tolist():
+        copy_observations, infos[i] = env.reset_at(i, seed=seeds[i], options=rest)
+        for a, rows in out.items():
+            if isinstance(rows, dict):
+                for k, column in rows.items():
+                    column[i] = copy_observations[a][k]
+            else:
+                rows[i] = copy_observations[a]
+    return out, tuple(infos)
 
 
 def finished_copies_message(copies: Sequence[int]) -> str:

@@ -46,7 +46,7 @@ from gymnasium.vector import AutoresetMode
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
 from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
 from moma_env.vector.collection import deferred_collection
-from moma_env.vector.env import LatestMasks, MomaVectorEnv, finished_copies_message
+from moma_env.vector.env import LatestMasks, MomaVectorEnv, finished_copies_message, partial_reset
 from moma_env.vector.info_arrays import lift_arrays, put_arrays
 
 __all__ = ["ShardedVectorEnv", "copy_action_masks", "default_start_method", "send_reply", "shard_sizes"]
@@ -310,6 +310,7 @@ class ShardedVectorEnv:
         # DISABLED: the copies whose episode ended and that were not reset since (checked here,
         # so that the error names the batch's indices, not a shard's).
         self._ended = np.zeros(self.num_envs, dtype=bool)
+        self._observations: dict[str, Any] | None = None  # as last returned, for a partial reset
 
     # ------------------------------------------------------------------ spaces
     def single_observation_space(self, agent: str) -> spaces.Space:
@@ -357,6 +358,9 @@ class ShardedVectorEnv:
     ) -> tuple[dict[str, Any], tuple[dict, ...]]:
         """Reset every copy; copy ``i`` gets the seed of :class:`MomaVectorEnv` (``seed + i``);
         ``options``: one dict for every copy or a sequence of ``num_envs``, one per copy."""
+        if isinstance(options, Mapping) and "reset_mask" in options:
+            self._observations, infos = partial_reset(self, self._observations, seed, options)
+            return self._observations, infos
         seeds = self._rows(copy_seeds(seed, self.num_envs))
         per_copy = self._rows(copy_options(options, self.num_envs))
         self._latest_masks.drop()
@@ -367,6 +371,7 @@ class ShardedVectorEnv:
         infos = tuple(info for _, infos in results for info in infos)
         if self._masks_in_infos:
             self._latest_masks.take(infos, self.possible_agents)
+        self._observations = observations
         return observations, infos
 
     def reset_at(self, index: int, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, Any], dict]:
@@ -399,6 +404,7 @@ class ShardedVectorEnv:
                 self._latest_masks.take(infos, agents)
             if self.autoreset_mode is AutoresetMode.DISABLED:
                 self._ended = np.any([terminations[a] | truncations[a] for a in agents], axis=0)
+            self._observations = observations
             return observations, rewards, terminations, truncations, infos
 
     def sample_actions(self, rng: np.random.Generator) -> dict[str, np.ndarray]:

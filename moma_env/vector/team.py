@@ -56,7 +56,6 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from moma_env.env.centralised import TeamLayout
-from moma_env.vector.batch_checks import checked_reset_mask, copy_seeds
 from moma_env.vector.env import FINAL_KEYS
 from moma_env.vector.make import make
 
@@ -107,8 +106,6 @@ class TeamVectorEnv(VectorEnv):
         self.render_mode = self.vector.render_mode
         # each copy's latest PettingZoo infos (the one-start action reads which robots move)
         self._copy_infos: tuple[dict, ...] | None = None
-        # the team observations last returned, (K, D): a partial reset returns the others' as they were
-        self._observations: np.ndarray | None = None
 
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every copy: ``(observations (K, D) float32, infos)``; copy ``i`` gets seed ``s + i``.
@@ -119,30 +116,17 @@ class TeamVectorEnv(VectorEnv):
             ValueError: a ``reset_mask`` that is not a bool array ``(K,)`` with a True.
             RuntimeError: a partial reset before the first :meth:`reset`.
         """
-        if options is not None and "reset_mask" in options:
-            return self._reset_masked(seed, options)
         observations, copy_infos = self.vector.reset(seed=seed, options=options)
+        reset = range(self.num_envs)
+        if options is not None and "reset_mask" in options:  # the batch's partial reset: the others keep their infos
+            reset = np.flatnonzero(options["reset_mask"]).tolist()
+            chosen = set(reset)
+            copy_infos = tuple(copy_infos[i] if i in chosen else old for i, old in enumerate(self._copy_infos))
         self._copy_infos = copy_infos
         infos: dict[str, Any] = {}
-        for i, info in enumerate(copy_infos):
-            infos = self._add_info(infos, dict(info), i)
-        self._observations = self.layout.observation(observations)
-        return self._observations, infos
-
-    def _reset_masked(self, seed: int | Sequence[int] | None, options: dict[str, Any]) -> tuple[np.ndarray, dict[str, Any]]:
-        """:meth:`reset` of the copies of ``options["reset_mask"]`` alone."""
-        mask = checked_reset_mask(options["reset_mask"], self.num_envs)
-        if self._observations is None:
-            raise RuntimeError("call reset() before resetting some copies (options['reset_mask'])")
-        seeds = copy_seeds(seed, self.num_envs)
-        rest = {key: value for key, value in options.items() if key != "reset_mask"} or None
-        observations = self._observations.copy()
-        infos: dict[str, Any] = {}
-        for i in np.flatnonzero(mask).tolist():
-            observations[i], info = self.reset_at(i, seed=seeds[i], options=rest)
-            infos = self._add_info(infos, info, i)
-        self._observations = observations
-        return observations, infos
+        for i in reset:
+            infos = self._add_info(infos, dict(copy_infos[i]), i)
+        return self.layout.observation(observations), infos
 
     def reset_at(self, index: int, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset copy ``index`` alone: its team observation ``(D,)`` float32 and its centralised
@@ -160,11 +144,7 @@ class TeamVectorEnv(VectorEnv):
         copy_infos = list(self._copy_infos)
         copy_infos[index] = info
         self._copy_infos = tuple(copy_infos)
-        observation = self.layout.observation(observations)
-        if self._observations is not None:
-            self._observations = self._observations.copy()  # the array last returned stays as it was
-            self._observations[index] = observation
-        return observation, dict(info)
+        return self.layout.observation(observations), dict(info)
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """One step of every copy with its row of ``actions`` (``(K, A)``); see the module docstring.
@@ -186,8 +166,7 @@ class TeamVectorEnv(VectorEnv):
                 infos = self._add_info(infos, final, i)
             infos = self._add_info(infos, {k: v for k, v in info.items() if k not in FINAL_KEYS}, i)
         reward = np.asarray(self.layout.reward(rewards), dtype=np.float64)
-        self._observations = self.layout.observation(observations)
-        return self._observations, reward, terminated, truncated, infos
+        return self.layout.observation(observations), reward, terminated, truncated, infos
 
     def action_masks(self) -> np.ndarray:
         """``(K, sum n)`` bool: each copy's :meth:`CentralisedTeamEnv.action_masks` (switching mode).
