@@ -411,7 +411,7 @@ def partial_reset(
 def finished_copies_message(copies: Sequence[int]) -> str:
     """The error of a step with finished copies under ``AutoresetMode.DISABLED``."""
     return (f"copies {list(copies)} ended their episodes and autoreset_mode is DISABLED: reset them first "
-            "(reset_at(i), or reset(options={'reset_mask': mask}) on the Gymnasium adapter)")
+            "(reset_at(i), or reset(options={'reset_mask': mask}))")
 
 
 def measure_copies(requests: Sequence[Sequence[MeasureRequest]]) -> list[list[Any]]:
