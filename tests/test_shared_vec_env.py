@@ -183,6 +183,29 @@ def test_sb3s_vec_wrappers_take_the_adapters(vec_env):
         wrapped.close()
 
 
+@pytest.mark.parametrize("workers", [None, 2])
+def test_sb3s_render_tiles_each_slots_copy_frame(workers):
+    venv = SharedPolicyVecEnv(EnvSpec("top_observer", {"render_mode": "rgb_array", "max_cycles": 5}), 3, workers=workers)
+    try:
+        venv.reset()
+        venv.step(np.ones(venv.num_envs, dtype=np.int64))
+        images = venv.get_images()
+        assert len(images) == venv.num_envs == 6
+        for slot, image in enumerate(images):  # slots 2k and 2k + 1 are copy k's two UGVs
+            np.testing.assert_array_equal(image, venv.engine.vector.render(slot // 2))
+        assert not np.array_equal(images[0], images[2])  # another copy, another scene
+        tiled = venv.render()  # SB3 tiles the six frames in a grid
+        assert tiled.shape[0] * tiled.shape[1] == 6 * images[0].shape[0] * images[0].shape[1] and tiled.shape[2] == 3
+    finally:
+        venv.close()
+    plain = SharedPolicyVecEnv(SPEC, 1)
+    try:
+        with pytest.warns(UserWarning, match="render_mode='rgb_array'"):
+            assert plain.get_images() == [None, None]
+    finally:
+        plain.close()
+
+
 def test_the_observer_agent_and_bad_sizes_are_refused():
     with pytest.raises(ValueError, match="observer_agent=False"):
         SharedPolicyVecEnv(EnvSpec("top_observer", {"action_mode": "velocity"}), 1)

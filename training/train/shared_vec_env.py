@@ -39,6 +39,8 @@ not need.
 
 from __future__ import annotations
 
+import warnings
+
 from collections.abc import Sequence
 from typing import Any
 
@@ -164,7 +166,13 @@ class SlotVecEnv(VecEnv):
         return [False for _ in self._get_indices(indices)]
 
     def get_images(self) -> Sequence[np.ndarray | None]:
-        return [None for _ in range(self.num_envs)]
+        """Each slot's frame, its copy's ``render()`` (a copy renders once; its slots share the
+        frame), what SB3's ``render()`` tiles and ``VecVideoRecorder`` records; as SB3's
+        ``DummyVecEnv``, Nones with a warning unless the render mode is ``"rgb_array"``."""
+        if self.render_mode != "rgb_array":
+            warnings.warn(f"The render mode is {self.render_mode}, but images need render_mode='rgb_array'")
+            return [None for _ in range(self.num_envs)]
+        return self.env_method("render")
 
 
 class SharedPolicyVecEnv(SlotVecEnv):
