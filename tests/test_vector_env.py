@@ -143,7 +143,10 @@ def test_disabled_autoreset_refuses_a_step_until_the_finished_copies_are_reset(w
     envs.close()
 
 
-@pytest.mark.parametrize("workers, options", [(None, {}), (2, {}), (None, {"action_mode": "velocity", "camera_backend": "rendered", "observer_image": (16, 12)})])
+DICT_OBSERVATIONS = {"action_mode": "velocity", "camera_backend": "rendered", "observer_image": (16, 12)}  # the observer's: a Dict
+
+
+@pytest.mark.parametrize("workers, options", [(None, {}), (2, {}), (None, DICT_OBSERVATIONS)])
 def test_a_partial_reset_resets_the_masked_copies_with_their_seeds_and_keeps_the_others(workers, options):
     envs = vector.make("top_observer", 3, random_scenarios=True, workers=workers, **options)
     with pytest.raises(RuntimeError, match="call reset"):

@@ -76,7 +76,10 @@ from moma_env.vector.batch_checks import (
 )
 from moma_env.camera import MeasureRequest, measure_batch
 
-__all__ = ["FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "PHASE_CHUNK", "finished_copies_message", "masks_in_infos", "partial_reset", "require_same_step"]
+__all__ = [
+    "FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "PHASE_CHUNK", "finished_copies_message", "masks_in_infos", "partial_reset",
+    "require_same_step",
+]
 
 #: The keys the autoreset adds to a copy's infos (see the module docstring).
 FINAL_KEYS = ("final_observation", "final_info", "final_state", "final_time", "final_action_masks")
@@ -255,7 +258,7 @@ class MomaVectorEnv:
 
     # ------------------------------------------------------------------ step
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
-        """Step every copy with its row of ``actions``; a copy whose episode ends resets (``SAME_STEP``)."""
+        """Step every copy with its row of ``actions``; a finished copy resets as :attr:`autoreset_mode` says."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
         return self.step_checked(checked_actions(actions, self.possible_agents, self._action_spaces.__getitem__, self.num_envs))
