@@ -1,6 +1,7 @@
 """The centralised team as a Gymnasium VectorEnv (moma_env/vector/team.py): copy i of a
 batch seeded s is gymnasium.make(id) seeded s + i, every output as Gymnasium's SyncVectorEnv
-gives it in each autoreset mode, registered as every id's vector_entry_point."""
+gives it in each autoreset mode (NEXT_STEP by default, as Gymnasium's), registered as every
+id's vector_entry_point."""
 
 import gymnasium
 import numpy as np
@@ -36,7 +37,7 @@ def team_actions(space, steps: int, seed: int) -> list[np.ndarray]:
 def test_copy_i_is_gymnasium_make_seeded_s_plus_i_and_infos_are_sync_vector_envs(name, options):
     k, steps, seed = 3, 26, 7  # 26 steps of 12-step episodes: two autoresets per copy
     options = options | {"max_cycles": 12}
-    envs = gymnasium.make_vec(ID[name], num_envs=k, **options)
+    envs = gymnasium.make_vec(ID[name], num_envs=k, autoreset_mode="SameStep", **options)
     assert isinstance(envs, TeamVectorEnv)
     reference = gymnasium.make_vec(ID[name], num_envs=k, vectorization_mode="sync", vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP}, **options)
     assert isinstance(reference, SyncVectorEnv)
@@ -131,8 +132,8 @@ def test_a_partial_reset_is_checked_and_gymnasiums_observation_wrappers_take_nex
     with pytest.raises(ConfigError, match="autoreset_mode: must be a gymnasium.vector.AutoresetMode or one of"):
         TeamVectorEnv("top_observer", 2, autoreset_mode="Sometimes")
     with pytest.raises(AssertionError):  # Gymnasium's own check: its observation wrappers need NEXT_STEP or DISABLED
-        NormalizeObservation(TeamVectorEnv("top_observer", 2))
-    normalised = NormalizeObservation(TeamVectorEnv("top_observer", 2, autoreset_mode=AutoresetMode.NEXT_STEP, max_cycles=5))
+        NormalizeObservation(TeamVectorEnv("top_observer", 2, autoreset_mode=AutoresetMode.SAME_STEP))
+    normalised = NormalizeObservation(gymnasium.make_vec(ID["top_observer"], num_envs=2, max_cycles=5))  # the default
     normalised.reset(seed=0)
     for _ in range(12):
         observations, *_ = normalised.step(np.ones((2, 2), dtype=np.int64))
@@ -144,11 +145,13 @@ def test_every_id_has_the_vector_entry_point_and_the_other_modes_still_work():
         assert gymnasium.spec(env_id).vector_entry_point == "moma_env.vector.team:TeamVectorEnv"
         envs = gymnasium.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", max_cycles=5)
         assert isinstance(envs, TeamVectorEnv) and envs.num_envs == 2 and envs.vector.envs[0].scenario.name == name
-        assert envs.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP
+        # Gymnasium's own default, what vectorization_mode="sync" gives for the same id
+        assert envs.metadata["autoreset_mode"] is AutoresetMode.NEXT_STEP
         assert envs.spec is not None and envs.spec.id == env_id
         envs.close()
     for mode in ("sync", "async"):
         envs = gymnasium.make_vec(ID["top_observer"], num_envs=2, vectorization_mode=mode, max_cycles=5)
+        assert envs.metadata["autoreset_mode"] is AutoresetMode.NEXT_STEP
         try:
             obs, _ = envs.reset(seed=0)
             assert obs.shape == (2, 60)
@@ -160,7 +163,7 @@ def test_every_id_has_the_vector_entry_point_and_the_other_modes_still_work():
 
 
 def test_gymnasiums_vector_wrappers_read_the_same_step_autoreset():
-    envs = RecordEpisodeStatistics(TeamVectorEnv("top_observer", 2, max_cycles=6))
+    envs = RecordEpisodeStatistics(TeamVectorEnv("top_observer", 2, max_cycles=6, autoreset_mode="SameStep"))
     envs.reset(seed=1)
     returns = np.zeros(2)
     for t in range(6):
@@ -170,7 +173,7 @@ def test_gymnasiums_vector_wrappers_read_the_same_step_autoreset():
     np.testing.assert_array_equal(infos["_episode"], [True, True])
     np.testing.assert_array_equal(infos["episode"]["l"], [6, 6])
     np.testing.assert_allclose(infos["episode"]["r"], returns, rtol=1e-6)
-    listed = DictInfoToList(TeamVectorEnv("caterpillar", 2, max_cycles=3))
+    listed = DictInfoToList(TeamVectorEnv("caterpillar", 2, max_cycles=3, autoreset_mode="SameStep"))
     _, infos = listed.reset(seed=0)
     assert isinstance(infos, list) and len(infos) == 2 and set(infos[0]) == {"ugv_0", "ugv_1"}
     for _ in range(3):

@@ -28,16 +28,16 @@ Autoreset: ``autoreset_mode`` (``gymnasium.make_vec(id, num_envs, autoreset_mode
 any of Gymnasium's modes, each as Gymnasium's ``SyncVectorEnv`` follows it (the
 episodes are the same in every mode; :mod:`moma_env.vector.env`):
 
-* ``AutoresetMode.SAME_STEP`` (the default): a copy whose episode ends in a step is
-  reset within that step; the step returns its new episode's first observation and
-  infos, and the reward, ``terminated`` and ``truncated`` of the step that ended the
-  episode, with ``infos["final_obs"]`` (an object array: the last team observation,
-  ``(D,)``, where ``infos["_final_obs"]`` is True) and ``infos["final_info"]`` (the last
-  infos, batched the same way).
-* ``AutoresetMode.NEXT_STEP`` (Gymnasium's default, which its vector observation
-  wrappers such as ``NormalizeObservation`` require): the step after the one that ended
-  an episode resets that copy, ignoring its actions, and returns reward 0 and both flags
-  False for it.
+* ``AutoresetMode.NEXT_STEP`` (the default, as Gymnasium's own vector envs; its vector
+  observation wrappers such as ``NormalizeObservation`` take no other but ``DISABLED``):
+  the step after the one that ended an episode resets that copy, ignoring its actions,
+  and returns reward 0 and both flags False for it.
+* ``AutoresetMode.SAME_STEP``: a copy whose episode ends in a step is reset within that
+  step; the step returns its new episode's first observation and infos, and the
+  reward, ``terminated`` and ``truncated`` of the step that ended the episode, with
+  ``infos["final_obs"]`` (an object array: the last team observation, ``(D,)``, where
+  ``infos["_final_obs"]`` is True) and ``infos["final_info"]`` (the last infos, batched
+  the same way).
 * ``AutoresetMode.DISABLED``: a finished copy waits for ``reset(options={"reset_mask":
   mask})`` (or :meth:`TeamVectorEnv.reset_at`); stepping it first raises RuntimeError.
 
@@ -88,7 +88,7 @@ class TeamVectorEnv(VectorEnv):
 
     def __init__(
         self, configuration: str, num_envs: int = 1, *, workers: int | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.SAME_STEP, **options: Any,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **options: Any,
     ):
         self.vector = make(configuration, num_envs, workers=workers, autoreset_mode=autoreset_mode, **options)
         self.num_envs = self.vector.num_envs
