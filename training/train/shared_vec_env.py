@@ -167,7 +167,7 @@ class SlotVecEnv(VecEnv):
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         """Each slot's frame, its copy's ``render()`` (a copy renders once; its slots share the
-        frame), what SB3's ``render()`` tiles and ``VecVideoRecorder`` records; as SB3's
+        frame), what SB3's ``render()`` tiles; as SB3's
         ``DummyVecEnv``, Nones with a warning unless the render mode is ``"rgb_array"``."""
         if self.render_mode != "rgb_array":
             warnings.warn(f"The render mode is {self.render_mode}, but images need render_mode='rgb_array'")
