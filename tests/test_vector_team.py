@@ -113,6 +113,31 @@ def test_the_other_autoreset_modes_are_sync_vector_envs_step_for_step(mode, name
     reference.close()
 
 
+@pytest.mark.parametrize("mode", list(AutoresetMode))
+def test_partial_resets_at_random_steps_are_sync_vector_envs_in_every_mode(mode):
+    """Partial resets between steps, of copies that ended and of copies that did not (clearing a
+    NEXT_STEP reset due), seeded or continuing: every return as SyncVectorEnv's."""
+    k, rng = 3, np.random.default_rng(len(mode.value))
+    envs = gymnasium.make_vec(ID["top_observer"], num_envs=k, autoreset_mode=mode, max_cycles=5)
+    reference = gymnasium.make_vec(ID["top_observer"], num_envs=k, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, max_cycles=5)
+    assert text(envs.reset(seed=2)) == text(reference.reset(seed=2))
+    ended, partial = np.zeros(k, dtype=bool), 0
+    for t in range(30):
+        if rng.random() < 0.25 or (mode is AutoresetMode.DISABLED and ended.any()):
+            mask = (rng.random(k) < 0.5) | (ended if mode is AutoresetMode.DISABLED else False)
+            mask[int(rng.integers(k))] = True
+            seed = None if partial % 2 else int(rng.integers(1000))
+            partial += 1
+            assert text(envs.reset(seed=seed, options={"reset_mask": mask.copy()})) == text(reference.reset(seed=seed, options={"reset_mask": mask.copy()}))
+        actions = envs.action_space.sample()
+        out = envs.step(actions)
+        assert text(out) == text(reference.step(actions)), t
+        ended = out[2] | out[3]
+    assert partial >= 4
+    envs.close()
+    reference.close()
+
+
 def test_a_partial_reset_is_checked_and_gymnasiums_observation_wrappers_take_next_step():
     envs = TeamVectorEnv("top_observer", 3, max_cycles=5)
     with pytest.raises(RuntimeError, match="call reset"):
