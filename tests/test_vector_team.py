@@ -119,7 +119,9 @@ def test_partial_resets_at_random_steps_are_sync_vector_envs_in_every_mode(mode)
     NEXT_STEP reset due), seeded or continuing: every return as SyncVectorEnv's."""
     k, rng = 3, np.random.default_rng(len(mode.value))
     envs = gymnasium.make_vec(ID["top_observer"], num_envs=k, autoreset_mode=mode, max_cycles=5)
-    reference = gymnasium.make_vec(ID["top_observer"], num_envs=k, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, max_cycles=5)
+    reference = gymnasium.make_vec(
+        ID["top_observer"], num_envs=k, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, max_cycles=5
+    )
     assert text(envs.reset(seed=2)) == text(reference.reset(seed=2))
     ended, partial = np.zeros(k, dtype=bool), 0
     for t in range(30):
@@ -128,7 +130,8 @@ def test_partial_resets_at_random_steps_are_sync_vector_envs_in_every_mode(mode)
             mask[int(rng.integers(k))] = True
             seed = None if partial % 2 else int(rng.integers(1000))
             partial += 1
-            assert text(envs.reset(seed=seed, options={"reset_mask": mask.copy()})) == text(reference.reset(seed=seed, options={"reset_mask": mask.copy()}))
+            ours = envs.reset(seed=seed, options={"reset_mask": mask.copy()})
+            assert text(ours) == text(reference.reset(seed=seed, options={"reset_mask": mask.copy()}))
         actions = envs.action_space.sample()
         out = envs.step(actions)
         assert text(out) == text(reference.step(actions)), t
