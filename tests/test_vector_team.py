@@ -188,6 +188,14 @@ def test_every_id_has_the_vector_entry_point_and_the_other_modes_still_work():
             envs.close()
     single = gymnasium.make(ID["caterpillar"], max_cycles=5)
     assert single.reset(seed=0)[0].shape == single.observation_space.shape
+    # the batched env's own keywords, handed to every copy by Gymnasium's own vector envs, say what to use instead
+    with pytest.raises(ConfigError, match=r"autoreset_mode: is an option of the batched env .* pass vector_kwargs=\{'autoreset_mode'"):
+        gymnasium.make_vec(ID["top_observer"], num_envs=2, vectorization_mode="sync", autoreset_mode="SameStep")
+    with pytest.raises(ConfigError, match=r"workers: .* use vectorization_mode='async'"):
+        gymnasium.make_vec(ID["top_observer"], num_envs=2, vectorization_mode="sync", workers=2)
+    synced = gymnasium.make_vec(ID["top_observer"], num_envs=2, vectorization_mode="sync", vector_kwargs={"autoreset_mode": "SameStep"})
+    assert synced.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP
+    synced.close()
 
 
 def test_gymnasiums_vector_wrappers_read_the_same_step_autoreset():

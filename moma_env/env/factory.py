@@ -37,6 +37,7 @@ __all__ = [
     "checked_overrides",
     "env_config",
     "SETTABLE_ENV_OPTIONS",
+    "BATCH_ONLY_OPTIONS",
     "versioned_constructors",
 ]
 
@@ -312,8 +313,30 @@ def aec_env(configuration: str, **kwargs: Any):
     return parallel_to_aec(parallel_env(configuration, **kwargs))
 
 
+#: Keywords of the batched Gymnasium env (:class:`moma_env.vector.team.TeamVectorEnv`, what
+#: ``gymnasium.make_vec`` builds by default) that one env does not take, and what to use in
+#: their place with Gymnasium's own vector envs (``vectorization_mode="sync"`` or ``"async"``,
+#: which make each copy with ``gymnasium.make``).
+BATCH_ONLY_OPTIONS = {
+    "autoreset_mode": "pass vector_kwargs={'autoreset_mode': ...} to gymnasium.make_vec",
+    "workers": "use vectorization_mode='async' (a process per copy)",
+}
+
+
 def centralised_env(configuration: str, **kwargs: Any) -> CentralisedTeamEnv:
-    """The whole team as one Gymnasium agent (what ``gymnasium.make`` builds)."""
+    """The whole team as one Gymnasium agent (what ``gymnasium.make`` builds).
+
+    Raises:
+        ConfigError: naming a keyword of the batched env only (:data:`BATCH_ONLY_OPTIONS`),
+            as ``gymnasium.make_vec(..., vectorization_mode="sync")`` hands its keywords
+            to every copy; else as :func:`parallel_env`.
+    """
+    for key, instead in BATCH_ONLY_OPTIONS.items():
+        if key in kwargs:
+            raise ConfigError(
+                key, f"is an option of the batched env gymnasium.make_vec builds by default (vectorization_mode="
+                     f"'vector_entry_point'), not of one env; with Gymnasium's own vector envs, {instead}"
+            )
     return CentralisedTeamEnv(parallel_env(configuration, **kwargs))
 
 
