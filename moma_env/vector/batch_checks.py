@@ -21,7 +21,7 @@ from moma_env.env.parallel import checked_seed
 
 __all__ = [
     "checked_actions", "checked_autoreset_mode", "checked_count", "checked_index", "checked_reset_mask", "copy_options", "copy_seeds",
-    "random_actions",
+    "random_actions", "refuse_finished_copies", "require_same_step",
 ]
 
 
@@ -43,6 +43,27 @@ def checked_autoreset_mode(value: object) -> AutoresetMode:
         raise ConfigError(
             "autoreset_mode", f"must be a gymnasium.vector.AutoresetMode or one of {[m.value for m in AutoresetMode]}, got {value!r}"
         ) from None
+
+
+def require_same_step(options: Mapping[str, Any], adapter: str) -> None:
+    """ConfigError naming ``autoreset_mode`` unless the batched env of ``options`` (what
+    :func:`~moma_env.vector.make` takes) resets a finished copy in the step that ends its
+    episode, the only mode ``adapter`` reads; checked before anything is built."""
+    mode = checked_autoreset_mode(options.get("autoreset_mode", AutoresetMode.SAME_STEP))
+    if mode is not AutoresetMode.SAME_STEP:
+        raise ConfigError(
+            "autoreset_mode", f"{adapter} reads the SameStep autoreset (final observations in the infos), got {mode.value!r}"
+        )
+
+
+def refuse_finished_copies(mode: AutoresetMode, ended: set[int]) -> None:
+    """Under ``AutoresetMode.DISABLED``, RuntimeError naming the copies in ``ended`` (their
+    episodes ended and they were not reset since), before a step."""
+    if ended and mode is AutoresetMode.DISABLED:
+        raise RuntimeError(
+            f"copies {sorted(ended)} ended their episodes and autoreset_mode is DISABLED: reset them first "
+            "(reset_at(i), or reset(options={'reset_mask': mask}))"
+        )
 
 
 def checked_reset_mask(mask: object, num_envs: int) -> np.ndarray:

@@ -66,20 +66,17 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
-from moma_env.config import ConfigError
 from moma_env.env.factory import parallel_env
 from moma_env.env.agent_names import is_observer_agent
 from moma_env.env.parallel import STEP_PHASES, MomaParallelEnv, checked_seed, run_phases
 from moma_env.vector.collection import deferred_collection
 from moma_env.vector.batch_checks import (
     checked_actions, checked_autoreset_mode, checked_count, checked_index, checked_reset_mask, copy_options, copy_seeds, random_actions,
+    refuse_finished_copies,
 )
 from moma_env.camera import MeasureRequest, measure_batch
 
-__all__ = [
-    "FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "PHASE_CHUNK", "finished_copies_message", "masks_in_infos", "partial_reset",
-    "require_same_step",
-]
+__all__ = ["FINAL_KEYS", "LatestMasks", "MomaVectorEnv", "PHASE_CHUNK", "masks_in_infos", "partial_reset"]
 
 #: The keys the autoreset adds to a copy's infos (see the module docstring).
 FINAL_KEYS = ("final_observation", "final_info", "final_state", "final_time", "final_action_masks")
@@ -183,7 +180,7 @@ class MomaVectorEnv:
         self.num_envs = checked_count("num_envs", num_envs)
         self.autoreset_mode = checked_autoreset_mode(autoreset_mode)
         # NEXT_STEP and DISABLED: the copies whose episode ended in the last step, not reset since.
-        self._ended = [False] * self.num_envs
+        self._ended: set[int] = set()
         # the observations last returned (agent -> batch array), for a partial reset
         self._observations: dict[str, Any] | None = None
         self.envs: tuple[MomaParallelEnv, ...] = tuple(parallel_env(name, **options) for _ in range(self.num_envs))
@@ -238,7 +235,7 @@ class MomaVectorEnv:
         seeds, per_copy = copy_seeds(seed, self.num_envs), copy_options(options, self.num_envs)
         self._latest_masks.drop()
         results = [env.reset(seed=s, options=o) for env, s, o in zip(self.envs, seeds, per_copy)]
-        self._ended = [False] * self.num_envs
+        self._ended = set()
         self._started = True
         observations = {a: _stack([obs[a] for obs, _ in results]) for a in self.possible_agents}
         infos = tuple(infos for _, infos in results)
@@ -253,7 +250,7 @@ class MomaVectorEnv:
         seed = checked_seed(seed)
         self._latest_masks.stale(index)
         result = self.envs[index].reset(seed=seed, options=options)
-        self._ended[index] = False
+        self._ended.discard(index)
         return result
 
     # ------------------------------------------------------------------ step
@@ -268,8 +265,7 @@ class MomaVectorEnv:
         returned for this batch (what a sharded batch's caller checked once for all shards)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        if self.autoreset_mode is AutoresetMode.DISABLED and any(self._ended):
-            raise RuntimeError(finished_copies_message([i for i, ended in enumerate(self._ended) if ended]))
+        refuse_finished_copies(self.autoreset_mode, self._ended)
         self._latest_masks.drop()
         with deferred_collection():
             out = self._step(checked)
@@ -291,7 +287,7 @@ class MomaVectorEnv:
         same_step = self.autoreset_mode is AutoresetMode.SAME_STEP
         ended = self._ended
         # The copies stepped: all but, in NEXT_STEP mode, those that ended in the last step.
-        indices = [i for i in range(len(envs)) if not ended[i]] if any(ended) else range(len(envs))
+        indices = [i for i in range(len(envs)) if i not in ended] if ended else range(len(envs))
         stepped: list[tuple] = []
         for first in range(0, len(indices), PHASE_CHUNK):
             start = time.perf_counter() if seconds is not None else 0.0
@@ -302,9 +298,9 @@ class MomaVectorEnv:
         # Each copy's (observations, rewards, terminations, truncations, infos).
         results: list[tuple] = []
         stepped_results = iter(stepped)
-        now_ended = [False] * len(envs)
+        now_ended: set[int] = set()
         for i, env in enumerate(envs):
-            if ended[i]:  # NEXT_STEP: the copy resets instead of stepping
+            if i in ended:  # NEXT_STEP: the copy resets instead of stepping
                 obs, info = env.reset()
                 results.append((obs, dict.fromkeys(agents, 0.0), dict.fromkeys(agents, False), dict.fromkeys(agents, False), info))
                 continue
@@ -318,7 +314,7 @@ class MomaVectorEnv:
                     obs, info = env.reset()
                     result = (obs, rew, term, trunc, dict(info) | final)
                 else:
-                    now_ended[i] = True
+                    now_ended.add(i)
             results.append(result)
         self._ended = now_ended
         observations = {a: _stack([r[0][a] for r in results]) for a in agents}
@@ -370,17 +366,6 @@ class MomaVectorEnv:
             env.close()
 
 
-def require_same_step(options: Mapping[str, Any], adapter: str) -> None:
-    """ConfigError naming ``autoreset_mode`` unless the batched env of ``options`` (what
-    :func:`~moma_env.vector.make` takes) resets a finished copy in the step that ends its
-    episode, the only mode ``adapter`` reads; checked before anything is built."""
-    mode = checked_autoreset_mode(options.get("autoreset_mode", AutoresetMode.SAME_STEP))
-    if mode is not AutoresetMode.SAME_STEP:
-        raise ConfigError(
-            "autoreset_mode", f"{adapter} reads the SameStep autoreset (final observations in the infos), got {mode.value!r}"
-        )
-
-
 def partial_reset(
     env: Any, observations: Mapping[str, Any] | None, seed: int | Sequence[int] | None, options: Mapping[str, Any]
 ) -> tuple[dict[str, Any], tuple[dict, ...]]:
@@ -409,12 +394,6 @@ def partial_reset(
             else:
                 rows[i] = copy_observations[a]
     return out, tuple(infos)
-
-
-def finished_copies_message(copies: Sequence[int]) -> str:
-    """The error of a step with finished copies under ``AutoresetMode.DISABLED``."""
-    return (f"copies {list(copies)} ended their episodes and autoreset_mode is DISABLED: reset them first "
-            "(reset_at(i), or reset(options={'reset_mask': mask}))")
 
 
 def measure_copies(requests: Sequence[Sequence[MeasureRequest]]) -> list[list[Any]]:

@@ -44,9 +44,11 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
 from moma_env.env.parallel import MomaParallelEnv, checked_seed
-from moma_env.vector.batch_checks import checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions
+from moma_env.vector.batch_checks import (
+    checked_actions, checked_count, checked_index, copy_options, copy_seeds, random_actions, refuse_finished_copies,
+)
 from moma_env.vector.collection import deferred_collection
-from moma_env.vector.env import LatestMasks, MomaVectorEnv, finished_copies_message, partial_reset
+from moma_env.vector.env import LatestMasks, MomaVectorEnv, partial_reset
 from moma_env.vector.info_arrays import lift_arrays, put_arrays
 
 __all__ = ["ShardedVectorEnv", "copy_action_masks", "default_start_method", "send_reply", "shard_sizes"]
@@ -309,7 +311,7 @@ class ShardedVectorEnv:
         self.autoreset_mode: AutoresetMode = local.vector.autoreset_mode
         # DISABLED: the copies whose episode ended and that were not reset since (checked here,
         # so that the error names the batch's indices, not a shard's).
-        self._ended = np.zeros(self.num_envs, dtype=bool)
+        self._ended: set[int] = set()
         self._observations: dict[str, Any] | None = None  # as last returned, for a partial reset
 
     # ------------------------------------------------------------------ spaces
@@ -365,7 +367,7 @@ class ShardedVectorEnv:
         per_copy = self._rows(copy_options(options, self.num_envs))
         self._latest_masks.drop()
         results = self._broadcast("reset", list(zip(seeds, per_copy)))
-        self._ended[:] = False
+        self._ended = set()
         self._started = True
         observations = {a: _join([obs[a] for obs, _ in results]) for a in self.possible_agents}
         infos = tuple(info for _, infos in results for info in infos)
@@ -379,7 +381,7 @@ class ShardedVectorEnv:
         seed = checked_seed(seed)
         self._latest_masks.stale(checked_index(index, self.num_envs))
         result = self._at(index, "reset_at", lambda local: (local, seed, options))
-        self._ended[index] = False
+        self._ended.discard(index)
         return result
 
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, tuple[dict, ...]]:
@@ -387,8 +389,7 @@ class ShardedVectorEnv:
         :class:`MomaVectorEnv` (:attr:`autoreset_mode`)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        if self.autoreset_mode is AutoresetMode.DISABLED and self._ended.any():
-            raise RuntimeError(finished_copies_message(np.flatnonzero(self._ended).tolist()))
+        refuse_finished_copies(self.autoreset_mode, self._ended)
         # The workers' replies (every copy's infos, unpickled here) live until the next step,
         # like the local shard's: the collector waits for the end of the batch step for both.
         self._latest_masks.drop()
@@ -403,7 +404,7 @@ class ShardedVectorEnv:
             if self._masks_in_infos:
                 self._latest_masks.take(infos, agents)
             if self.autoreset_mode is AutoresetMode.DISABLED:
-                self._ended = np.any([terminations[a] | truncations[a] for a in agents], axis=0)
+                self._ended = set(np.flatnonzero(np.any([terminations[a] | truncations[a] for a in agents], axis=0)).tolist())
             self._observations = observations
             return observations, rewards, terminations, truncations, infos
 

@@ -66,7 +66,7 @@ if multiprocessing.get_start_method(allow_none=True) != _START_METHOD_BEFORE:
     multiprocessing.set_start_method(_START_METHOD_BEFORE, force=True)
 
 from moma_env.env.agent_names import is_observer_agent
-from moma_env.vector.env import require_same_step
+from moma_env.vector.batch_checks import require_same_step
 from moma_env.vector.make import BatchedEnv, make
 
 __all__ = ["MomaTorchRLEnv", "UGV_GROUP", "OBSERVER_GROUP"]

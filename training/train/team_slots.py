@@ -43,7 +43,7 @@ from moma_env.env.centralised import TeamLayout
 from moma_env.env.factory import parallel_env
 from moma_env.env.parallel import MomaParallelEnv
 from moma_env.vector import make
-from moma_env.vector.env import require_same_step
+from moma_env.vector.batch_checks import require_same_step
 
 __all__ = [
     "EnvSpec", "SLOT_LAYOUTS", "SLOT_INFO_KEYS", "TeamSlot", "UGVSlots", "VectorSlots", "slot_spaces", "slot_infos", "env_command",
