@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Callable, Generator, Iterator, Mapping, Sequence
 from numbers import Integral
 from types import MappingProxyType
@@ -63,7 +64,10 @@ from moma_env.geometry import se3_to_se2
 from moma_env.scenarios import Scenario
 from moma_env.sim import Frame, Simulation, measured
 
-__all__ = ["MEASUREMENT", "MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep", "STEP_PHASES", "run_phases"]
+__all__ = [
+    "MEASUREMENT", "MomaParallelEnv", "OBSERVER", "FixedScenario", "PendingStep", "RESET_OPTIONS", "STEP_PHASES",
+    "checked_reset_options", "run_phases",
+]
 
 #: Status -> its name in infos (``"localised"``, ...): read from a table, not from the enum's ``name`` each time.
 _STATUS_NAMES: Mapping[Status, str] = MappingProxyType({status: status.name.lower() for status in Status})
@@ -89,6 +93,40 @@ def checked_seed(seed: object) -> int | None:
     if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, Integral) or seed < 0:
         raise ValueError(f"seed must be None or a non-negative integer (Gymnasium's convention), got {seed!r}")
     return int(seed)
+
+
+#: The keys :meth:`MomaParallelEnv.reset` takes in ``options``.
+RESET_OPTIONS = ("scenario",)
+
+
+def checked_reset_options(options: object) -> Scenario | None:
+    """The scenario ``options`` asks a reset to lay out (``options["scenario"]``), or None
+    for a reset that draws its own.
+
+    ``options`` is None or a mapping (TypeError otherwise). Keys other than those of
+    :data:`RESET_OPTIONS` are ignored with a warning naming them: PettingZoo's API test
+    resets with made-up options and expects them taken, so they cannot be refused, but a
+    misspelt option must not pass unseen. An empty mapping, as Gymnasium's vector envs
+    pass, asks nothing.
+    """
+    if options is None:
+        return None
+    if not isinstance(options, Mapping):
+        raise TypeError(f"options must be None or a mapping, got {type(options).__name__}")
+    if not options:
+        return None
+    unknown = [key for key in options if key not in RESET_OPTIONS]
+    if unknown:
+        warnings.warn(
+            f"reset options {', '.join(map(repr, unknown))} are not this env's and are ignored; "
+            f"its reset takes {', '.join(map(repr, RESET_OPTIONS))}",
+            UserWarning,
+            stacklevel=3,
+        )
+    scenario = options.get("scenario")
+    if scenario is not None and not isinstance(scenario, Scenario):
+        raise TypeError(f"options['scenario'] must be a Scenario (e.g. a configuration's .scenario()), got {type(scenario).__name__}")
+    return scenario
 
 
 class PendingStep:
@@ -318,6 +356,22 @@ class MomaParallelEnv(ParallelEnv):
         sleds = tuple((sled.name, sled.robot) for sled in s.world.sleds)
         return (s.world.ugv_names, sleds, s.world.uav_names, tuple(sorted(s.goals)))
 
+    def _check_given_scenario(self, scenario: Scenario) -> None:
+        """ValueError naming ``options['scenario']`` if it is not of this env's configuration
+        or has other robots (its agents and spaces would not be this env's)."""
+        if scenario.name != self.scenario.name:
+            raise ValueError(
+                f"options['scenario']: a {scenario.name!r} scenario; this env lays out {self.scenario.name!r} scenarios"
+            )
+        if self._robots_signature(scenario) != self._signature:
+            ugvs, sleds, uavs, goals = self._robots_signature(scenario)
+            want_ugvs, want_sleds, want_uavs, want_goals = self._signature
+            raise ValueError(
+                "options['scenario']: its robots must be this env's: "
+                f"UGVs {list(ugvs)}, sleds {list(sleds)}, UAVs {list(uavs)}, goals of {list(goals)}; "
+                f"this env's: UGVs {list(want_ugvs)}, sleds {list(want_sleds)}, UAVs {list(want_uavs)}, goals of {list(want_goals)}"
+            )
+
     def _setup(self, scenario: Scenario) -> None:
         """Build the episode's simulation, action mode, observation layout and spaces."""
         self.scenario = scenario
@@ -501,13 +555,25 @@ class MomaParallelEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ reset
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        """Start an episode; ``seed`` (None or a non-negative integer) reseeds the env.
+
+        ``options`` (None or a mapping): ``{"scenario": s}`` lays out the
+        :class:`~moma_env.scenarios.Scenario` ``s`` (of this env's configuration, with
+        its robots and goals' robots, e.g. ``TopObserverConfig(...).scenario()``)
+        instead of drawing one; the cameras' noise still comes from the seed, and the
+        env's generator advances as in any reset, so the resets after it are the same
+        either way. Other keys are ignored with a warning (:func:`checked_reset_options`).
+        """
         seed = checked_seed(seed)
+        given = checked_reset_options(options)
+        if given is not None:
+            self._check_given_scenario(given)
         if seed is not None:
             self._np_random = np.random.default_rng(seed)
             self._seeded = True
         rng_scenario, rng_camera = self._np_random.spawn(2)
-        scenario = self._factory(rng_scenario)
-        if self._robots_signature(scenario) != self._signature:
+        scenario = self._factory(rng_scenario) if given is None else given
+        if given is None and self._robots_signature(scenario) != self._signature:
             raise ValueError("the scenario factory changed the set of robots between resets; agents must stay fixed")
         if scenario is not self.scenario:
             self._setup(scenario)
