@@ -105,3 +105,21 @@ def test_the_batch_gives_each_copy_its_own_options(workers):
             envs.reset_at(0, seed=20, options={"scenery": scenario})
     finally:
         envs.close()
+
+
+def test_the_gymnasium_team_env_and_its_vector_env_take_the_scenario():
+    import gymnasium
+
+    import moma_env  # noqa: F401 - registers the Gymnasium ids
+
+    scenario = drawn_scenario(5)
+    team = gymnasium.make("moma_env/TopObserver-v0", action_mode="switching")
+    observation, _ = team.reset(seed=1, options={"scenario": scenario})
+    assert team.unwrapped.parallel_env.scenario is scenario
+    envs = gymnasium.make_vec("moma_env/TopObserver-v0", num_envs=2, action_mode="switching")
+    observations, _ = envs.reset(seed=[1, 1], options={"scenario": scenario})
+    np.testing.assert_array_equal(observations[0], observation)
+    np.testing.assert_array_equal(observations[1], observation)
+    plain, _ = gymnasium.make("moma_env/TopObserver-v0", action_mode="switching").reset(seed=1)
+    assert not np.array_equal(plain, observation)
+    envs.close()
