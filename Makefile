@@ -4,7 +4,8 @@
 # The set-up creates .venv, installs the CPU build of PyTorch first (so that
 # stable-baselines3 does not pull a CUDA build), then the project with its
 # training, development, TorchRL, documentation, Ray (sweeps, RLlib) and pose-graph
-# (GTSAM) extras. Override TORCH to use another build.
+# (GTSAM) extras, and compiles the kernels once (moma-env warm-up), so that the first
+# env, experiment or test does not wait for them. Override TORCH to use another build.
 
 PYTHON ?= python3
 VENV ?= .venv
@@ -21,6 +22,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet "$(TORCH)"
 	$(BIN)/python -m pip install --quiet -e ".[train,dev,torchrl,docs,ray,graph]"
+	$(BIN)/moma-env warm-up
 	touch $(STAMP)
 
 square: $(STAMP)

@@ -1,6 +1,6 @@
 """moma_env: MOMA visual mobile marker odometry as a multi-agent learning environment.
 
-Layers, with imports flowing one way (see DESIGN.md):
+Layers, with imports flowing one way (see docs/design.md):
 world (pymunk truth) -> camera (detections) -> estimator (MOMA estimates)
 -> env (PettingZoo / Gymnasium). The estimator imports nothing from the simulator.
 

@@ -28,7 +28,7 @@ def test_every_command_of_the_tree_is_listed():
     assert set(COMMANDS) == {
         ("experiment", "square"), ("experiment", "line"), ("experiment", "flips"), ("experiment", "consistency"),
         ("experiment", "compare"),
-        ("bench",), ("evaluate",), ("localise",), ("train",), ("sweep",),
+        ("bench",), ("evaluate",), ("localise",), ("train",), ("sweep",), ("warm-up",),
     }
 
 

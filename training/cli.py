@@ -10,6 +10,7 @@ Subcommands:
     evaluate            run a policy for N episodes: success, errors, switches; JSON, CSV, TUM, figure.
     localise            run an estimator on a detection log (recorded or real): TUM trajectories and covariances.
     train               train a coordination policy with Stable-Baselines3 (training/train/).
+    warm-up             compile the kernels ahead of their first use (make setup runs it).
 
 Every subcommand validates its arguments at the boundary and exits with status 2
 and a one-line message on bad input (:data:`EXIT_STATUSES`, docs/cli.md). Building
@@ -32,6 +33,7 @@ from typing import Any
 
 from moma_env.config import ConfigError
 from moma_env.io import RunFolderError
+from moma_env.registration import CONFIGURATION_NAMES
 from training.cli_args import (
     ACTION_MODE_NAMES,
     CAMERA_BACKEND_NAMES,
@@ -113,7 +115,7 @@ def build_parser() -> CommandParser:
     exp_sub = exp.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
     for add in (_add_square, _add_line, _add_flips, _add_consistency, _add_compare):
         add(exp_sub)
-    for add in (_add_bench, _add_evaluate, _add_localise, _add_train):
+    for add in (_add_bench, _add_evaluate, _add_localise, _add_train, _add_warm_up):
         add(sub)
     from training.sweep.command import add_sweep_parser
 
@@ -220,6 +222,20 @@ def _add_localise(sub) -> None:
     )
     loc.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
     loc.set_defaults(handler=_run_localise)
+
+
+def _add_warm_up(sub) -> None:
+    warm = add_subcommand(
+        sub, "warm-up",
+        "compile the package's kernels into numba's cache ahead of their first use: a short seeded run of each "
+        "configuration in each action mode (make setup runs it; again after a change to the kernels' sources)",
+    )
+    warm.add_argument(
+        "--configuration", action="append", default=None, type=choice(CONFIGURATION_NAMES, "configuration"),
+        choices=CONFIGURATION_NAMES, metavar="NAME",
+        help=f"a configuration to warm up (repeatable; default every one: {', '.join(CONFIGURATION_NAMES)})",
+    )
+    warm.set_defaults(handler=_run_warm_up)
 
 
 def _add_flips(exp_sub) -> None:
@@ -596,6 +612,16 @@ def _run_experiment(args: argparse.Namespace) -> int:
         print(f"moma-env experiment {args.experiment}: not every run completed (see 'completed' in the results); exit status 1",
               file=sys.stderr)
     return 0 if completed else 1
+
+
+def _run_warm_up(args: argparse.Namespace) -> int:
+    from moma_env.warm_up import warm_up
+
+    start = time.perf_counter()
+    for step in warm_up(args.configuration):
+        print(f"{step.configuration} {step.action_mode}: {step.seconds:.1f} s")
+    print(f"kernels compiled and cached in {time.perf_counter() - start:.1f} s")
+    return 0
 
 
 def _run_localise(args: argparse.Namespace) -> int:
