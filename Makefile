@@ -13,7 +13,7 @@ TORCH ?= torch==2.13.0
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup square test
+.PHONY: setup square test test-base
 
 setup: $(STAMP)
 
@@ -33,3 +33,19 @@ square: $(STAMP)
 # tests of one xdist_group (those of the session's Ray) on one process, so one Ray starts.
 test: $(STAMP)
 	$(BIN)/python -m pytest -n auto --maxprocesses 8 --dist loadgroup
+
+# The environments' Gymnasium and PettingZoo tests in a second virtualenv holding the project
+# alone (no extras) with the newest releases its requirements allow. The main one has the
+# Gymnasium release ray[rllib] pins (1.2.2); an installation without the ray extra gets the
+# newest (1.4.0 on 2026-12-07), whose checks differ. The kernels' cache of the sources is shared.
+BASE_VENV ?= .venv-base
+BASE_TESTS := tests/test_env_api.py tests/test_env_properties.py tests/test_env_action_masks.py \
+	tests/test_env_bad_input.py tests/test_env_copy.py tests/test_env_reset_options.py \
+	tests/test_vector_env.py tests/test_vector_team.py tests/test_vector_sharded.py
+
+test-base:
+	$(PYTHON) -m venv $(BASE_VENV)
+	$(BASE_VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(BASE_VENV)/bin/python -m pip install --quiet --upgrade -e ".[test]"
+	$(BASE_VENV)/bin/python -c "import gymnasium, pettingzoo; print('gymnasium', gymnasium.__version__, 'pettingzoo', pettingzoo.__version__)"
+	$(BASE_VENV)/bin/python -m pytest -n auto --maxprocesses 8 $(BASE_TESTS)
