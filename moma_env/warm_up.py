@@ -1,16 +1,16 @@
 """Compile the package's kernels ahead of their first use: :func:`warm_up`.
 
 The camera, estimator, observation and physics kernels are compiled on their first call
-and kept in an on-disk cache (:mod:`moma_env.kernel_cache`). On a
-fresh installation the first env therefore spends most of a minute compiling before its
+and kept in an on-disk cache (:mod:`moma_env.kernel_cache`). On a fresh installation
+the first env therefore spends most of a minute compiling before its
 first reset returns, and every new process after that loads the compiled kernels in a
 second or two. :func:`warm_up` pays that cost once, at set-up (``make setup`` runs
 ``moma-env warm-up``): it steps each configuration a few seeded steps in each action
 mode, as a batch of one copy and of two (two copies' cameras are measured together, with
 kernels of their own), so that what a user runs first finds its kernels compiled.
 
-It changes nothing but the cache: the episodes it runs are thrown away, and the kernels
-compiled from the cache are the ones compiled in place.
+It changes nothing but the cache: the episodes it runs are thrown away, and a kernel
+loaded from the cache runs the same code as one compiled on first use.
 """
 
 from __future__ import annotations
