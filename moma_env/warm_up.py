@@ -1,6 +1,6 @@
 """Compile the package's kernels ahead of their first use: :func:`warm_up`.
 
-The camera, estimator, observation and physics kernels are compiled on their first call
+The camera, estimator, geometry and observation kernels are compiled on their first call
 and kept in an on-disk cache (:mod:`moma_env.kernel_cache`). On a fresh installation
 the first env therefore spends most of a minute compiling before its
 first reset returns, and every new process after that loads the compiled kernels in a
