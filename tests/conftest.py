@@ -1,12 +1,16 @@
 """Test-session settings: windows go to SDL's dummy driver (CI has no screen), and
 Hypothesis draws its examples from a fixed seed (``derandomize``, no example database),
-so that the suite is the same run every time, as every seeded run of the project is; and
-the fixtures several test modules share."""
+so that the suite is the same run every time, as every seeded run of the project is; the
+fixtures several test modules share; and, with ``$MOMA_TESTS_ALLOW_MISSING_EXTRAS`` set (``make
+test-base``), a test module that cannot be imported for want of an optional extra is
+skipped, naming the extra, rather than failing to collect."""
 
 import os
 
 import pytest
 from hypothesis import settings
+
+from extras import ALLOW_MISSING_EXTRAS, missing_extra
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
@@ -24,3 +28,23 @@ def policies(tmp_path, monkeypatch):
     folder.mkdir()
     monkeypatch.setenv(POLICIES_ENV, str(folder))
     return folder
+
+
+class _ModuleOfOptionalExtras(pytest.Module):
+    """A test module whose import fails for want of an optional extra's module is skipped,
+    naming the extra (only with ``$MOMA_TESTS_ALLOW_MISSING_EXTRAS``)."""
+
+    def _getobj(self):
+        try:
+            return super()._getobj()
+        except self.CollectError as error:
+            extra = missing_extra(error.__cause__)
+            if extra is None:
+                raise
+            raise pytest.skip.Exception(f"needs the {extra} extra ({error.__cause__})", allow_module_level=True) from error
+
+
+def pytest_pycollect_makemodule(module_path, parent):
+    if os.environ.get(ALLOW_MISSING_EXTRAS) and module_path.name.startswith("test_"):
+        return _ModuleOfOptionalExtras.from_parent(parent, path=module_path)
+    return None

@@ -89,6 +89,7 @@ def test_bench_configurations_reports_every_configuration_and_mode():
 
 
 def test_rounds_are_interleaved_and_each_row_reports_its_best_round(monkeypatch):
+    pytest.importorskip("mpe2", reason="needs the 'dev' extra (the MPE2 row)")
     import training.bench as bench
 
     calls = []

@@ -61,7 +61,10 @@ try:
     from torchrl.data import Bounded, Categorical, Composite, Unbounded
     from torchrl.envs import EnvBase
 except ImportError as err:  # pragma: no cover - depends on the installed extras
-    raise ImportError(f"moma_env.vector.torchrl needs the 'torchrl' extra (pip install 'moma_env[torchrl]'): {err}") from err
+    # ModuleNotFoundError, as for the missing module itself: pytest.importorskip skips on it
+    raise ModuleNotFoundError(
+        f"moma_env.vector.torchrl needs the 'torchrl' extra (pip install 'moma_env[torchrl]'): {err}", name=err.name
+    ) from err
 if multiprocessing.get_start_method(allow_none=True) != _START_METHOD_BEFORE:
     multiprocessing.set_start_method(_START_METHOD_BEFORE, force=True)
 
