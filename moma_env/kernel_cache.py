@@ -7,10 +7,12 @@ runs the callee's old code, or fails to load with ``RuntimeError: In
 'NRT_adapt_ndarray_to_python', 'descr' is NULL``. :func:`clear_if_sources_changed`, run
 when ``moma_env`` is imported, removes every numba cache file in the package's
 ``__pycache__`` folders when the sources of its kernels (every ``.py`` file of the package
-that mentions numba) differ from those the caches were made from, so the kernels compile
+that imports numba) differ from those the caches were made from, so the kernels compile
 again from the current sources (about 45 s for an env's kernels here). An import where no
 file of the package changed since the last check reads only the files' modification
 times and sizes (about 2 ms); an edit elsewhere costs one read of the kernels' sources.
+A file counts as a kernel source if it imports numba: one that only names it (a docstring)
+does not, so editing its text keeps the caches.
 Caches numba keeps elsewhere (a read-only installation, with
 ``NUMBA_CACHE_DIR`` set) are left to numba.
 """
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -43,13 +46,19 @@ def _files_digest(package_dir: Path) -> str:
     return digest.hexdigest()
 
 
+#: A line importing numba (``import numba``, ``import numba as nb``, ``from numba import ...``):
+#: the mark of a file that defines or calls kernels.
+_IMPORTS_NUMBA = re.compile(rb"^[ \t]*(?:import|from)[ \t]+numba\b", re.MULTILINE)
+
+
 def sources_digest(package_dir: Path) -> str:
     """SHA-256 (hex) of the kernels' sources under ``package_dir``: the path and bytes of every
-    ``.py`` file that mentions numba, in sorted order."""
+    ``.py`` file that imports numba, in sorted order (a file that only names numba in its
+    text, as a docstring may, is not one)."""
     digest = hashlib.sha256()
     for path in sorted(package_dir.rglob("*.py")):
         text = path.read_bytes()
-        if b"numba" in text:
+        if _IMPORTS_NUMBA.search(text):
             digest.update(path.relative_to(package_dir).as_posix().encode() + b"\0")
             digest.update(text + b"\0")
     return digest.hexdigest()

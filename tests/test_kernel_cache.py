@@ -85,9 +85,15 @@ def test_the_caches_are_removed_only_when_the_kernels_sources_change(tmp_path):
     assert not clear_if_sources_changed(package)  # nothing changed
     (package / "plain.py").write_text("X = 2\n")  # a file without kernels changed
     assert not clear_if_sources_changed(package) and stale.exists()
+    (package / "plain.py").write_text('"""Calls the numba kernels of a.py."""\nimport numpy\n')  # names numba, imports it not
+    assert not clear_if_sources_changed(package) and stale.exists()
     b = package / "b.py"
     os.utime(b, ns=(b.stat().st_atime_ns, b.stat().st_mtime_ns + 1_000_000_000))  # touched, the same bytes
     assert not clear_if_sources_changed(package) and stale.exists()
     b.write_text(b.read_text().replace("+ 1.0", "+ 2.0"))  # a kernel's source changed
+    assert clear_if_sources_changed(package)
+    assert not stale.exists()
+    stale.write_bytes(b"x")
+    (package / "plain.py").write_text("def h():\n    from numba import njit\n    return njit\n")  # now imports it
     assert clear_if_sources_changed(package)
     assert not stale.exists()
