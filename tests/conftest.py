@@ -34,9 +34,9 @@ class _ModuleOfOptionalExtras(pytest.Module):
     """A test module whose import fails for want of an optional extra's module is skipped,
     naming the extra (only with ``$MOMA_TESTS_ALLOW_MISSING_EXTRAS``)."""
 
-    def _getobj(self):
-        try:
-            return super()._getobj()
+    def collect(self):
+        try:  # collecting a module imports it first
+            return super().collect()
         except self.CollectError as error:
             extra = missing_extra(error.__cause__)
             if extra is None:

@@ -17,7 +17,7 @@ ALLOW_MISSING_EXTRAS = "MOMA_TESTS_ALLOW_MISSING_EXTRAS"
 EXTRA_MODULES: dict[str, tuple[str, ...]] = {
     "train": ("torch", "stable_baselines3", "sb3_contrib", "tqdm", "rich"),
     "graph": ("gtsam",),
-    "torchrl": ("torchrl", "tensordict"),
+    "torchrl": ("torchrl", "tensordict", "torch"),
     "ray": ("ray", "pandas", "pyarrow"),
     "dev": ("mpe2", "vmas", "supersuit"),
     "docs": ("mkdocs", "mkdocstrings", "material"),
@@ -31,6 +31,4 @@ def missing_extra(error: BaseException | None) -> str | None:
         return None
     root = error.name.split(".")[0]
     extras = [extra for extra, modules in EXTRA_MODULES.items() if root in modules]
-    if root == "torch":
-        extras.append("torchrl")  # torch comes with either
     return " or ".join(repr(extra) for extra in extras) or None
