@@ -3,7 +3,12 @@
 import pytest
 
 from moma_env.env.parallel import MEASUREMENT, STEP_PHASES
-from training.bench_vector import CASES, ONE_COPY_ROW, format_vector_bench, run_vector_bench, target_lines, vector_memory
+import json
+
+import training.bench_vector as bench_vector
+from training.bench_vector import (
+    CASES, MEMORY_FLAT_FRACTION, ONE_COPY_ROW, format_vector_bench, memory_lines, run_vector_bench, target_lines, vector_memory,
+)
 from training.cli import main
 
 
@@ -101,3 +106,47 @@ def test_a_second_breakdown_of_the_same_batch_times_its_stages_again():
     for stages in (first, second):
         assert_stages(stages)
     envs.close()
+
+
+def test_memory_is_judged_flat_on_the_samples_after_the_start():
+    flat = {"num_envs": 4, "env_steps": 40, "rss_mb": [[0, 700.0], [10, 1000.0], [20, 1020.0], [40, 1000.0 * (1 + MEMORY_FLAT_FRACTION)]]}
+    lines = memory_lines(flat)
+    assert lines[1:5] == [
+        "  after         0 env-steps  RSS    700.0 MB",
+        "  after        10 env-steps  RSS   1000.0 MB",
+        "  after        20 env-steps  RSS   1020.0 MB",
+        "  after        40 env-steps  RSS   1050.0 MB",
+    ]
+    assert lines[-1].startswith("target: memory flat over 40 env-steps at num_envs=4: RSS 1000.0 MB after 10")
+    assert lines[-1].endswith("(+5.0%; flat: within 5%) (met)")
+    growing = {**flat, "rss_mb": [*flat["rss_mb"][:3], [40, 1051.0]]}
+    assert memory_lines(growing)[-1].endswith("(missed)")
+    assert memory_lines({**flat, "rss_mb": [*flat["rss_mb"][:3], [40, 949.0]]})[-1].endswith("(missed)")
+
+
+def test_bench_vector_prints_the_memory_run_after_the_table(monkeypatch, capsys):
+    """``moma-env bench --vector --memory-steps N``: the table's result and RSS over N env-steps
+    at the largest batch, start included; fewer steps than copies is refused before any timing."""
+    timed = []
+
+    def table(num_envs, rounds, min_env_steps, workers):
+        timed.append(list(num_envs))
+        return {"rounds": 1, "min_env_steps": 1, "num_envs": list(num_envs), "rates": {}, "ratios": {},
+                "breakdown_num_envs": 2, "breakdown_ms": {"batch step": 2.0, "localiser": 1.0}}
+
+    monkeypatch.setattr(bench_vector, "run_vector_bench", table)
+    assert main(["bench", "--vector", "--num-envs", "1", "2", "--memory-steps", "8", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert timed == [[1, 2]]
+    assert result["memory"]["num_envs"] == 2 and result["memory"]["env_steps"] == 8
+    assert [done for done, _ in result["memory"]["rss_mb"]] == [0, 2, 4, 6, 8]
+    assert main(["bench", "--vector", "--num-envs", "2", "--memory-steps", "6"]) == 0
+    text = capsys.readouterr().out
+    assert "memory, top_observer switching, num_envs=2" in text and "target: memory flat over 6 env-steps" in text
+    assert main(["bench", "--vector", "--num-envs", "2", "--memory-steps", "0"]) == 0
+    assert "memory" not in capsys.readouterr().out
+    assert main(["bench", "--vector", "--num-envs", "4", "--memory-steps", "3"]) == 2
+    assert "--memory-steps must be 0 or at least the largest --num-envs (4)" in capsys.readouterr().err
+    assert timed == [[1, 2], [2], [2]]
+    with pytest.raises(SystemExit):
+        bench_vector.main(["--num-envs", "4", "--memory-steps", "3"])

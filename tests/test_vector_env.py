@@ -86,6 +86,35 @@ def test_bad_batched_actions_name_the_agent_and_the_shape():
         velocity.step(ok | {"observer": nan})
     with pytest.raises(ValueError, match="num_envs must be an integer >= 1"):
         vector.make("top_observer", 0)
+    # a Box agent's actions: the dtype's error names the agent, the shape and the dtype
+    with pytest.raises(ValueError, match=r"actions of 'ugv_1' must be an array of shape \(2, 4\) of finite real numbers.*got dtype <U1"):
+        velocity.step(ok | {"ugv_1": np.full((2, 4), "x")})
+    with pytest.raises(ValueError, match=r"actions of 'ugv_0' must be an array of shape \(2, 4\) .*got dtype bool"):
+        velocity.step(ok | {"ugv_0": np.zeros((2, 4), dtype=bool)})
+    velocity.step(ok | {"ugv_0": np.zeros((2, 4), dtype=np.int64)})  # integers are real numbers
+
+
+@pytest.mark.parametrize("workers", [None, 2])
+def test_render_index_is_that_copys_frame(workers):
+    """``render(index)`` is copy ``index``'s own ``render()``; an index that names no copy is refused."""
+    envs = vector.make("top_observer", 3, render_mode="rgb_array", max_cycles=20, workers=workers)
+    try:
+        envs.reset(seed=4)
+        actions = envs.sample_actions(np.random.default_rng(0))
+        envs.step(actions)
+        frames = [envs.render(i) for i in range(3)]
+        np.testing.assert_array_equal(envs.render(), frames[0])
+        single = parallel_env("top_observer", render_mode="rgb_array", max_cycles=20)
+        single.reset(seed=4 + 2)
+        single.step({a: actions[a][2] for a in single.agents})
+        np.testing.assert_array_equal(frames[2], single.render())
+        assert frames[2].dtype == np.uint8 and frames[2].ndim == 3
+        assert not np.array_equal(frames[0], frames[2])  # copies 0 and 2 lay out different scenarios
+        for bad in (3, -1, 1.0, True):
+            with pytest.raises(IndexError, match=r"copy index must be an integer in \[0, 3\)"):
+                envs.render(bad)
+    finally:
+        envs.close()
 
 
 @pytest.mark.parametrize("workers", [None, 2])

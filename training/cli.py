@@ -323,7 +323,7 @@ def _add_bench(sub) -> None:
     bench = add_subcommand(sub, "bench", "steps per second of every environment against MPE2, memory over a long run (docs/benchmarks.md)")
     bench.add_argument("--steps", type=int_at_least(100, "step count"), default=5000, help="random-action env steps per row (default 5000)")
     bench.add_argument(
-        "--memory-steps", type=int_at_least(0, "step count"), default=100_000, help="env steps of the memory run (default 100000; 0 skips it)"
+        "--memory-steps", type=int_at_least(0, "step count"), default=100_000, help="env steps of the memory run (default 100000; 0 skips it); with --vector: env-steps of top_observer at the largest --num-envs"
     )
     bench.add_argument(
         "--rendered-steps", type=int_at_least(0, "step count"), default=1000,
@@ -529,9 +529,15 @@ def _run_bench(args: argparse.Namespace) -> int:
         print(json.dumps(result, indent=2) if args.json else format_cli_bench(result))
         return 0
     if args.vector:
-        from training.bench_vector import format_vector_bench, run_vector_bench
+        from training.bench_vector import format_vector_bench, memory_run, run_vector_bench
 
+        largest = max(args.num_envs)
+        if 0 < args.memory_steps < largest:
+            print(f"moma-env bench: --memory-steps must be 0 or at least the largest --num-envs ({largest})", file=sys.stderr)
+            return 2
         result = run_vector_bench(args.num_envs, args.rounds, min_env_steps=args.steps, workers=args.workers)
+        if args.memory_steps:
+            result["memory"] = memory_run(largest, args.memory_steps)
         print(json.dumps(result, indent=2) if args.json else format_vector_bench(result))
         return 0
     from training.bench import format_bench, run_bench
