@@ -25,7 +25,7 @@ the reference, so there is little to coordinate):
   often and wait out a switch window each time, long ones carry a robot out of the
   UAV's view; the same layouts and objective.
 * ``caterpillar_multi_bend4``: a file of 4 robots, each follower's camera on the
-  board of the robot ahead, that must jog 1 m sideways around a wall on random
+  board of the robot ahead, that must jog 0.5 m sideways around a wall on random
   layouts: the file bends, so a follower keeps its board in view only if the
   robots ahead do not run too far into the turn; several robots may move at once
   as long as each keeps a static neighbour in view.

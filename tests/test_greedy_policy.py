@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 from policy_guard import guarded
 
 from agents.policies import GreedyParallelPolicy, TopObserverLeapfrog
+from agents.policies.base import HOLD
 from moma_env.env.factory import parallel_env
 
 
@@ -55,3 +58,28 @@ def test_greedy_refuses_velocity_mode_and_sleds():
 def test_greedy_rejects_bad_stall_settings(value):
     with pytest.raises(ValueError, match="stall_s"):
         GreedyParallelPolicy(stall_s=value)
+
+
+@pytest.mark.parametrize("seed", [3, 8])
+def test_greedy_starts_the_static_robot_farthest_from_its_goal_that_may_start(seed):
+    """Every leg the policy starts goes to the robot that is, by the truth, the farthest from
+    its goal among the static robots not at their goal whose masks allow a start (up to the
+    estimates' error: a candidate more than 5 cm farther would be a wrong choice)."""
+    env = parallel_env("top_observer", random_scenarios=True, n_ugvs=4, action_masks=True)
+    observations, infos = env.reset(seed=seed)
+    policy = GreedyParallelPolicy()
+    policy.reset(env, seed=seed)
+    goals = env.scenario.goals
+    starts = 0
+    while env.agents:
+        actions = policy.act(observations, guarded(infos))
+        static = {a for a in env.agents if infos[a]["static"]}
+        started = [a for a in static if actions[a] != HOLD]
+        assert len(started) <= 1  # one new mover a step
+        if started:
+            starts += 1
+            distance = {a: math.dist(env.frame.truth[a][:2], goals[a][:2]) for a in static}
+            candidates = [a for a in static if infos[a]["action_mask"][actions[started[0]]] and distance[a] > env.scenario.goal_tolerance_m]
+            assert all(distance[a] <= distance[started[0]] + 0.05 for a in candidates), (distance, started)
+        observations, _, _, _, infos = env.step(actions)
+    assert starts >= 8  # four robots, several legs each
