@@ -8,12 +8,14 @@ importable. Measurements only: nothing here asserts a speed.
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
-__all__ = ["resident_mb", "time_calls", "steps_per_second", "best_of_rounds", "mpe2_reference"]
+__all__ = ["resident_mb", "in_fresh_process", "time_calls", "steps_per_second", "best_of_rounds", "mpe2_reference"]
 
 
 def resident_mb() -> float:
@@ -26,6 +28,14 @@ def resident_mb() -> float:
         import resource
 
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
+
+
+def in_fresh_process(function: Callable[..., Any], *args: Any) -> Any:
+    """``function(*args)`` in a new interpreter (spawned, so it inherits none of this one's
+    memory: a resident size measured there is its own), and its result. ``function`` must be
+    a module-level function and its arguments and result picklable."""
+    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return pool.submit(function, *args).result()
 
 
 def time_calls(owner: object, method: str, totals: dict[str, float], key: str) -> None:

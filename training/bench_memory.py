@@ -35,11 +35,11 @@ from __future__ import annotations
 import argparse
 import gc
 import json
-import multiprocessing
 import os
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+
+from training.bench_common import in_fresh_process
 
 __all__ = ["TARGETS", "reset_memory", "format_reset_memory"]
 
@@ -173,12 +173,6 @@ def format_reset_memory(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def _in_fresh_process(target: str, resets: int, steps: int, every: int) -> dict:
-    """:func:`reset_memory` in a new interpreter (spawned, so it inherits none of this one's memory)."""
-    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
-        return pool.submit(reset_memory, target, resets, steps, every).result()
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Resident memory over many resets of short episodes.")
     parser.add_argument("--resets", type=int, default=20_000, help="episodes per target (default 20000)")
@@ -193,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--steps must be >= 0")
     if args.every < 1:
         parser.error("--every must be >= 1")
-    rows = [_in_fresh_process(target, args.resets, args.steps, args.every) for target in args.targets]
+    rows = [in_fresh_process(reset_memory, target, args.resets, args.steps, args.every) for target in args.targets]
     print(json.dumps(rows, indent=2) if args.json else format_reset_memory(rows))
     return 0
 

@@ -25,8 +25,8 @@ and each target of :data:`TARGET_BATCH`, :data:`TARGET_ONE_COPY` and :data:`TARG
 met or missed (:func:`target_lines`). An
 env-step is one step of one copy. ``--memory-steps N`` then prints the resident
 memory over ``N`` env-steps of ``top_observer`` at the largest ``num_envs``, after a
-warm-up episode (start, three points between, end), and whether it stayed flat
-(:func:`memory_lines`). A measurement, not an assertion.
+warm-up episode (start, three points between, end), in a fresh process, and whether
+it stayed flat (:func:`memory_lines`). A measurement, not an assertion.
 """
 
 from __future__ import annotations
@@ -247,9 +247,12 @@ def vector_memory(num_envs: int, env_steps: int, samples: int = 3, seed: int = 0
 
 
 def memory_run(num_envs: int, env_steps: int, samples: int = 5, seed: int = 0) -> dict:
-    """:func:`vector_memory` as the benchmark's result records it: ``{"num_envs", "env_steps",
-    "rss_mb": [[env-steps done, RSS (MB)], ...]}``."""
-    rss = vector_memory(num_envs, env_steps, samples=samples, seed=seed)
+    """:func:`vector_memory` in a fresh process (so that its RSS is the batch's alone, not
+    what the table's runs left in this process's heap), as the benchmark's result records
+    it: ``{"num_envs", "env_steps", "rss_mb": [[env-steps done, RSS (MB)], ...]}``."""
+    from training.bench_common import in_fresh_process
+
+    rss = in_fresh_process(vector_memory, num_envs, env_steps, samples, seed)
     return {"num_envs": num_envs, "env_steps": env_steps, "rss_mb": [[done, mb] for done, mb in rss]}
 
 
