@@ -45,6 +45,8 @@ def test_training_writes_one_curve_row_per_evaluation_and_the_figure(two_runs):
     rows = _csv(run / curves.CURVES_CSV)
     assert list(rows[0]) == list(curves.CURVE_COLUMNS)
     assert [int(r["timesteps"]) for r in rows] == [r["num_timesteps"] for r in records] == [64, 128]
+    # top_observer's two UGVs are two slots of one copy on the shared route: half as many env steps
+    assert [int(r["env_steps"]) for r in rows] == [r["env_steps"] for r in records] == [32, 64]
     for row, record in zip(rows, records):
         assert float(row["wall_time_s"]) == pytest.approx(record["wall_time_s"])
         assert float(row["success_rate"]) == record["success_rate"]
@@ -66,7 +68,7 @@ def test_redraw_one_run_and_overlay_two(two_runs, tmp_path, capsys):
     assert curves.main([str(two_runs[0]), str(two_runs[1]), "--out", str(out)]) == 0
     assert out.read_bytes().startswith(PNG_SIGNATURE)
     band = _csv(tmp_path / "seeds.csv")
-    assert [int(r["timesteps"]) for r in band] == [64, 128] and {r["runs"] for r in band} == {"2"}
+    assert [int(r["env_steps"]) for r in band] == [32, 64] and {r["runs"] for r in band} == {"2"}  # 64 and 128 timesteps
     rates = [[float(r["success_rate"]) for r in _csv(folder / curves.CURVES_CSV)] for folder in two_runs]
     for k, row in enumerate(band):
         pair = [rates[0][k], rates[1][k]]
@@ -110,3 +112,23 @@ def test_runs_on_other_held_out_episodes_are_not_averaged(two_runs, tmp_path, ca
     (other / "evaluations.json").write_text(json.dumps(missing))
     assert curves.main([str(other)]) == 2
     assert "evaluation record 0 lacks 'success_rate'" in capsys.readouterr().err
+
+
+def test_the_curves_are_drawn_against_env_steps_or_timesteps_for_older_records(tmp_path):
+    """Records with env steps are plotted against them; a run's records from before env steps
+    were recorded fall back to timesteps, with the CSV's column empty (NaN)."""
+    record = {"num_timesteps": 64, "wall_time_s": 1.0, "success_rate": 0.5, "time_to_goal_s": 20.0, "e_f_m": 0.01,
+              "me_m": 0.01, "n_switches": 3.0, "n_refused": 0.0, "total_reward": -1.0}
+    new = [record | {"env_steps": 32}, record | {"num_timesteps": 128, "env_steps": 64}]
+    old = [{k: v for k, v in r.items() if k != "env_steps"} for r in new]
+    assert curves.x_column([("new", curves.curve_rows(new))]) == "env_steps"
+    assert curves.x_column([("old", curves.curve_rows(old))]) == "timesteps"
+    assert curves.x_column([("new", curves.curve_rows(new)), ("old", curves.curve_rows(old))]) == "timesteps"
+    for name, records in (("new", new), ("old", old)):
+        (tmp_path / name).mkdir()
+        paths = curves.write_curves(tmp_path / name, records)
+        rows = _csv(paths["csv"])
+        assert [r["env_steps"] for r in rows] == (["32", "64"] if name == "new" else ["nan", "nan"])
+    bad = [{k: v for k, v in record.items() if k != "me_m"}]
+    with pytest.raises(curves.CurvesError, match="lacks 'me_m'"):
+        curves.curve_rows(bad)

@@ -81,8 +81,9 @@ def start_run(out: Path, resume: bool, config: Any, read_manifest: Callable[[Pat
 def record_evaluation(out: Path, config: Any, records: list[dict[str, Any]], steps: int, wall_time_s: float,
                       numbers: Mapping[str, Any], seconds: float, title: str) -> None:
     """Append one held-out evaluation (its headline ``numbers``, taking ``seconds``) at ``steps``
-    to ``records`` and rewrite ``evaluations.json`` and the curves (titled ``title``)."""
-    records.append({"num_timesteps": steps, "wall_time_s": wall_time_s, **numbers, "eval_seconds": seconds,
+    (env steps: what the TorchRL and RLlib backends count) to ``records`` and rewrite
+    ``evaluations.json`` and the curves (titled ``title``)."""
+    records.append({"num_timesteps": steps, "env_steps": steps, "wall_time_s": wall_time_s, **numbers, "eval_seconds": seconds,
                     "sample_actions": config.eval_sample_actions})
     write_evaluations(out, config, records)
     write_curves(out, records, title)

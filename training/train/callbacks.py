@@ -22,7 +22,7 @@ from training.train.config import ROLLOUT_UPDATES, TrainConfig, eval_jobs, updat
 from training.train.curves import EVALUATIONS, write_curves
 from training.train.evaluation import evaluate_model, headline
 
-__all__ = ["CheckpointCallback", "EvaluationCallback", "EVALUATIONS", "UpdateThreadsCallback", "update_threads_callback"]
+__all__ = ["CheckpointCallback", "EvaluationCallback", "EVALUATIONS", "UpdateThreadsCallback", "update_threads_callback", "slots_per_copy"]
 
 
 class UpdateThreadsCallback(BaseCallback):
@@ -150,7 +150,9 @@ class EvaluationCallback(BaseCallback):
         if self._jobs > 1 and self._pool is None:
             self._pool = worker_pool(self._jobs)
         result = evaluate_model(self.model, self.config, jobs=self._jobs, executor=self._pool)
-        record = {"num_timesteps": int(self.model.num_timesteps), "wall_time_s": self._wall_time(), **headline(result.summary),
+        timesteps = int(self.model.num_timesteps)
+        record = {"num_timesteps": timesteps, "env_steps": timesteps // slots_per_copy(self.model.get_env()),
+                  "wall_time_s": self._wall_time(), **headline(result.summary),
                   "eval_seconds": time.perf_counter() - start, "sample_actions": self.config.eval_sample_actions}
         self.records.append(record)
         for key in ("success_rate", "time_to_goal_s", "n_switches", "me_m", "e_f_m"):
@@ -161,6 +163,12 @@ class EvaluationCallback(BaseCallback):
 
     def _on_step(self) -> bool:
         return True
+
+
+def slots_per_copy(venv: Any) -> int:
+    """SB3 timesteps per env step of the training env ``venv`` (under its wrappers): the UGV
+    slots of one copy on the shared route, 1 on the centralised one (the adapters' ``per_copy``)."""
+    return int(venv.unwrapped.per_copy)
 
 
 def write_evaluations(out: Path, config: TrainConfig, records: list[dict]) -> None:
