@@ -78,3 +78,30 @@ def test_the_table_shows_the_minibatch_size_of_rows_that_give_one():
     lines = format_training([row | {"batch_size": 2048}, row | {"batch_size": 256}])
     assert "batch" in lines[1] and len(lines[2]) == len(plain[2]) + 7
     assert lines[3].split()[5] == "2048" and lines[4].split()[5] == "256"
+
+
+def test_the_throughput_target_is_judged_per_setting_on_its_best_round():
+    from training.train.bench import TARGET_ENV_STEPS_PER_S, target_lines
+
+    rows = [{"setting": "default", "env_steps_per_s": 900.0}, {"setting": "fastest", "env_steps_per_s": 2400.0},
+            {"setting": "default", "env_steps_per_s": 1100.0}, {"setting": "fastest", "env_steps_per_s": TARGET_ENV_STEPS_PER_S}]
+    default, fastest = target_lines(rows)
+    assert default == ("target >= 10000 env steps/s, learner included, default settings: best 1100, median 1000 over 2 rounds: "
+                       "11% of it (missed)")
+    assert fastest.startswith("target >= 10000 env steps/s, learner included, fastest settings: best 10000")
+    assert fastest.endswith("100% of it (met)")
+
+
+def test_the_throughput_target_times_the_default_and_the_fastest_settings(monkeypatch):
+    from training.train import bench
+    from training.train.config import TrainConfig
+
+    calls = []
+    monkeypatch.setattr(bench, "training_fps", lambda steps, **kw: calls.append((steps, kw)) or {"env_steps_per_s": 1.0})
+    rows = bench.throughput_target(4096, 2)
+    assert [(r["round"], r["setting"]) for r in rows] == [(0, "default"), (0, "fastest"), (1, "default"), (1, "fastest")]
+    default, fastest = calls[0][1], calls[1][1]
+    assert default == {"envs": TrainConfig(scenario="top_observer_team4").envs, "scenario": "top_observer_team4"}
+    assert fastest == {"envs": 32, "scenario": "top_observer_team4", "algo": "maskable_ppo", "workers": 2, "n_steps": 64}
+    with pytest.raises(SystemExit):
+        bench.main(["--target", "--batch-sizes", "64,128"])

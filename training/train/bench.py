@@ -13,7 +13,9 @@ when the ``torchrl`` extra is installed, with TorchRL's MAPPO on 8 copies of the
 (``torchrl_training_fps``: the run's collecting and learning time, from its manifest; its
 timesteps are agent steps, as on the shared route). ``python -m training.train.bench``
 times those two on the four-UGV task in interleaved rounds and prints their ratio
-(:func:`compare_backends`).
+(:func:`compare_backends`); with ``--target`` it times ``moma-env train`` on the four-UGV
+task with its defaults and with the fastest settings measured (:data:`FASTEST_TEAM4`),
+interleaved, and judges each against :data:`TARGET_ENV_STEPS_PER_S` (:func:`throughput_target`).
 
 Each row also says where the time went: ``env_s`` (the SB3 rows: the vectorised env's
 ``step_wait``, the copies stepping), ``collect_s`` (gathering the rollout: the env, the
@@ -36,7 +38,27 @@ from training.train.config import TrainConfig
 from training.train.envs import make_vec_env, wrap_normalisation
 from training.train.models import build_model, training_logger
 
-__all__ = ["training_fps", "torchrl_training_fps", "bench_training", "compare_backends", "compare_batch_sizes", "main"]
+__all__ = [
+    "training_fps",
+    "torchrl_training_fps",
+    "bench_training",
+    "compare_backends",
+    "compare_batch_sizes",
+    "TARGET_ENV_STEPS_PER_S",
+    "FASTEST_TEAM4",
+    "throughput_target",
+    "target_lines",
+    "main",
+]
+
+#: What training is built towards: env steps per second, learner included, on this
+#: machine's 2 cores, for the four-UGV task (docs/training.md, "Where a training run's time goes").
+TARGET_ENV_STEPS_PER_S = 10_000
+
+#: The fastest ``moma-env train`` settings measured on ``top_observer_team4``: MaskablePPO,
+#: 32 copies split over 2 worker processes, rollouts of 64 steps per slot
+#: (``--algo maskable_ppo --num-envs 32 --workers 2 --n-steps 64``).
+FASTEST_TEAM4 = {"algo": "maskable_ppo", "envs": 32, "workers": 2, "n_steps": 64}
 
 
 def training_fps(
@@ -192,11 +214,41 @@ def compare_batch_sizes(
     return rows
 
 
+def throughput_target(steps: int, rounds: int, scenario: str = "top_observer_team4") -> list[dict]:
+    """Interleaved rounds of ``moma-env train --scenario SCENARIO`` with its defaults
+    (``setting`` "default": PPO, 2 copies in this process) and with :data:`FASTEST_TEAM4`
+    (``setting`` "fastest"), at least ``steps`` SB3 timesteps each: one row per round and setting."""
+    rows = []
+    for k in range(rounds):
+        rows.append(training_fps(steps, envs=TrainConfig(scenario=scenario).envs, scenario=scenario) | {"round": k, "setting": "default"})
+        fastest = dict(FASTEST_TEAM4)
+        rows.append(training_fps(steps, envs=fastest.pop("envs"), scenario=scenario, **fastest) | {"round": k, "setting": "fastest"})
+    return rows
+
+
+def target_lines(rows: list[dict]) -> list[str]:
+    """Each setting of :func:`throughput_target`'s ``rows``: its best and median env steps per
+    second over the rounds, against :data:`TARGET_ENV_STEPS_PER_S`, met or missed on the best."""
+    import statistics
+
+    lines = []
+    for setting in dict.fromkeys(r["setting"] for r in rows):
+        rates = [r["env_steps_per_s"] for r in rows if r["setting"] == setting]
+        best = max(rates)
+        lines.append(
+            f"target >= {TARGET_ENV_STEPS_PER_S} env steps/s, learner included, {setting} settings: best {best:.0f}, "
+            f"median {statistics.median(rates):.0f} over {len(rates)} rounds: {best / TARGET_ENV_STEPS_PER_S:.0%} of it "
+            f"({'met' if best >= TARGET_ENV_STEPS_PER_S else 'missed'})"
+        )
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m training.train.bench [--steps N] [--rounds R]``: SB3 MaskablePPO against TorchRL
     MAPPO on the four-UGV task, interleaved; prints each round and the best and median ratio.
     With ``--batch-sizes A,B,...``: SB3 MaskablePPO with each minibatch size instead, interleaved,
-    and each size's best and median ratio to the first."""
+    and each size's best and median ratio to the first. With ``--target``: the four-UGV task's
+    default and fastest training settings instead, interleaved, each against the throughput target."""
     import argparse
     import statistics
 
@@ -212,7 +264,19 @@ def main(argv: list[str] | None = None) -> int:
                         help="comma-separated minibatch sizes: time SB3 MaskablePPO with each instead of the two backends (default: not)")
     parser.add_argument("--n-steps", type=int_at_least(1, "rollout length"), default=None,
                         help="with --batch-sizes: rollout length per slot (default: moma-env train's)")
+    parser.add_argument("--target", action="store_true",
+                        help="time moma-env train on top_observer_team4 with its defaults and its fastest settings "
+                             f"instead, each judged against {TARGET_ENV_STEPS_PER_S} env steps/s")
     args = parser.parse_args(argv)
+    if args.target and args.batch_sizes is not None:
+        parser.error("--target and --batch-sizes time different things: give one")
+    if args.target:
+        rows = throughput_target(args.steps, args.rounds)
+        for line in format_training(rows):
+            print(line)
+        for line in target_lines(rows):
+            print(line)
+        return 0
     if args.workers is not None and args.workers > args.num_envs:
         parser.error(f"--workers must be at most --num-envs ({args.num_envs})")
     if args.batch_sizes is not None:
