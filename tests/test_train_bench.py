@@ -101,7 +101,8 @@ def test_the_throughput_target_times_the_default_and_the_fastest_settings(monkey
     rows = bench.throughput_target(4096, 2)
     assert [(r["round"], r["setting"]) for r in rows] == [(0, "default"), (0, "fastest"), (1, "default"), (1, "fastest")]
     default, fastest = calls[0][1], calls[1][1]
-    assert default == {"envs": TrainConfig(scenario="top_observer_team4").envs, "scenario": "top_observer_team4"}
+    defaults = TrainConfig(scenario="top_observer_team4")
+    assert default == {"envs": defaults.envs, "scenario": "top_observer_team4", "algo": defaults.algo}
     assert fastest == {"envs": 32, "scenario": "top_observer_team4", "algo": "maskable_ppo", "workers": 2, "n_steps": 64}
     with pytest.raises(SystemExit):
         bench.main(["--target", "--batch-sizes", "64,128"])

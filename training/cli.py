@@ -323,7 +323,8 @@ def _add_bench(sub) -> None:
     bench = add_subcommand(sub, "bench", "steps per second of every environment against MPE2, memory over a long run (docs/benchmarks.md)")
     bench.add_argument("--steps", type=int_at_least(100, "step count"), default=5000, help="random-action env steps per row (default 5000)")
     bench.add_argument(
-        "--memory-steps", type=int_at_least(0, "step count"), default=100_000, help="env steps of the memory run (default 100000; 0 skips it); with --vector: env-steps of top_observer at the largest --num-envs"
+        "--memory-steps", type=int_at_least(0, "step count"), default=100_000,
+        help="env steps of the memory run (default 100000; 0 skips it); with --vector: env-steps of top_observer at the largest --num-envs",
     )
     bench.add_argument(
         "--rendered-steps", type=int_at_least(0, "step count"), default=1000,

@@ -218,9 +218,10 @@ def throughput_target(steps: int, rounds: int, scenario: str = "top_observer_tea
     """Interleaved rounds of ``moma-env train --scenario SCENARIO`` with its defaults
     (``setting`` "default": PPO, 2 copies in this process) and with :data:`FASTEST_TEAM4`
     (``setting`` "fastest"), at least ``steps`` SB3 timesteps each: one row per round and setting."""
+    default = TrainConfig(scenario=scenario)
     rows = []
     for k in range(rounds):
-        rows.append(training_fps(steps, envs=TrainConfig(scenario=scenario).envs, scenario=scenario) | {"round": k, "setting": "default"})
+        rows.append(training_fps(steps, envs=default.envs, scenario=scenario, algo=default.algo) | {"round": k, "setting": "default"})
         fastest = dict(FASTEST_TEAM4)
         rows.append(training_fps(steps, envs=fastest.pop("envs"), scenario=scenario, **fastest) | {"round": k, "setting": "fastest"})
     return rows
