@@ -20,15 +20,28 @@ def batch_actions(envs, steps, seed):
 @pytest.mark.parametrize("num_envs", [1, 7, 64])
 @pytest.mark.parametrize("name,mode", CASES)
 def test_copy_i_is_the_single_env_seeded_s_plus_i(name, mode, num_envs):
-    steps = 30 if num_envs == 64 else 70
-    envs = vector.make(name, num_envs, action_mode=mode, max_cycles=25)
+    assert_copies_are_single_envs(name, {"action_mode": mode}, num_envs, steps=30 if num_envs == 64 else 70)
+
+
+@pytest.mark.parametrize("task", ["top_observer_team4", "caterpillar_multi_bend4", "top_observer_team4_legs"])
+def test_a_tasks_copies_are_its_single_envs(task):
+    """The coordination tasks (random layouts, masks, committed legs, their rewards) batch as
+    the configurations do."""
+    assert_copies_are_single_envs(task, {}, 7, steps=40)
+
+
+def assert_copies_are_single_envs(name, options, num_envs, steps):
+    """Copies 0, the middle one and the last of a batch seeded 11 are the single env seeded 11 + i,
+    bit for bit, over ``steps`` steps of random actions (with the autoresets of 25-step episodes)."""
+    mode = options.get("action_mode")
+    envs = vector.make(name, num_envs, max_cycles=25, **options)
     observations, infos = envs.reset(seed=11)
     plan = batch_actions(envs, steps, seed=num_envs)
     record = [(observations, infos)]
     for joint in plan:
         record.append(envs.step(joint))
     for i in sorted({0, num_envs // 2, num_envs - 1}):
-        single = parallel_env(name, action_mode=mode, max_cycles=25)
+        single = parallel_env(name, max_cycles=25, **options)
         obs, info = single.reset(seed=11 + i)
         assert text({a: o[i] for a, o in record[0][0].items()}) == text(obs)
         assert text(record[0][1][i]) == text(info)
@@ -40,7 +53,7 @@ def test_copy_i_is_the_single_env_seeded_s_plus_i(name, mode, num_envs):
                 assert text(b_info[i]["final_observation"]) == text(obs)
                 assert b_info[i]["final_state"].tobytes() == single.state().tobytes()
                 assert b_info[i]["final_time"] == single.frame.time
-                if mode == "switching":
+                if mode != "velocity":
                     assert text(b_info[i]["final_action_masks"]) == text(single.action_masks())
                 assert text({a: v for a, v in b_info[i]["final_info"].items()}) == text(info)
                 obs, info = single.reset()
