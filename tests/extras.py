@@ -10,6 +10,8 @@ for want of one of these modules, naming the extra.
 
 from __future__ import annotations
 
+import importlib.util
+
 #: Environment variable that lets test modules be skipped for a missing extra (``make test-base``).
 ALLOW_MISSING_EXTRAS = "MOMA_TESTS_ALLOW_MISSING_EXTRAS"
 
@@ -32,3 +34,8 @@ def missing_extra(error: BaseException | None) -> str | None:
     root = error.name.split(".")[0]
     extras = [extra for extra, modules in EXTRA_MODULES.items() if root in modules]
     return " or ".join(repr(extra) for extra in extras) or None
+
+
+def installed(extra: str) -> bool:
+    """Whether every module of ``extra`` (:data:`EXTRA_MODULES`) can be imported here."""
+    return all(importlib.util.find_spec(module) is not None for module in EXTRA_MODULES[extra])

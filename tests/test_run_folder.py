@@ -8,7 +8,6 @@ kind of run, or files that are not a run, is refused with one line.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import subprocess
@@ -17,11 +16,12 @@ from pathlib import Path
 
 import pytest
 
+from extras import installed
 from moma_env.io import RUN_MARKER, RunFolderError, claim_run_folder, run_folder, run_kind, write_json
 from training.cli import main
 
 #: Whether Stable-Baselines3 (the train extra) is installed: not in make test-base.
-HAS_TRAIN_EXTRA = importlib.util.find_spec("stable_baselines3") is not None
+HAS_TRAIN_EXTRA = installed("train")
 
 
 def _files(folder: Path) -> dict[str, bytes]:

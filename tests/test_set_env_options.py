@@ -3,11 +3,11 @@ fields such as ``tracking``) besides the configuration's fields, checked at the 
 
 from __future__ import annotations
 
-import importlib.util
 import json
 
 import pytest
 
+from extras import installed
 from moma_env.config import ConfigError
 from moma_env.env.factory import SETTABLE_ENV_OPTIONS, checked_overrides, env_config, parallel_env
 from training.cli import main
@@ -56,7 +56,7 @@ def test_evaluate_cli_refuses_a_bad_env_option_and_one_the_policy_fixes(tmp_path
     assert "tracking.fill" in capsys.readouterr().err
     assert main([*args, "--policy", "top_observer_team4_mppo", "--set", "observer_agent=true", "--out", str(tmp_path / "fixed")]) == 2
     refusal = capsys.readouterr().err
-    if importlib.util.find_spec("stable_baselines3") is None:  # make test-base: the policy cannot be loaded, and says why
+    if not installed("train"):  # make test-base: the policy cannot be loaded, and says why
         assert "needs stable-baselines3 (the 'train' extra)" in refusal
     else:
         assert "overrides.observer_agent: the policy 'top_observer_team4_mppo' was trained with observer_agent=False" in refusal
